@@ -1,0 +1,185 @@
+"""Spatial hash of the rocks, rebuilt every step, and the cells a tire ray crosses.
+
+Cell of a point:  (i, j, k) = (floor(x / l), floor(y / l), floor(z / l)).
+Slot of a cell:   hash = (i*p1 xor j*p2 xor k*p3) mod n,  p1, p2, p3 = 73856093, 19349663, 83492791
+                  (Teschner et al. 2003). The products wrap around in 32-bit unsigned arithmetic (a negative
+                  index is its two's complement) and the modulo is unsigned, so every slot is in [0, n) for
+                  negative cells and for cells far from the origin alike.
+Build:            count per slot -> inclusive prefix sum -> scatter with a decrementing cursor, so
+                  ``cell_start[s] .. cell_start[s+1]`` lists the rocks of slot s. The table holds every
+                  (rock, cell) pair: nothing can overflow. Two insert modes:
+                  "aabb"   - every cell the rock's AABB [c - r, c + r] touches (the original design);
+                  "center" - only the cell of the rock's centre; queries then visit the cells within
+                             D = floor(r_max / l) + 1 of each cell a ray crosses. Both find the same hits.
+Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the number of steps per axis is
+                  fixed by the end cell (no rounding can run past it), and near-ties between axes visit
+                  both neighbours (supercover), so a segment grazing an edge or corner misses no cell.
+"""
+
+
+import taichi as ti
+
+from .world import IPar, P1, P2, P3, Par
+
+
+@ti.func
+def cell_of(p, cell):
+    """Integer cell of a point (a 3-vector), cell edge `cell`."""
+    return ti.cast(ti.floor(p / cell), ti.i32)
+
+
+@ti.func
+def hash_cell(c, n):
+    """Teschner hash of an integer cell, in [0, n): 32-bit wrap-around products, unsigned modulo."""
+    h = (ti.cast(c[0], ti.u32) * ti.u32(P1)) ^ (ti.cast(c[1], ti.u32) * ti.u32(P2)) ^ (
+        ti.cast(c[2], ti.u32) * ti.u32(P3))
+    return ti.cast(h % ti.cast(n, ti.u32), ti.i32)
+
+
+@ti.func
+def aabb_cells(p, r, cell):
+    """First and last cell of the AABB of a sphere."""
+    return cell_of(p - r, cell), cell_of(p + r, cell)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Build: count (fused into the rock pass by the simulation), scan, scatter.
+
+@ti.func
+def count_rock(w: ti.template(), i, center: ti.template()):
+    """Add rock i to the per-slot counts (cell_start doubles as the count array)."""
+    cell = w.par[Par.CELL]
+    n = w.ipar[IPar.TABLE]
+    p = w.pos[i]
+    if ti.static(center):
+        s = hash_cell(cell_of(p, cell), n)
+        w.slot[i] = s
+        ti.atomic_add(w.cell_start[s], 1)
+    else:
+        lo, hi = aabb_cells(p, w.radius[i], cell)
+        for a in range(lo[0], hi[0] + 1):
+            for b in range(lo[1], hi[1] + 1):
+                for c in range(lo[2], hi[2] + 1):
+                    ti.atomic_add(w.cell_start[hash_cell(ti.Vector([a, b, c]), n)], 1)
+
+
+@ti.kernel
+def clear_counts(w: ti.template()):
+    for s in w.cell_start:
+        w.cell_start[s] = 0
+
+
+@ti.kernel
+def count_all(w: ti.template(), center: ti.template()):
+    """Count pass alone (the simulation fuses it into the rock pass; kept for tests and profiling)."""
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        count_rock(w, i, center)
+
+
+@ti.kernel
+def inclusive_scan(w: ti.template()) -> ti.i32:
+    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total. Returns the total.
+
+    ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
+    about a nanosecond per slot there.
+    """
+    n = w.ipar[IPar.TABLE]
+    ti.loop_config(serialize=True)
+    for s in range(1, n):
+        w.cell_start[s] += w.cell_start[s - 1]
+    w.cell_start[n] = w.cell_start[n - 1]
+    return w.cell_start[n]
+
+
+@ti.kernel
+def scatter(w: ti.template(), center: ti.template()):
+    """Place each rock in its slots. atomic_sub on the inclusive ends leaves cell_start[s] = start of s."""
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        if ti.static(center):
+            e = ti.atomic_sub(w.cell_start[w.slot[i]], 1) - 1
+            w.entries[e] = i
+        else:
+            cell = w.par[Par.CELL]
+            n = w.ipar[IPar.TABLE]
+            lo, hi = aabb_cells(w.pos[i], w.radius[i], cell)
+            for a in range(lo[0], hi[0] + 1):
+                for b in range(lo[1], hi[1] + 1):
+                    for c in range(lo[2], hi[2] + 1):
+                        e = ti.atomic_sub(w.cell_start[hash_cell(ti.Vector([a, b, c]), n)], 1) - 1
+                        w.entries[e] = i
+
+
+# ---------------------------------------------------------------------------------------------------
+# Ray cells: 3D DDA with a fixed step budget and tie-aware supercover.
+
+@ti.func
+def _emit(w: ti.template(), ray, c):
+    k = w.ray_cell_count[ray]
+    if k < w.ray_capacity:
+        w.ray_cells[ray, k] = c
+        w.ray_cell_count[ray] = k + 1
+
+
+@ti.func
+def segment_cells(w: ti.template(), ray, a, b):
+    """Write every cell the segment a-b crosses into w.ray_cells[ray, :], in order from a to b."""
+    cell = w.par[Par.CELL]
+    eps = w.par[Par.TIE_EPS]
+    c = cell_of(a, cell)
+    c_end = cell_of(b, cell)
+    d = b - a
+    step = ti.Vector([0, 0, 0])
+    left = ti.Vector([0, 0, 0])  # steps still to take per axis
+    t_max = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    t_delta = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    big = ti.cast(3.0e38, w.real)
+    for ax in ti.static(range(3)):
+        left[ax] = ti.abs(c_end[ax] - c[ax])
+        if c_end[ax] > c[ax]:
+            step[ax] = 1
+        elif c_end[ax] < c[ax]:
+            step[ax] = -1
+        if step[ax] != 0 and d[ax] != 0:
+            boundary = ti.cast(c[ax] + (1 if step[ax] > 0 else 0), w.real) * cell
+            t_max[ax] = (boundary - a[ax]) / d[ax]
+            t_delta[ax] = cell / ti.abs(d[ax])
+        else:
+            t_max[ax] = big
+            t_delta[ax] = big
+    w.ray_cell_count[ray] = 0
+    _emit(w, ray, c)
+    budget = left[0] + left[1] + left[2]
+    while budget > 0:
+        t_min = big
+        for ax in ti.static(range(3)):
+            if left[ax] > 0 and t_max[ax] < t_min:
+                t_min = t_max[ax]
+        move = ti.Vector([0, 0, 0])
+        for ax in ti.static(range(3)):
+            if left[ax] > 0 and t_max[ax] <= t_min + eps:
+                move[ax] = step[ax]
+        n_move = ti.abs(move[0]) + ti.abs(move[1]) + ti.abs(move[2])
+        if n_move > 1:  # the segment passes (nearly) through an edge or a corner: visit the side cells
+            for ax in ti.static(range(3)):
+                if move[ax] != 0:
+                    side = c
+                    side[ax] += move[ax]
+                    _emit(w, ray, side)
+            if n_move == 3:
+                for ax in ti.static(range(3)):
+                    side = c + move
+                    side[ax] -= move[ax]
+                    _emit(w, ray, side)
+        c += move
+        _emit(w, ray, c)
+        for ax in ti.static(range(3)):
+            if move[ax] != 0:
+                t_max[ax] += t_delta[ax]
+                left[ax] -= 1
+        budget -= n_move
+
+
+def ray_capacity(length: float, cell: float) -> int:
+    """Upper bound of the cells segment_cells emits for a segment of this length."""
+    per_axis = int(length / cell) + 2
+    return 1 + 3 * per_axis * 3 + 8

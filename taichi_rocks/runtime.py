@@ -1,0 +1,54 @@
+"""Taichi start-up, once per process: architecture choice with a CPU fallback.
+
+Taichi can be initialised only once per process in practice (a second ``ti.init`` drops every field and
+compiled kernel), so every entry point calls :func:`init_taichi`, which is idempotent.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import taichi as ti
+
+ARCHES = ("cpu", "gpu", "cuda", "vulkan")
+
+_state: dict = {"arch": None}
+
+
+def init_taichi(arch: str = "cpu", *, warn=None) -> str:
+    """Initialise Taichi once; return the arch actually used ("cpu", "cuda" or "vulkan").
+
+    ``gpu``/``cuda``/``vulkan`` fall back to the CPU with one warning line when unavailable.
+    Calling again with another arch keeps the first one (and says so once).
+    """
+    if arch not in ARCHES:
+        raise ValueError(f"arch must be one of {', '.join(ARCHES)}, got {arch!r}")
+    warn = warn or (lambda msg: print(f"taichi-rocks: warning: {msg}", file=sys.stderr))
+    if _state["arch"] is not None:
+        return _state["arch"]
+    threads = os.environ.get("TAICHI_ROCKS_THREADS")
+    # fast_math off: x / l must round exactly like NumPy for cells on boundaries to agree everywhere
+    opts = dict(log_level=ti.ERROR, random_seed=0, fast_math=False)
+    if threads:
+        opts["cpu_max_num_threads"] = int(threads)
+    if arch == "cpu":
+        ti.init(arch=ti.cpu, **opts)
+    else:
+        # "gpu" means CUDA: on a machine without one, Taichi's generic ti.gpu would pick a software
+        # Vulkan device (Mesa lavapipe), which computes slower than the CPU backend.
+        wanted = {"gpu": ti.cuda, "cuda": ti.cuda, "vulkan": ti.vulkan}[arch]
+        ti.init(arch=wanted, **opts)
+        if ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64):
+            warn(f"no {arch} device found, running on the CPU")
+    used = ti.lang.impl.current_cfg().arch
+    _state["arch"] = "cpu" if used in (ti.x64, ti.arm64) else str(used).split(".")[-1]
+    return _state["arch"]
+
+
+def current_arch():
+    return _state["arch"]
+
+
+def on_cpu() -> bool:
+    return _state["arch"] == "cpu"

@@ -1,0 +1,363 @@
+"""The simulation: which passes run (from the scene's [effects]), the step and the clock.
+
+One step of length dt:
+  1. vehicles: poses at t + dt on the host; the bed centre follows ``bed.follow``; tire rays uploaded;
+  2. rock pass (one fused kernel over the rocks): flight -> recycle -> count for the hash;
+  3. hash build: prefix sum over the table, scatter (and every ``reorder_every`` steps the rocks are
+     re-sorted in memory by slot, which keeps the next steps' scattered writes local);
+  4. tire pass: ray cells, candidate rocks, segment-sphere test, launch.
+Passes nobody asked for are neither compiled nor called, and their fields are not allocated: no splashing
+tire -> no hash table, no tire pass and no flight (only launched rocks ever leave the ground).
+Coordinates: kernels work in a local frame, world = origin + local; with ``origin = "floating"`` the
+origin jumps (by multiples of 64 m) to stay near the bed, so f32 keeps sub-millimetre precision anywhere.
+"""
+
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import taichi as ti
+
+from . import hashgrid, tires
+from .bed import recycle_to_leading_edge
+from .flight import fly
+from .runtime import init_taichi
+from .scene import load_scene, scene_with
+from .vehicles import Fleet
+from .world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
+
+ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
+ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What runs, decided once from the scene."""
+
+    splash: bool  # hash build + tire pass
+    flight: bool
+    recycle: bool
+    center: bool  # centre insert (else AABB)
+    swept: bool
+    reorder_every: int
+    integrator: str
+    gravity: bool
+    drag: str
+    ground: str
+
+    def passes(self) -> list[str]:
+        out = []
+        if self.flight:
+            out.append("flight")
+        if self.recycle:
+            out.append("recycle")
+        if self.splash:
+            out += ["hash build", "tire pass"]
+        return out
+
+
+def resolve_cell_size(scene) -> float:
+    r_min, r_max = scene.bed.rock_radius
+    cs = scene.sim.hash.cell_size
+    if cs == "auto":
+        return 2.0 * r_max if scene.sim.hash.insert == "center" else r_min
+    if cs == "min_radius":
+        return r_min
+    if cs == "max_diameter":
+        return 2.0 * r_max
+    return float(cs)
+
+
+@ti.kernel
+def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, my: ti.f64, lx: ti.f64,
+              ly: ti.f64, step: ti.i32, flight: ti.template(), recycle: ti.template(), count: ti.template(),
+              center: ti.template(), integrator: ti.template(), gravity: ti.template(), drag: ti.template(),
+              ground: ti.template()):
+    """Pass 1 fused: flight, recycling, counting for the hash — one read of each rock per step."""
+    h = ti.cast(dt, w.real)
+    centre = ti.Vector([ti.cast(cx, w.real), ti.cast(cy, w.real)])
+    move = ti.Vector([ti.cast(mx, w.real), ti.cast(my, w.real)])
+    lead = ti.Vector([ti.cast(lx, w.real), ti.cast(ly, w.real)])
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        if ti.static(flight):
+            fly(w, i, h, integrator, gravity, drag, ground)
+        if ti.static(recycle):
+            recycle_to_leading_edge(w, i, centre, move, lead, step)
+        if ti.static(count):
+            hashgrid.count_rock(w, i, center)
+
+
+@ti.kernel
+def shift_origin(w: ti.template(), dx: ti.f64, dy: ti.f64):
+    d = ti.Vector([ti.cast(dx, w.real), ti.cast(dy, w.real), 0.0])
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        w.pos[i] -= d
+
+
+@ti.kernel
+def gather_vec(w: ti.template(), src: ti.template(), dst: ti.template()):
+    for k in range(w.ipar[IPar.N_ROCKS]):
+        dst[k] = src[w.entries[k]]
+
+
+@ti.kernel
+def copy_field(w: ti.template(), src: ti.template(), dst: ti.template()):
+    for k in range(w.ipar[IPar.N_ROCKS]):
+        dst[k] = src[k]
+
+
+@ti.kernel
+def identity_entries(w: ti.template()):
+    for k in range(w.ipar[IPar.N_ROCKS]):
+        w.entries[k] = k
+
+
+class Simulation:
+    """A rock bed following a vehicle, with splashing rear tires. See the module docstring."""
+
+    @classmethod
+    def from_scene(cls, path, arch: str = "cpu", seed=None) -> "Simulation":
+        return cls(load_scene(path), arch=arch, seed=seed)
+
+    def __init__(self, scene, arch: str = "cpu", seed=None):
+        self.arch = init_taichi(arch)
+        if seed is not None:
+            scene = scene_with(scene, {"seed": int(seed)})
+        self.scene = scene
+        fx, sim, bed = scene.effects, scene.sim, scene.bed
+        self.real = ti.f64 if sim.precision == "f64" else ti.f32
+        self.n_rocks = n = int(bed.rocks)
+        self.dt = float(sim.dt)
+        self.fleet = Fleet(scene)
+        self.follow = scene.vehicle_index(bed.follow)
+        splash = bool(fx.splash and self.fleet.splashing and n > 0)
+        center = sim.hash.insert == "center"
+        self.plan = Plan(splash=splash, flight=splash, recycle=bool(fx.recycle and n > 0), center=center,
+                         swept=sim.detection == "swept",
+                         reorder_every=int(sim.hash.reorder_every) if (splash and center) else 0,
+                         integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground)
+        r_min, r_max = (float(x) for x in bed.rock_radius)
+        self.cell_size = resolve_cell_size(scene)
+        rng = np.random.default_rng(scene.seed)
+        radius = rng.uniform(r_min, r_max, n) if r_max > r_min else np.full(n, r_min)
+        friction = rng.uniform(*bed.static_friction, n)
+        rho = np.sqrt(rng.uniform(0.0, 1.0, n))  # uniform over the disk's area
+        theta = rng.uniform(0.0, 2.0 * np.pi, n)
+
+        # hash table sizes
+        table = entries = 0
+        if splash:
+            if center:
+                entries = n
+                expected = n
+            else:
+                per_axis = np.floor(2.0 * radius / self.cell_size * (1.0 + 1e-5) + 1e-3).astype(np.int64) + 2
+                entries = int(np.sum(per_axis ** 3))
+                expected = int(np.sum((2.0 * radius / self.cell_size + 1.0) ** 3))
+            ts = sim.hash.table_size
+            table = next_prime(max(expected, 1)) if ts == "auto" else int(ts)
+        self.table_size = table
+        n_tires = 2 * len(self.fleet.splashing) if splash else 0
+        substeps = int(sim.substeps) if sim.detection == "ray" else 1
+        ray_len = max((v.tire_radius for v in scene.vehicles), default=1.0)
+        self.w = w = World(n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
+                           substeps=substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
+                           reorder=self.plan.reorder_every > 0)
+        self.world = w
+
+        # parameters
+        par = np.zeros(Par.COUNT)
+        wd = scene.world
+        par[Par.GRAVITY] = wd.gravity
+        par[Par.GROUND_Z] = 0.0  # set below, relative to the origin
+        par[Par.BED_RADIUS] = bed.radius
+        par[Par.RESTITUTION] = wd.restitution
+        par[Par.GROUND_FRICTION] = wd.ground_friction
+        par[Par.REST_SPEED] = wd.rest_speed
+        par[Par.CELL] = self.cell_size
+        par[Par.ANGLE_MIN], par[Par.ANGLE_MAX] = np.radians(scene.launch.release_angle)
+        par[Par.SPREAD] = np.radians(scene.launch.spread)
+        par[Par.LINEAR_DRAG] = 4.5 * wd.air_viscosity / bed.density
+        par[Par.QUAD_DRAG] = 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density)
+        par[Par.R_MAX] = r_max
+        par[Par.TIE_EPS] = 1e-5
+        ipar = np.zeros(IPar.COUNT, dtype=np.int64)
+        ipar[IPar.TABLE] = table
+        ipar[IPar.SEED] = scene.seed & 0x7FFFFFFF
+        ipar[IPar.DILATE] = dilation_cells(r_max, self.cell_size) if center else 0
+        ipar[IPar.N_ROCKS] = n
+
+        # clock, bed and origin
+        self.step_count = 0
+        self.time = 0.0
+        poses = self.fleet.poses(0.0)
+        self._poses = poses
+        c = poses[self.follow].position
+        self.bed_center = np.array([c[0], c[1], wd.ground_z])
+        self.origin = np.zeros(3)
+        if sim.origin == "floating":
+            self.origin[:2] = np.round(self.bed_center[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
+        par[Par.GROUND_Z] = wd.ground_z - self.origin[2]
+        w.set_params(par, ipar)
+        self._par = par
+
+        # rocks: uniform over the disk, resting on the ground
+        local = np.zeros((max(n, 1), 3))
+        local[:n, 0] = self.bed_center[0] - self.origin[0] + bed.radius * rho * np.cos(theta)
+        local[:n, 1] = self.bed_center[1] - self.origin[1] + bed.radius * rho * np.sin(theta)
+        local[:n, 2] = par[Par.GROUND_Z] + radius
+        pad = lambda a, fill=0: np.concatenate([a, np.full(max(n, 1) - n, fill, dtype=a.dtype)])
+        npr = w.np_real()
+        w.pos.from_numpy(local.astype(npr))
+        w.vel.from_numpy(np.zeros((max(n, 1), 3), npr))
+        w.radius.from_numpy(pad(radius.astype(npr), 1))
+        w.friction.from_numpy(pad(friction.astype(npr)))
+        w.rock_id.from_numpy(pad(np.arange(n, dtype=np.int32)))
+        w.phase.from_numpy(np.zeros(max(n, 1), np.int32))
+        if splash:
+            w.hit_step.from_numpy(np.full(max(n, 1), -1, np.int32))
+        self._tires_prev = self.fleet.rear_tires(poses)
+        self._upload_rays(self._tires_prev, self._tires_prev)
+        self._lead = np.array([math.cos(poses[self.follow].heading), math.sin(poses[self.follow].heading)])
+        self.last_launches = 0
+        if splash:
+            self._build_hash(initial=True)
+
+    # ------------------------------------------------------------------------------------------------
+    @property
+    def launches_total(self) -> int:
+        return int(self.w.launches[None])
+
+    def vehicle_poses(self):
+        return self._poses
+
+    def _upload_rays(self, prev, cur) -> None:
+        w = self.w
+        if w.n_tires == 0:
+            return
+        data = np.zeros((w.n_tires, RAY_FIELDS))
+        o = self.origin
+        data[:, 0:3] = prev.center - o
+        data[:, 3:6] = prev.bottom - o
+        data[:, 6:9] = cur.center - o
+        data[:, 9:12] = cur.bottom - o
+        data[:, 12:15] = cur.velocity
+        data[:, 15:17] = cur.forward
+        data[:, 17] = cur.spin
+        # tires far from the bed cannot touch a rock: park their rays, degenerate, high above the bed
+        reach = self.scene.bed.radius + 2.0 * float(self.scene.bed.rock_radius[1]) + 2.0
+        far = np.hypot(cur.center[:, 0] - self.bed_center[0], cur.center[:, 1] - self.bed_center[1]) > reach
+        if far.any():
+            park = self.bed_center - o + np.array([0.0, 0.0, 1000.0])
+            data[far, 0:12] = np.tile(park, 4)
+            data[far, 17] = 0.0
+        w.ray.from_numpy(data.astype(w.np_real()))
+
+    def _build_hash(self, initial: bool = False) -> None:
+        """Scan and scatter (the counts come from the rock pass, or are made here at the start)."""
+        w, p = self.w, self.plan
+        if initial:
+            hashgrid.clear_counts(w)
+            hashgrid.count_all(w, p.center)
+        total = hashgrid.inclusive_scan(w)
+        if total > w.entry_capacity:  # cannot happen: the capacity is an upper bound; never lose a rock
+            raise RuntimeError(f"hash table needs {total} entries, capacity {w.entry_capacity}")
+        hashgrid.scatter(w, p.center)
+        if p.reorder_every and (initial or self.step_count % p.reorder_every == 0):
+            self._reorder()
+
+    def _reorder(self) -> None:
+        """Re-sort the rocks in memory by slot (entries is then the identity)."""
+        w = self.w
+        for f, tmp in ((w.pos, w.tmp_vec), (w.vel, w.tmp_vec), (w.radius, w.tmp_real),
+                       (w.friction, w.tmp_real), (w.rock_id, w.tmp_int), (w.phase, w.tmp_int),
+                       (w.hit_step, w.tmp_int), (w.slot, w.tmp_int)):
+            gather_vec(w, f, tmp)
+            copy_field(w, tmp, f)
+        identity_entries(w)
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(int(n)):
+            self._step()
+
+    def advance_to(self, t: float) -> None:
+        """Step until ``self.time >= t`` (within a millionth of a step)."""
+        while self.time < t - 1e-6 * self.dt:
+            self._step()
+
+    def _step(self) -> None:
+        w, p = self.w, self.plan
+        self.step_count += 1
+        self.time = self.step_count * self.dt
+        poses = self.fleet.poses(self.time)
+        c = poses[self.follow].position
+        move = c[:2] - self.bed_center[:2]
+        self.bed_center = np.array([c[0], c[1], self.bed_center[2]])
+        lead = poses[self.follow].velocity[:2]
+        if np.hypot(*lead) > 1e-9:
+            self._lead = lead / np.hypot(*lead)
+        if self.scene.sim.origin == "floating" and np.max(np.abs(c[:2] - self.origin[:2])) > ORIGIN_RANGE:
+            new = np.round(c[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
+            shift = new - self.origin[:2]
+            if self.n_rocks:
+                shift_origin(w, float(shift[0]), float(shift[1]))
+            self.origin[:2] = new
+        tires_now = self.fleet.rear_tires(poses)
+        if p.splash:
+            self._upload_rays(self._tires_prev, tires_now)
+        self._tires_prev = tires_now
+        self._poses = poses
+        if self.n_rocks and (p.flight or p.recycle or p.splash):
+            if p.splash:
+                hashgrid.clear_counts(w)
+            lc = self.bed_center[:2] - self.origin[:2]
+            rock_pass(w, self.dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
+                      float(self._lead[0]), float(self._lead[1]), self.step_count, p.flight, p.recycle,
+                      p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
+        if p.splash:
+            self._build_hash()
+            if not p.swept:
+                tires.trace_rays(w)
+            self.last_launches = tires.tire_pass(w, self.step_count, p.swept, p.center, p.ground)
+
+    # ------------------------------------------------------------------------------------------------
+    def state(self) -> dict:
+        """The current state as NumPy arrays, rocks in their original order (by rock id)."""
+        w, n = self.w, self.n_rocks
+        ids = w.rock_id.to_numpy()[:n]
+        pos = np.empty((n, 3))
+        vel = np.empty((n, 3), np.float32)
+        radius = np.empty(n)
+        phase = np.empty(n, np.int8)
+        pos[ids] = w.pos.to_numpy()[:n].astype(np.float64) + self.origin
+        vel[ids] = w.vel.to_numpy()[:n]
+        radius[ids] = w.radius.to_numpy()[:n]
+        phase[ids] = w.phase.to_numpy()[:n]
+        poses = self._poses
+        return {
+            "time": self.time,
+            "step": self.step_count,
+            "positions": pos,
+            "velocities": vel,
+            "radii": radius,
+            "phase": phase,
+            "bed_center": self.bed_center.copy(),
+            "vehicle_positions": np.array([p.position for p in poses]).reshape(-1, 3),
+            "vehicle_headings": np.array([p.heading for p in poses]),
+            "vehicle_names": np.array(self.fleet.names),
+            "launches_total": self.launches_total,
+        }
+
+    def tire_rays(self) -> np.ndarray:
+        t = self._tires_prev
+        return np.stack([t.center, t.bottom], axis=1) if len(t.spin) else np.zeros((0, 2, 3))
+
+    def queried_cells(self) -> np.ndarray:
+        w = self.w
+        if not self.plan.splash or self.plan.swept:
+            return np.zeros((0, 3), np.int64)
+        counts = w.ray_cell_count.to_numpy()
+        cells = w.ray_cells.to_numpy()
+        return np.concatenate([cells[r, :counts[r]] for r in range(len(counts))]).astype(np.int64)

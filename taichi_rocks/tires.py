@@ -1,0 +1,166 @@
+"""Pass 2, the tires: rays from rear-tire centres to the ground find rocks, which are launched.
+
+Detection. A tire's ray runs from its centre a to its bottom b. A rock (centre c, radius r) is hit when the
+segment comes within r of c: t* = clamp((c - a).(b - a) / |b - a|^2, 0, 1), hit iff |c - (a + t*(b - a))|^2
+<= r^2 (the closest-point form; unlike the quadratic of a ray-sphere intersection it has no cancellation and
+handles a zero-length segment). "swept" detection tests the parallelogram the ray sweeps between the
+previous and the current step instead, so a fast tire misses nothing it passed over; "substeps" evaluates
+the ray at several positions interpolated within the step.
+
+Launch (rolling-wheel kinematics). A tread point at angle alpha up the back of a wheel with centre velocity
+V (along the heading f), spin omega and radius R moves in the ground frame at
+    (V - omega R cos(alpha)) f  +  omega R sin(alpha) z,    omega R = V (1 + slip) for a driven wheel.
+A rock caught by the tread leaves with
+    v_xy = v_wheel_xy - omega R cos(alpha) Rot(beta) f      (v_wheel includes the yaw rate: the rear wheels
+                                                            of a turning vehicle slide outwards)
+    v_z  = mu_s |omega R| sin(alpha)                        (lift needs grip: static friction mu_s)
+with alpha uniform in the release-angle range and beta uniform in [-spread, spread]. Relative to the wheel
+the rock always leaves backwards (against the wheel's travel, also when reversing). A rock is launched at
+most once per step, by the first ray (in tire order) that finds it; flying rocks are not re-launched.
+"""
+
+import taichi as ti
+
+from .hashgrid import cell_of, hash_cell, segment_cells
+from .randomness import uniform01
+from .world import FLYING, SLIDING, IPar, Par
+
+# layout of World.ray[t, :] (RAY_FIELDS = 18 numbers per tire)
+A0, B0, A1, B1, VEL, FWD, SPIN = 0, 3, 6, 9, 12, 15, 17
+
+
+@ti.func
+def closest_on_segment(a, b, c):
+    """Point of segment a-b closest to c (a zero-length segment gives a)."""
+    d = b - a
+    dd = d.dot(d)
+    t = 0.0 * dd
+    if dd > 0.0:
+        t = ti.min(ti.max((c - a).dot(d) / dd, 0.0), 1.0)
+    return a + t * d
+
+
+@ti.func
+def segment_hits_sphere(a, b, c, r):
+    q = closest_on_segment(a, b, c)
+    return (c - q).norm_sqr() <= r * r
+
+
+@ti.func
+def parallelogram_dist2(o, e1, e2, c):
+    """Squared distance from c to the parallelogram {o + u e1 + v e2 : u, v in [0, 1]}."""
+    best = (c - closest_on_segment(o, o + e1, c)).norm_sqr()
+    best = ti.min(best, (c - closest_on_segment(o + e2, o + e1 + e2, c)).norm_sqr())
+    best = ti.min(best, (c - closest_on_segment(o, o + e2, c)).norm_sqr())
+    best = ti.min(best, (c - closest_on_segment(o + e1, o + e1 + e2, c)).norm_sqr())
+    # interior: solve the 2x2 normal equations for the projection of c onto the plane
+    g11 = e1.dot(e1)
+    g12 = e1.dot(e2)
+    g22 = e2.dot(e2)
+    det = g11 * g22 - g12 * g12
+    if det > 1e-12 * g11 * g22:
+        rc = c - o
+        r1 = rc.dot(e1)
+        r2 = rc.dot(e2)
+        u = (g22 * r1 - g12 * r2) / det
+        v = (g11 * r2 - g12 * r1) / det
+        if 0.0 <= u <= 1.0 and 0.0 <= v <= 1.0:
+            best = ti.min(best, (rc - u * e1 - v * e2).norm_sqr())
+    return best
+
+
+@ti.func
+def launch_velocity(w: ti.template(), wheel_vel, forward, spin, mu, seed, rock, step):
+    """Velocity of a rock thrown by a tread (see the module docstring). spin = omega * R, signed."""
+    u_alpha = uniform01(seed, rock, step, 201)
+    u_beta = uniform01(seed, rock, step, 202)
+    alpha = w.par[Par.ANGLE_MIN] + (w.par[Par.ANGLE_MAX] - w.par[Par.ANGLE_MIN]) * u_alpha
+    beta = w.par[Par.SPREAD] * (2.0 * u_beta - 1.0)
+    cb, sb = ti.cos(beta), ti.sin(beta)
+    back = -spin * ti.cos(alpha)
+    fx = cb * forward[0] - sb * forward[1]
+    fy = sb * forward[0] + cb * forward[1]
+    return ti.Vector([wheel_vel[0] + back * fx, wheel_vel[1] + back * fy, mu * ti.abs(spin) * ti.sin(alpha)])
+
+
+@ti.func
+def ray_vec(w: ti.template(), t, k):
+    return ti.Vector([w.ray[t, k], w.ray[t, k + 1], w.ray[t, k + 2]])
+
+
+@ti.kernel
+def trace_rays(w: ti.template()):
+    """DDA cells of every ray of every substep (ray index = tire * substeps + s)."""
+    for t, s in ti.ndrange(w.n_tires, w.substeps):
+        f = ti.cast(s + 1, w.real) / w.substeps
+        a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
+        b = ray_vec(w, t, B0) * (1.0 - f) + ray_vec(w, t, B1) * f
+        segment_cells(w, t * w.substeps + s, a, b)
+
+
+@ti.func
+def try_launch(w: ti.template(), i, t, step, ground: ti.template()):
+    """Launch rock i by tire t unless already launched this step or flying; returns 1 if launched."""
+    launched = 0
+    if w.hit_step[i] != step and w.phase[i] != FLYING:
+        forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
+        v = launch_velocity(w, ray_vec(w, t, VEL), forward, w.ray[t, SPIN], w.friction[i],
+                            w.ipar[IPar.SEED], w.rock_id[i], step)
+        if v.norm() > w.par[Par.REST_SPEED]:
+            w.hit_step[i] = step
+            w.vel[i] = v
+            if ti.static(ground == "none"):
+                w.phase[i] = FLYING
+            else:
+                w.phase[i] = FLYING if v[2] > 0.0 else SLIDING
+            launched = 1
+    return launched
+
+
+@ti.func
+def slot_range(w: ti.template(), c):
+    s = hash_cell(c, w.ipar[IPar.TABLE])
+    return w.cell_start[s], w.cell_start[s + 1]
+
+
+@ti.kernel
+def tire_pass(w: ti.template(), step: ti.i32, swept: ti.template(), center: ti.template(),
+              ground: ti.template()) -> ti.i32:
+    """Find and launch the rocks under every tire ray. Serial over tires: the first tire wins a rock,
+    whatever the thread count (a handful of rays; the cost is in the cells, not the loop)."""
+    launched = 0
+    ti.loop_config(serialize=True)
+    for t in range(w.n_tires):
+        dil = w.ipar[IPar.DILATE] if ti.static(center) else 0
+        if ti.static(swept):
+            a0, b0 = ray_vec(w, t, A0), ray_vec(w, t, B0)
+            a1 = ray_vec(w, t, A1)
+            e1 = a1 - a0  # the step's motion
+            e2 = b0 - a0  # the ray
+            lo = ti.min(ti.min(a0, b0), ti.min(a1, a1 + e2))
+            hi = ti.max(ti.max(a0, b0), ti.max(a1, a1 + e2))
+            cell = w.par[Par.CELL]
+            c_lo = cell_of(lo, cell) - dil
+            c_hi = cell_of(hi, cell) + dil
+            for cx, cy, cz in ti.ndrange((c_lo[0], c_hi[0] + 1), (c_lo[1], c_hi[1] + 1), (c_lo[2], c_hi[2] + 1)):
+                start, end = slot_range(w, ti.Vector([cx, cy, cz]))
+                for e in range(start, end):
+                    i = w.entries[e]
+                    if parallelogram_dist2(a0, e1, e2, w.pos[i]) <= w.radius[i] * w.radius[i]:
+                        launched += try_launch(w, i, t, step, ground)
+        else:
+            for s in range(w.substeps):
+                f = ti.cast(s + 1, w.real) / w.substeps
+                a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
+                b = ray_vec(w, t, B0) * (1.0 - f) + ray_vec(w, t, B1) * f
+                ray = t * w.substeps + s
+                for k in range(w.ray_cell_count[ray]):
+                    c = w.ray_cells[ray, k]
+                    for dx, dy, dz in ti.ndrange((-dil, dil + 1), (-dil, dil + 1), (-dil, dil + 1)):
+                        start, end = slot_range(w, c + ti.Vector([dx, dy, dz]))
+                        for e in range(start, end):
+                            i = w.entries[e]
+                            if segment_hits_sphere(a, b, w.pos[i], w.radius[i]):
+                                launched += try_launch(w, i, t, step, ground)
+    w.launches[None] += launched
+    return launched

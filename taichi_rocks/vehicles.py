@@ -1,0 +1,82 @@
+"""Vehicles on their scripted paths: body pose and rear-tire rays, on the host (a few vehicles).
+
+A rear wheel sits at body offset (-wheelbase/2, +-track/2). Its rigid-body velocity is
+v_wheel = v_body + yaw_rate * z x r_wheel, so the rear wheels of a turning vehicle slide outwards (the path
+steers the body centre). Its tread speed is omega R = (v_wheel . heading) * (1 + slip).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .paths import path_from_spec
+
+
+@dataclass(frozen=True)
+class VehiclePose:
+    name: str
+    position: np.ndarray  # (3,) world, body centre at ground level
+    heading: float
+    speed: float
+    yaw_rate: float
+    velocity: np.ndarray  # (3,)
+
+
+@dataclass(frozen=True)
+class RearTires:
+    """Rear tires of the splashing vehicles, world frame, float64; one row per tire."""
+
+    center: np.ndarray  # (T, 3)
+    bottom: np.ndarray  # (T, 3)
+    velocity: np.ndarray  # (T, 3)
+    forward: np.ndarray  # (T, 2) unit heading
+    spin: np.ndarray  # (T,) omega * R, signed
+
+
+def _path_kwargs(path) -> dict:
+    data = path.model_dump() if hasattr(path, "model_dump") else dict(path)
+    kind = data.pop("kind")
+    return kind, data
+
+
+class Fleet:
+    def __init__(self, scene):
+        self.specs = tuple(scene.vehicles)
+        self.names = [v.name for v in self.specs]
+        self.ground_z = float(scene.world.ground_z)
+        self.paths = []
+        for v in self.specs:
+            kind, kwargs = _path_kwargs(v.path)
+            self.paths.append(path_from_spec(kind, **kwargs))
+        self.splashing = [i for i, v in enumerate(self.specs) if v.splash]
+
+    def poses(self, t: float) -> list[VehiclePose]:
+        out = []
+        for spec, path in zip(self.specs, self.paths):
+            p = path.pose(t)
+            vel = np.array([p.velocity[0], p.velocity[1], 0.0])
+            out.append(VehiclePose(spec.name, np.array([p.position[0], p.position[1], self.ground_z]),
+                                   float(p.heading), float(p.speed), float(p.yaw_rate), vel))
+        return out
+
+    def rear_tires(self, poses: list[VehiclePose]) -> RearTires:
+        rows = []
+        for i in self.splashing:
+            spec, pose = self.specs[i], poses[i]
+            c, s = np.cos(pose.heading), np.sin(pose.heading)
+            fwd = np.array([c, s])
+            for side in (1.0, -1.0):
+                bx, by = -0.5 * spec.wheelbase, side * 0.5 * spec.track
+                r = np.array([c * bx - s * by, s * bx + c * by])
+                vel = pose.velocity[:2] + pose.yaw_rate * np.array([-r[1], r[0]])
+                centre = np.array([pose.position[0] + r[0], pose.position[1] + r[1],
+                                   self.ground_z + spec.tire_radius])
+                spin = float(vel @ fwd) * (1.0 + spec.slip)
+                rows.append((centre, np.array([centre[0], centre[1], self.ground_z]),
+                             np.array([vel[0], vel[1], 0.0]), fwd, spin))
+        if not rows:
+            z = np.zeros((0, 3))
+            return RearTires(z, z, z, np.zeros((0, 2)), np.zeros(0))
+        return RearTires(*(np.array([row[k] for row in rows]) for k in range(5)))

@@ -1,0 +1,109 @@
+"""Small direct drivers of the kernels for tests: a World from explicit rocks and rays."""
+
+from __future__ import annotations
+
+import numpy as np
+import taichi as ti
+
+from taichi_rocks import hashgrid, tires
+from taichi_rocks.world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
+
+P = np.array([73856093, 19349663, 83492791], dtype=np.uint64)
+
+
+def np_cell(p, l, dtype=np.float32):
+    p = np.asarray(p, dtype=dtype)
+    return np.floor(p / dtype(l)).astype(np.int64)
+
+
+def np_hash(c, n):
+    c = (np.asarray(c, dtype=np.int64) & 0xFFFFFFFF).astype(np.uint64)
+    prod = (c * P) & np.uint64(0xFFFFFFFF)
+    h = prod[..., 0] ^ prod[..., 1] ^ prod[..., 2]
+    return (h % np.uint64(n)).astype(np.int64)
+
+
+def np_segment_sphere(a, b, c, r):
+    """Brute-force closest-point test in float64: (N,) bool."""
+    a, b, c = (np.asarray(x, np.float64) for x in (a, b, c))
+    d = b - a
+    dd = d @ d
+    t = np.zeros(len(c)) if dd == 0 else np.clip((c - a) @ d / dd, 0.0, 1.0)
+    q = a + t[:, None] * d
+    return np.sum((c - q) ** 2, axis=1) <= np.asarray(r, np.float64) ** 2
+
+
+class Probe:
+    """A World holding given rocks, a hash built in a given mode, and rays."""
+
+    def __init__(self, pos, radius, *, cell, insert="center", table=None, rays=(), real=ti.f32,
+                 swept=False, rest_speed=1e-6):
+        pos = np.asarray(pos, np.float64).reshape(-1, 3)
+        radius = np.asarray(radius, np.float64).reshape(-1)
+        n = len(pos)
+        self.n, self.cell, self.center = n, cell, insert == "center"
+        r_max = float(radius.max()) if n else cell
+        if self.center:
+            entries = n
+        else:
+            per_axis = np.floor(2 * radius / cell * (1 + 1e-5) + 1e-3).astype(np.int64) + 2
+            entries = int(np.sum(per_axis ** 3))
+        self.table = table or next_prime(max(entries, 1))
+        rays = np.asarray(rays, np.float64).reshape(-1, 2, 3)
+        self.swept = swept
+        ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
+        self.w = w = World(n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
+                           ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
+        par = np.zeros(Par.COUNT)
+        par[Par.CELL] = cell
+        par[Par.REST_SPEED] = rest_speed
+        par[Par.R_MAX] = r_max
+        par[Par.TIE_EPS] = 1e-5
+        par[Par.ANGLE_MIN] = par[Par.ANGLE_MAX] = np.radians(30)
+        par[Par.GRAVITY] = 9.81
+        ipar = np.zeros(IPar.COUNT, np.int64)
+        ipar[IPar.TABLE] = self.table
+        ipar[IPar.DILATE] = dilation_cells(r_max, cell) if self.center else 0
+        ipar[IPar.N_ROCKS] = n
+        w.set_params(par, ipar)
+        npr = w.np_real()
+        cap = max(n, 1)
+        pad = lambda a, k=(): np.concatenate([a, np.zeros((cap - n,) + k)]).astype(npr)
+        w.pos.from_numpy(pad(pos, (3,)))
+        w.radius.from_numpy(pad(radius))
+        w.friction.from_numpy(np.full(cap, 0.5, npr))
+        w.rock_id.from_numpy(np.arange(cap, dtype=np.int32))
+        w.phase.from_numpy(np.zeros(cap, np.int32))
+        w.vel.from_numpy(np.zeros((cap, 3), npr))
+        w.hit_step.from_numpy(np.full(cap, -1, np.int32))
+        self.rays = rays
+        hashgrid.clear_counts(w)
+        hashgrid.count_all(w, self.center)
+        self.total = hashgrid.inclusive_scan(w)
+        hashgrid.scatter(w, self.center)
+
+    def set_rays(self, prev, cur, spin=10.0):
+        w = self.w
+        data = np.zeros((w.n_tires, RAY_FIELDS))
+        data[:, 0:3], data[:, 3:6] = prev[:, 0], prev[:, 1]
+        data[:, 6:9], data[:, 9:12] = cur[:, 0], cur[:, 1]
+        data[:, 15] = 1.0
+        data[:, 17] = spin
+        w.ray.from_numpy(data.astype(w.np_real()))
+
+    def hits(self, step=1, prev=None):
+        """Indices of rocks the rays hit (launched at `step`)."""
+        w = self.w
+        cur = self.rays
+        self.set_rays(cur if prev is None else prev, cur)
+        w.phase.from_numpy(np.zeros(max(self.n, 1), np.int32))
+        if not self.swept:
+            tires.trace_rays(w)
+        tires.tire_pass(w, step, self.swept, self.center, "bounce")
+        return np.flatnonzero(w.hit_step.to_numpy()[: self.n] == step)
+
+    def slot_members(self):
+        """slot -> set of rock indices, from the built table."""
+        start = self.w.cell_start.to_numpy()
+        entries = self.w.entries.to_numpy()
+        return {s: set(entries[start[s]:start[s + 1]].tolist()) for s in range(self.table) if start[s + 1] > start[s]}

@@ -1,0 +1,165 @@
+"""Tire rays: segment-sphere and swept tests, hash queries in both insert modes against brute force."""
+
+import numpy as np
+import pytest
+import taichi as ti
+
+from harness import Probe, np_segment_sphere
+
+pytestmark = pytest.mark.usefixtures("taichi_cpu")
+
+
+@pytest.fixture(scope="module")
+def seg_kernel(taichi_cpu):
+    from taichi_rocks import tires
+
+    n = 4096
+    f = ti.Vector.field(3, ti.f64, shape=(n, 3))
+    rr = ti.field(ti.f64, shape=n)
+    out = ti.field(ti.i32, shape=n)
+
+    @ti.kernel
+    def run(m: ti.i32):
+        for i in range(m):
+            out[i] = 1 if tires.segment_hits_sphere(f[i, 0], f[i, 1], f[i, 2], rr[i]) else 0
+
+    def call(a, b, c, r):
+        m = len(c)
+        buf = np.zeros((n, 3, 3))
+        buf[:m, 0], buf[:m, 1], buf[:m, 2] = a, b, c
+        f.from_numpy(buf)
+        rbuf = np.zeros(n)
+        rbuf[:m] = r
+        rr.from_numpy(rbuf)
+        run(m)
+        return out.to_numpy()[:m].astype(bool)
+
+    return call
+
+
+def test_segment_sphere_cases(seg_kernel):
+    a = np.array([0.0, 0.0, 1.0])
+    b = np.array([0.0, 0.0, 0.0])
+    r = 0.25
+    c = np.array([
+        [0.25, 0.0, 0.5],  # exactly tangent to the side
+        [0.0, 0.0, 1.25],  # tangent beyond the top end
+        [0.0, 0.0, -0.25],  # tangent below the bottom end
+        [0.0, 0.0, 0.5],  # centre on the segment (segment inside the sphere)
+        [0.0, 0.0, 1.3],  # behind the start
+        [0.0, 0.0, -0.3],  # past the end
+        [0.2500001, 0.0, 0.5],  # just outside
+        [5.0, 5.0, 5.0],  # far
+        [0.1, 0.1, 0.9],  # inside
+    ])
+    got = seg_kernel(a, b, c, np.full(len(c), r))
+    ref = np_segment_sphere(a, b, c, np.full(len(c), r))
+    np.testing.assert_array_equal(got, ref)
+    np.testing.assert_array_equal(got, [1, 1, 1, 1, 0, 0, 0, 0, 1])
+    # zero-length segment = point test
+    got0 = seg_kernel(b, b, c, np.full(len(c), r))
+    np.testing.assert_array_equal(got0, np_segment_sphere(b, b, c, np.full(len(c), r)))
+
+
+def test_segment_sphere_random(seg_kernel):
+    rng = np.random.default_rng(5)
+    m = 4000
+    a = rng.normal(0, 1, 3)
+    b = a + rng.normal(0, 1, 3)
+    c = rng.normal(0, 1.2, (m, 3))
+    r = rng.uniform(0.05, 0.6, m)
+    got = seg_kernel(a, b, c, r)
+    ref = np_segment_sphere(a, b, c, r)
+    # disagreements only within rounding of the tangent distance
+    bad = np.flatnonzero(got != ref)
+    d = b - a
+    t = np.clip((c[bad] - a) @ d / (d @ d), 0, 1)
+    dist = np.linalg.norm(c[bad] - (a + t[:, None] * d), axis=1)
+    assert np.all(np.abs(dist - r[bad]) < 1e-12)
+    assert got.sum() > 30 and (~got).sum() > 1000
+
+
+def bed_rocks(rng, n, radius_range, half=1.0):
+    r = rng.uniform(*radius_range, n)
+    xy = rng.uniform(-half, half, (n, 2))
+    return np.column_stack([xy, r]), r
+
+
+def brute_hits(pos, r, rays):
+    hit = np.zeros(len(pos), bool)
+    for a, b in rays:
+        hit |= np_segment_sphere(a, b, pos, r)
+    return np.flatnonzero(hit)
+
+
+@pytest.mark.parametrize("cell", ["min_radius", "max_diameter", 0.037])
+def test_aabb_and_center_find_the_same_hits_as_brute_force(cell):
+    rng = np.random.default_rng(7)
+    pos, r = bed_rocks(rng, 6000, (0.015, 0.05), half=0.6)
+    # vertical tire rays, one exactly on a cell boundary, one tangent to a rock, one negative
+    rays = [[[x, y, 0.33], [x, y, 0.0]] for x, y in rng.uniform(-0.5, 0.5, (12, 2))]
+    rays += [[[0.1, 0.2, 0.33], [0.1, 0.2, 0.0]], [[-0.3, -0.45, 0.33], [-0.3, -0.45, 0.0]]]
+    rays += [[[-0.2, 0.1, 0.4], [0.3, -0.2, 0.0]]]  # a slanted one
+    pos[0] = [0.1 + 0.03, 0.2, 0.03]  # tangent to the ray at (0.1, 0.2): distance = r
+    r[0] = 0.03
+    pos[1] = [0.1, 0.2 - 0.025, 0.025]
+    r[1] = 0.025
+    rays = np.array(rays)
+    l = {"min_radius": 0.015, "max_diameter": 0.1}.get(cell, cell)
+    ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
+    assert len(ref) > 20
+    got_aabb = Probe(pos, r, cell=l, insert="aabb", rays=rays).hits()
+    got_center = Probe(pos, r, cell=l, insert="center", rays=rays).hits()
+    np.testing.assert_array_equal(got_aabb, got_center)
+    np.testing.assert_array_equal(got_aabb, ref)
+
+
+@pytest.mark.parametrize("table", [1, 2, 10_000_019])
+def test_hash_stress_same_hits(table):
+    rng = np.random.default_rng(8)
+    pos, r = bed_rocks(rng, 2000, (0.02, 0.05), half=0.3)
+    rays = np.array([[[x, y, 0.33], [x, y, 0.0]] for x, y in rng.uniform(-0.3, 0.3, (8, 2))])
+    ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
+    for insert in ("aabb", "center"):
+        np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, table=table, rays=rays).hits(), ref)
+
+
+def test_all_rocks_in_one_cell():
+    rng = np.random.default_rng(9)
+    pos = np.column_stack([rng.uniform(0.01, 0.09, (500, 2)), np.full(500, 0.02)])
+    r = np.full(500, 0.005)
+    rays = np.array([[[0.05, 0.05, 0.33], [0.05, 0.05, 0.0]]])
+    ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
+    for insert in ("aabb", "center"):
+        np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, rays=rays).hits(), ref)
+
+
+def np_parallelogram_hit(o, e1, e2, c, r, samples=400):
+    """Reference by dense sampling of the swept parallelogram (conservative distance)."""
+    u = np.linspace(0, 1, samples)
+    grid = o + u[:, None, None] * e1 + u[None, :, None] * e2
+    pts = grid.reshape(-1, 3)
+    d2 = np.min(((c[:, None, :] - pts[None]) ** 2).sum(-1), axis=1)
+    return d2
+
+
+def test_swept_catches_what_the_ray_skips():
+    """A fast tire: ray detection at two positions misses rocks in between; swept finds them all."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    pos = np.column_stack([rng.uniform(-0.2, 1.4, n), rng.uniform(-0.1, 0.1, n), np.zeros(n)])
+    r = rng.uniform(0.015, 0.03, n)
+    pos[:, 2] = r
+    prev = np.array([[[0.0, 0.0, 0.33], [0.0, 0.0, 0.0]]])
+    cur = np.array([[[1.2, 0.0, 0.33], [1.2, 0.0, 0.0]]])  # 60 m/s at dt = 0.02
+    swept = Probe(pos, r, cell=0.1, insert="center", rays=cur, swept=True).hits(prev=prev)
+    ray = Probe(pos, r, cell=0.1, insert="center", rays=cur).hits(prev=prev)
+    # exact reference: within r of the vertical plane strip x in [0, 1.2], z in [0, 0.33]
+    p32 = pos.astype(np.float32).astype(np.float64)
+    r32 = r.astype(np.float32).astype(np.float64)
+    dx = np.maximum(np.maximum(0.0 - p32[:, 0], p32[:, 0] - 1.2), 0.0)
+    dz = np.maximum(np.maximum(0.0 - p32[:, 2], p32[:, 2] - 0.33), 0.0)
+    ref = np.flatnonzero(dx ** 2 + p32[:, 1] ** 2 + dz ** 2 <= r32 ** 2)
+    assert len(ref) > 30
+    np.testing.assert_array_equal(swept, ref)
+    assert set(ray) <= set(ref) and len(ray) < len(ref) / 5
