@@ -6,12 +6,14 @@ compiled kernel), so every entry point calls :func:`init_taichi`, which is idemp
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import sys
 
 import taichi as ti
 
-ARCHES = ("cpu", "gpu", "cuda", "vulkan")
+from .plan import ARCHES
 
 _state: dict = {"arch": None}
 
@@ -32,13 +34,16 @@ def init_taichi(arch: str = "cpu", *, warn=None) -> str:
     opts = dict(log_level=ti.ERROR, random_seed=0, fast_math=False)
     if threads:
         opts["cpu_max_num_threads"] = int(threads)
+    quiet = contextlib.redirect_stdout(io.StringIO())  # Taichi prints its banner on stdout
     if arch == "cpu":
-        ti.init(arch=ti.cpu, **opts)
+        with quiet:
+            ti.init(arch=ti.cpu, **opts)
     else:
         # "gpu" means CUDA: on a machine without one, Taichi's generic ti.gpu would pick a software
         # Vulkan device (Mesa lavapipe), which computes slower than the CPU backend.
         wanted = {"gpu": ti.cuda, "cuda": ti.cuda, "vulkan": ti.vulkan}[arch]
-        ti.init(arch=wanted, **opts)
+        with quiet:
+            ti.init(arch=wanted, **opts)
         if ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64):
             warn(f"no {arch} device found, running on the CPU")
     used = ti.lang.impl.current_cfg().arch

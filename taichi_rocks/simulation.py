@@ -14,7 +14,6 @@ origin jumps (by multiples of 64 m) to stay near the bed, so f32 keeps sub-milli
 
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ import taichi as ti
 from . import hashgrid, tires
 from .bed import recycle_to_leading_edge
 from .flight import fly
+from .plan import Plan
 from .runtime import init_taichi
 from .scene import load_scene, scene_with
 from .vehicles import Fleet
@@ -30,44 +30,6 @@ from .world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
-
-
-@dataclass(frozen=True)
-class Plan:
-    """What runs, decided once from the scene."""
-
-    splash: bool  # hash build + tire pass
-    flight: bool
-    recycle: bool
-    center: bool  # centre insert (else AABB)
-    swept: bool
-    reorder_every: int
-    integrator: str
-    gravity: bool
-    drag: str
-    ground: str
-
-    def passes(self) -> list[str]:
-        out = []
-        if self.flight:
-            out.append("flight")
-        if self.recycle:
-            out.append("recycle")
-        if self.splash:
-            out += ["hash build", "tire pass"]
-        return out
-
-
-def resolve_cell_size(scene) -> float:
-    r_min, r_max = scene.bed.rock_radius
-    cs = scene.sim.hash.cell_size
-    if cs == "auto":
-        return 2.0 * r_max if scene.sim.hash.insert == "center" else r_min
-    if cs == "min_radius":
-        return r_min
-    if cs == "max_diameter":
-        return 2.0 * r_max
-    return float(cs)
 
 
 @ti.kernel
@@ -114,6 +76,39 @@ def identity_entries(w: ti.template()):
         w.entries[k] = k
 
 
+@ti.kernel
+def health(w: ti.template(), cx: ti.f64, cy: ti.f64, slack: ti.f64, check_bed: ti.template(),
+           check_ground: ti.template(), out: ti.template()):
+    """Count bad rocks: non-finite state [0], outside the bed [1], below the ground [2]; the smallest
+    index of a bad rock of each kind goes to out[3..5] (as an index into the fields)."""
+    for k in ti.static(range(6)):
+        out[k] = 0 if k < 3 else 2147483647
+    radius = w.par[Par.BED_RADIUS] + ti.cast(slack, w.real)
+    ground = w.par[Par.GROUND_Z] - ti.cast(slack, w.real)
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        p, v = w.pos[i], w.vel[i]
+        finite = True
+        for a in ti.static(range(3)):
+            if not (ti.abs(p[a]) < 1e30 and ti.abs(v[a]) < 1e30):  # false for NaN too
+                finite = False
+        if not finite:
+            out[0] += 1
+            ti.atomic_min(out[3], i)
+        elif ti.static(check_bed):
+            d2 = (p[0] - cx) ** 2 + (p[1] - cy) ** 2
+            if d2 > radius * radius:
+                out[1] += 1
+                ti.atomic_min(out[4], i)
+        if ti.static(check_ground):
+            if finite and p[2] - w.radius[i] < ground:
+                out[2] += 1
+                ti.atomic_min(out[5], i)
+
+
+class HealthError(RuntimeError):
+    """The runtime guard found a rock in an impossible state."""
+
+
 class Simulation:
     """A rock bed following a vehicle, with splashing rear tires. See the module docstring."""
 
@@ -132,14 +127,10 @@ class Simulation:
         self.dt = float(sim.dt)
         self.fleet = Fleet(scene)
         self.follow = scene.vehicle_index(bed.follow)
-        splash = bool(fx.splash and self.fleet.splashing and n > 0)
-        center = sim.hash.insert == "center"
-        self.plan = Plan(splash=splash, flight=splash, recycle=bool(fx.recycle and n > 0), center=center,
-                         swept=sim.detection == "swept",
-                         reorder_every=int(sim.hash.reorder_every) if (splash and center) else 0,
-                         integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground)
+        self.plan = plan = Plan.from_scene(scene)
+        splash, center = plan.splash, plan.center
         r_min, r_max = (float(x) for x in bed.rock_radius)
-        self.cell_size = resolve_cell_size(scene)
+        self.cell_size = plan.cell_size
         rng = np.random.default_rng(scene.seed)
         radius = rng.uniform(r_min, r_max, n) if r_max > r_min else np.full(n, r_min)
         friction = rng.uniform(*bed.static_friction, n)
@@ -160,7 +151,7 @@ class Simulation:
             table = next_prime(max(expected, 1)) if ts == "auto" else int(ts)
         self.table_size = table
         n_tires = 2 * len(self.fleet.splashing) if splash else 0
-        substeps = int(sim.substeps) if sim.detection == "ray" else 1
+        substeps = plan.substeps
         ray_len = max((v.tire_radius for v in scene.vehicles), default=1.0)
         self.w = w = World(n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
                            substeps=substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
@@ -283,14 +274,19 @@ class Simulation:
             self._step()
 
     def advance_to(self, t: float) -> None:
-        """Step until ``self.time >= t`` (within a millionth of a step)."""
-        while self.time < t - 1e-6 * self.dt:
+        """Step to exactly time ``t``: whole steps of dt, then one shorter step if dt does not divide the
+        interval (so frame f is the state at f / fps for any fps)."""
+        tol = 1e-9 * max(1.0, abs(t))
+        while self.time + self.dt <= t + tol:
             self._step()
+        if t - self.time > tol:
+            self._step(t - self.time)
 
-    def _step(self) -> None:
+    def _step(self, dt=None) -> None:
         w, p = self.w, self.plan
+        dt = self.dt if dt is None else float(dt)
         self.step_count += 1
-        self.time = self.step_count * self.dt
+        self.time += dt
         poses = self.fleet.poses(self.time)
         c = poses[self.follow].position
         move = c[:2] - self.bed_center[:2]
@@ -313,7 +309,7 @@ class Simulation:
             if p.splash:
                 hashgrid.clear_counts(w)
             lc = self.bed_center[:2] - self.origin[:2]
-            rock_pass(w, self.dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
+            rock_pass(w, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
                       float(self._lead[0]), float(self._lead[1]), self.step_count, p.flight, p.recycle,
                       p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
         if p.splash:
@@ -349,6 +345,31 @@ class Simulation:
             "vehicle_names": np.array(self.fleet.names),
             "launches_total": self.launches_total,
         }
+
+    def check_health(self) -> None:
+        """The runtime guard: raise HealthError naming the step, the rock and the value when a rock is
+        non-finite, outside the bed (with recycling) or below the ground (with ground contact)."""
+        if not self.n_rocks:
+            return
+        if not hasattr(self, "_health_out"):
+            self._health_out = ti.field(ti.i32, shape=6)
+        lc = self.bed_center[:2] - self.origin[:2]
+        slack = 1e-3 + 1e-6 * self.scene.bed.radius
+        health(self.w, float(lc[0]), float(lc[1]), slack, self.plan.recycle, self.plan.ground != "none",
+               self._health_out)
+        out = self._health_out.to_numpy()
+        if not out[:3].any():
+            return
+        kind = int(np.flatnonzero(out[:3])[0])
+        i = int(out[3 + kind])
+        rid = int(self.w.rock_id[i])
+        p = self.w.pos[i].to_numpy().astype(np.float64) + self.origin
+        v = self.w.vel[i].to_numpy()
+        what = ("non-finite state", "outside the bed", "below the ground")[kind]
+        raise HealthError(
+            f"step {self.step_count} (t = {self.time:.4f} s): {int(out[kind])} rock(s) {what}; "
+            f"first: rock {rid} at position {np.array2string(p, precision=4)} m, velocity "
+            f"{np.array2string(v, precision=4)} m/s")
 
     def tire_rays(self) -> np.ndarray:
         t = self._tires_prev

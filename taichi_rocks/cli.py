@@ -1,0 +1,222 @@
+"""Command line: ``taichi-rocks check | schema | simulate | render | bench``.
+
+Exit status: 0 success; 1 the simulation went wrong (runtime guard); 2 bad input (scene, arguments,
+existing outputs, missing Vulkan); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
+never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+class UsageError(Exception):
+    """Bad input that is not a scene problem; the message is one line."""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def _resolution(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 1280x720, got {text!r}") from None
+    if w < 16 or h < 16 or w % 2 or h % 2:
+        raise argparse.ArgumentTypeError(f"width and height must be even and >= 16 (H.264), got {text}")
+    return w, h
+
+
+def _parser() -> argparse.ArgumentParser:
+    from .plan import ARCHES
+
+    p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    c = sub.add_parser("check", help="validate scene files and summarise what will run")
+    c.add_argument("scenes", nargs="+", metavar="SCENE")
+
+    sub.add_parser("schema", help="print the JSON Schema of scene files")
+
+    def engine_args(q):
+        q.add_argument("scene", metavar="SCENE")
+        q.add_argument("--frames", type=_positive_int, help="frames to produce (default: duration x fps)")
+        q.add_argument("--fps", type=_positive_float, help="frames per second (default: [render] fps)")
+        q.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend (gpu falls back to cpu)")
+        q.add_argument("--seed", type=int, help="override the scene's seed")
+        q.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+
+    s = sub.add_parser("simulate", help="run headless and write an .npz of the rock states")
+    engine_args(s)
+    s.add_argument("--out", type=Path, help="output .npz (default: renders/<scene>/<scene>.npz)")
+
+    r = sub.add_parser("render", help="render frames (PNG) and a video with the offscreen GGUI renderer")
+    engine_args(r)
+    r.add_argument("--out", type=Path, help="output folder (default: renders/<scene>/)")
+    r.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
+    r.add_argument("--format", choices=("mp4", "gif", "png"), default="mp4")
+    r.add_argument("--profile", action="store_true", help="report time shares per stage")
+    r.add_argument("--resume", action="store_true", help="continue an interrupted render")
+
+    b = sub.add_parser("bench", help="measure accuracy against cost and speed against peers")
+    b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
+    b.add_argument("--out", type=Path, default=Path("renders/bench"))
+    b.add_argument("--arch", choices=ARCHES, default="cpu")
+    return p
+
+
+def _err(msg: str) -> None:
+    print(msg, file=sys.stderr)
+
+
+@contextlib.contextmanager
+def _quiet_import():
+    """Taichi prints a banner on stdout when imported; keep stdout for results."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        yield
+
+
+def _frames(scene, args) -> tuple[int, float]:
+    fps = args.fps or float(scene.render.fps)
+    frames = args.frames or max(1, int(round(scene.duration * fps)))
+    return frames, fps
+
+
+def cmd_check(args) -> int:
+    from .scene import SceneError, load_scene, summarise
+
+    status = EXIT_OK
+    for i, path in enumerate(args.scenes):
+        try:
+            scene = load_scene(path)
+        except SceneError as e:
+            _err(str(e))
+            status = EXIT_USAGE
+            continue
+        if i:
+            print()
+        print(summarise(scene))
+    return status
+
+
+def cmd_schema(args) -> int:
+    from .scene import scene_json_schema
+
+    print(json.dumps(scene_json_schema(), indent=2))
+    return EXIT_OK
+
+
+def cmd_simulate(args) -> int:
+    from tqdm import tqdm
+
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    out = args.out or Path("renders") / scene.name / f"{scene.name}.npz"
+    if out.exists() and not args.overwrite:
+        raise UsageError(f"{out}: exists; pass --overwrite to replace it")
+    if out.exists() and out.is_dir():
+        raise UsageError(f"{out}: is a directory, expected an .npz file name")
+    frames, fps = _frames(scene, args)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with _quiet_import():
+        from .recording import record
+        from .simulation import Simulation
+
+    sim = Simulation(scene, arch=args.arch, seed=args.seed)
+    with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
+        info = record(sim, out, frames, fps, progress=bar)
+    print(f"wrote {info['path']}: {frames} frames of {info['rocks']} rocks, "
+          f"{sim.launches_total} launches, {info['bytes'] / 1e6:.1f} MB")
+    return EXIT_OK
+
+
+def cmd_render(args) -> int:
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)
+    with _quiet_import():
+        from .render import render_scene
+    kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
+                  fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
+                  profile=args.profile)
+    if args.seed is not None:
+        from .scene import scene_with
+
+        scene = scene_with(scene, {"seed": args.seed})
+    if args.resume:
+        kwargs["resume"] = True
+    info = render_scene(scene, **kwargs)
+    where = info.get("video") or info.get("frames_dir")
+    print(f"wrote {where}: {info.get('frames')} frames at {info.get('fps_measured', 0):.2f} frames/s")
+    if args.profile and info.get("profile"):
+        for k, v in info["profile"].items():
+            print(f"  {k:<12} {v:8.2f} s")
+    return EXIT_OK
+
+
+def cmd_bench(args) -> int:
+    with _quiet_import():
+        from .bench import run_bench
+    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+    print(f"wrote {info.get('report', args.out)}")
+    return EXIT_OK
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    from .scene import SceneError
+
+    handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "render": cmd_render,
+               "bench": cmd_bench}[args.command]
+    try:
+        return handler(args)
+    except SceneError as e:
+        _err(str(e))
+        return EXIT_USAGE
+    except (UsageError, FileExistsError, ValueError) as e:
+        _err(f"taichi-rocks {args.command}: {e}")
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        _err(f"taichi-rocks {args.command}: interrupted"
+             + ("; run the same command with --resume to continue" if args.command == "render" else ""))
+        return EXIT_INTERRUPTED
+    except Exception as e:  # noqa: BLE001 - one line, no traceback, for anything the engine raises
+        from .simulation import HealthError
+
+        if isinstance(e, HealthError):
+            _err(f"taichi-rocks {args.command}: simulation failed at {e}")
+            return EXIT_FAILED
+        if "Vulkan" in str(e):
+            _err(f"taichi-rocks {args.command}: {e}")
+            return EXIT_USAGE
+        if os.environ.get("TAICHI_ROCKS_DEBUG"):
+            raise
+        _err(f"taichi-rocks {args.command}: {type(e).__name__}: {e} (set TAICHI_ROCKS_DEBUG=1 for details)")
+        return EXIT_FAILED

@@ -1,0 +1,64 @@
+"""What a scene asks the simulation to do: which passes run and with which settings (no Taichi here)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ARCHES = ("cpu", "gpu", "cuda", "vulkan")  # Taichi backends a user can ask for
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Decided once from the scene. Only launched rocks ever leave the ground, so flight runs only with
+    splashing tires; the hash table exists only if a tire queries it."""
+
+    splash: bool  # hash build + tire pass
+    flight: bool
+    recycle: bool
+    center: bool  # centre insert (else AABB)
+    swept: bool
+    substeps: int
+    reorder_every: int
+    integrator: str
+    gravity: bool
+    drag: str
+    ground: str
+    cell_size: float
+
+    @classmethod
+    def from_scene(cls, scene) -> "Plan":
+        fx, sim = scene.effects, scene.sim
+        n = scene.bed.rocks
+        splash = bool(fx.splash and any(v.splash for v in scene.vehicles) and n > 0)
+        center = sim.hash.insert == "center"
+        return cls(splash=splash, flight=splash, recycle=bool(fx.recycle and n > 0), center=center,
+                   swept=sim.detection == "swept", substeps=int(sim.substeps) if sim.detection == "ray" else 1,
+                   reorder_every=int(sim.hash.reorder_every) if (splash and center) else 0,
+                   integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
+                   cell_size=cell_size(scene))
+
+    def passes(self) -> list[str]:
+        out = []
+        if self.flight:
+            out.append(f"flight ({self.integrator}, gravity {'on' if self.gravity else 'off'}, "
+                       f"drag {self.drag}, ground {self.ground})")
+        if self.recycle:
+            out.append("recycle")
+        if self.splash:
+            out.append(f"hash build ({'centre' if self.center else 'aabb'} insert, cell {self.cell_size:g} m)")
+            out.append("tire pass (" + ("swept" if self.swept else f"ray x{self.substeps}") + ")")
+        return out
+
+
+def cell_size(scene) -> float:
+    """The hash cell edge in metres: "auto" is 2 r_max for centre insert (one cell per rock, queries dilated
+    by one cell) and r_min for AABB insert (the original design)."""
+    r_min, r_max = scene.bed.rock_radius
+    cs = scene.sim.hash.cell_size
+    if cs == "auto":
+        return 2.0 * r_max if scene.sim.hash.insert == "center" else r_min
+    if cs == "min_radius":
+        return r_min
+    if cs == "max_diameter":
+        return 2.0 * r_max
+    return float(cs)

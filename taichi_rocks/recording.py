@@ -1,0 +1,89 @@
+"""Headless recording of a simulation into an .npz, streamed through memory-mapped files so that a long run
+of many rocks never holds all frames in memory, and written atomically (temporary name, then rename).
+
+Frame f is the state at time f / fps. Arrays: time (F,), positions (F, N, 3) float64 world metres,
+velocities (F, N, 3) float32, phase (F, N) int8 (0 resting, 1 flying, 2 sliding), radii (N,),
+bed_center (F, 3), vehicle_positions (F, V, 3), vehicle_headings (F, V), vehicle_names (V,),
+launches (F,) = rocks launched since the previous frame, plus fps, dt, seed and scene name.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+
+def atomic_path(final: Path) -> Path:
+    """A temporary file name next to ``final`` (same folder, so the rename is atomic)."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
+    os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; the final file gets the usual permissions
+    return Path(tmp)
+
+
+def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True) -> dict:
+    """Run ``sim`` for ``frames`` frames and write ``out``. Returns a small summary.
+
+    With ``guard``, the state is checked after every frame (see Simulation.check_health); on failure the
+    HealthError propagates and nothing is written under ``out``.
+    """
+    out = Path(out)
+    n, v = sim.n_rocks, len(sim.fleet.names)
+    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        shapes = {
+            "time": ((frames,), np.float64),
+            "positions": ((frames, n, 3), np.float64),
+            "velocities": ((frames, n, 3), np.float32),
+            "phase": ((frames, n), np.int8),
+            "bed_center": ((frames, 3), np.float64),
+            "vehicle_positions": ((frames, v, 3), np.float64),
+            "vehicle_headings": ((frames, v), np.float64),
+            "launches": ((frames,), np.int64),
+        }
+        arrays = {k: np.lib.format.open_memmap(work / f"{k}.npy", mode="w+", dtype=dt, shape=shape)
+                  for k, (shape, dt) in shapes.items()}
+        previous = sim.launches_total
+        for f in range(frames):
+            sim.advance_to(f / fps)
+            if guard:
+                sim.check_health()
+            st = sim.state()
+            arrays["time"][f] = st["time"]
+            arrays["positions"][f] = st["positions"]
+            arrays["velocities"][f] = st["velocities"]
+            arrays["phase"][f] = st["phase"]
+            arrays["bed_center"][f] = st["bed_center"]
+            arrays["vehicle_positions"][f] = st["vehicle_positions"]
+            arrays["vehicle_headings"][f] = st["vehicle_headings"]
+            arrays["launches"][f] = st["launches_total"] - previous
+            previous = st["launches_total"]
+            if progress is not None:
+                progress.update(1)
+        for a in arrays.values():
+            a.flush()
+        del arrays
+        small = {"radii": st["radii"] if frames else sim.state()["radii"],
+                 "vehicle_names": np.array(sim.fleet.names), "fps": np.float64(fps), "dt": np.float64(sim.dt),
+                 "seed": np.int64(sim.scene.seed), "scene": np.array(sim.scene.name)}
+        for k, val in small.items():
+            np.save(work / f"{k}.npy", val)
+        tmp = atomic_path(out)
+        try:
+            with zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED, allowZip64=True) as z:
+                for k in list(shapes) + list(small):
+                    z.write(work / f"{k}.npy", arcname=f"{k}.npy")
+            os.replace(tmp, out)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+        return {"frames": frames, "rocks": n, "path": str(out), "bytes": out.stat().st_size}
+    finally:
+        shutil.rmtree(work, ignore_errors=True)

@@ -1,0 +1,650 @@
+"""Offscreen rendering of a :class:`~taichi_rocks.simulation.Simulation` with Taichi GGUI.
+
+GGUI draws through Vulkan; on a machine without a GPU, Mesa's software driver (lavapipe) does the work.
+Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window and read back:
+
+* rocks: ``scene.particles`` from compact f32 fields filled by :func:`_cull_rocks`, a kernel that keeps the
+  rocks inside the view frustum and the draw distance (atomic-counter compaction) and thins far resting rocks
+  to a constant screen-space density (:data:`DEFAULT_LOD_PIXELS`);
+* ground: a checker of ``render.ground_tile`` metre tiles anchored to *world* coordinates (it scrolls as the
+  vehicles drive), filled by :func:`_fill_ground` around the camera, fading to its mean colour with distance
+  (no moire at the horizon), plus a plain skirt out to 1.5 draw distances;
+* vehicles: a body box, a cabin and four tire cylinders each, in the vehicle's colour;
+* debug overlays (``render.bed_edge``, ``render.tire_rays``, ``render.hash_cells``) as lines.
+
+Coordinate convention (the one place it is decided): we draw in the simulation's *local* frame
+(world = ``sim.origin`` + local, Z up) without any axis swap, and set the GGUI camera's ``up`` to +Z
+(:data:`GL_UP`). :func:`to_gl` is therefore the identity on the axes and only subtracts the floating origin;
+every host-side world position goes through it, so GGUI's f32 stays precise far from (0, 0, 0).
+
+Two GGUI 1.7.4 quirks are handled here:
+
+* particles come out ``width / height`` times too large (the particle vertex shader scales the sprite's x
+  and y by the vertical fov and then y again by the aspect ratio): radii are divided by the aspect ratio;
+* ``mesh_instance`` lights the *untransformed* mesh (the vertex shader forwards the instance's model-space
+  position and normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one:
+  vehicles are drawn as one ``scene.mesh`` whose vertices and normals are transformed on the host each frame.
+
+Other facts (``/work/shared/TAICHI-NOTES.md``): never ``window.show()`` on a hidden window (segfault), the image
+comes back (W, H, 4) float and y-flipped, capture exactly once per frame, and a 3D scene leaks ~0.3 MB per
+captured frame on lavapipe: the window is recreated every ``window_every`` frames (camera state carries over).
+"""
+
+import math
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import taichi as ti
+
+__all__ = ["Renderer", "CameraRig", "to_gl", "GL_UP", "VULKAN_HINT", "DEFAULT_LOD_PIXELS", "rock_color"]
+
+GL_UP = (0.0, 0.0, 1.0)  # GGUI camera up: the simulation's +Z (no axis swap anywhere)
+VULKAN_HINT = ("GGUI needs Vulkan: install Mesa's software driver with "
+               "`apt-get install -y mesa-vulkan-drivers libvulkan1`")
+DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this many pixels are thinned
+WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
+
+# Looks (linear RGB as GGUI shades it: colour * (ambient + sum of Lambert terms)).
+AMBIENT = (0.40, 0.42, 0.46)
+SUN_COLOR = (0.68, 0.66, 0.60)
+SUN_DIR_CAMERA = (-0.45, 0.55, 1.0)  # sun direction in the camera-heading frame (x fwd, y left, z up)
+GROUND_A = (0.56, 0.53, 0.44)
+GROUND_B = (0.49, 0.46, 0.38)
+TIRE_COLOR = (0.09, 0.09, 0.10)
+HUB_COLOR = (0.62, 0.62, 0.64)
+GLASS_COLOR = (0.16, 0.20, 0.26)
+BED_EDGE_COLOR = (1.0, 0.85, 0.1)
+RAY_COLOR = (1.0, 0.1, 0.1)
+CELL_COLOR = (0.1, 0.9, 1.0)
+MAX_RAYS = 256
+MAX_CELLS = 4096
+MIN_BUCKET = 4096
+
+
+def to_gl(p_world, origin) -> np.ndarray:
+    """World (Z up, float64) -> what GGUI gets: local coordinates (``p - origin``) as f32, axes unchanged.
+
+    Together with ``camera.up = GL_UP`` this is the whole Z-up/Y-up conversion.
+    """
+    return (np.asarray(p_world, np.float64) - np.asarray(origin, np.float64)).astype(np.float32)
+
+
+# ------------------------------------------------------------------------------------------------ kernels
+@ti.func
+def _hash_u32(x):
+    """lowbias32 integer hash (Chris Wellons), on u32."""
+    x = ti.cast(x, ti.u32)
+    x ^= x >> ti.u32(16)
+    x *= ti.u32(0x7FEB352D)
+    x ^= x >> ti.u32(15)
+    x *= ti.u32(0x846CA68B)
+    x ^= x >> ti.u32(16)
+    return x
+
+
+@ti.func
+def _unit(rid, salt):
+    """A number in [0, 1) from a rock id and a salt: stable across frames and memory re-orderings."""
+    h = _hash_u32(ti.cast(rid, ti.u32) * ti.u32(0x9E3779B9) + ti.cast(salt, ti.u32) * ti.u32(0x85EBCA6B))
+    return ti.cast(h >> ti.u32(8), ti.f32) * (1.0 / 16777216.0)
+
+
+@ti.func
+def _rock_color(rid, phase):
+    a = _unit(rid, 1)
+    b = _unit(rid, 2)
+    c = _unit(rid, 3)
+    grey = ti.Vector([0.60, 0.59, 0.57])
+    brown = ti.Vector([0.62, 0.50, 0.37])
+    dark = ti.Vector([0.36, 0.34, 0.32])
+    col = grey + (brown - grey) * (a * a)
+    col = col + (dark - col) * (0.55 * c * c)
+    col = col * (0.72 + 0.45 * b)
+    if phase == 1:  # flying: warmer and lighter so the splash reads
+        col = ti.min(col * ti.Vector([1.30, 1.12, 0.85]) + 0.06, 1.0)
+    return col
+
+
+def rock_color(rock_id: int, phase: int = 0) -> np.ndarray:
+    """Host mirror of the kernel's rock colour (for tests and documentation)."""
+    def h(x):
+        x &= 0xFFFFFFFF
+        x ^= x >> 16
+        x = (x * 0x7FEB352D) & 0xFFFFFFFF
+        x ^= x >> 15
+        x = (x * 0x846CA68B) & 0xFFFFFFFF
+        x ^= x >> 16
+        return x
+
+    def unit(rid, salt):
+        return (h((rid * 0x9E3779B9 + salt * 0x85EBCA6B) & 0xFFFFFFFF) >> 8) / 16777216.0
+
+    a, b, c = unit(rock_id, 1), unit(rock_id, 2), unit(rock_id, 3)
+    grey, brown, dark = np.array([0.60, 0.59, 0.57]), np.array([0.62, 0.50, 0.37]), np.array([0.36, 0.34, 0.32])
+    col = grey + (brown - grey) * a * a
+    col = col + (dark - col) * 0.55 * c * c
+    col = col * (0.72 + 0.45 * b)
+    if phase == 1:
+        col = np.minimum(col * np.array([1.30, 1.12, 0.85]) + 0.06, 1.0)
+    return col
+
+
+@ti.kernel
+def _cull_rocks(pos: ti.template(), radius: ti.template(), rock_id: ti.template(), phase: ti.template(),
+                n: ti.i32, out_pos: ti.template(), out_rad: ti.template(), out_col: ti.template(),
+                count: ti.template(), cap: ti.i32, eye: ti.types.vector(3, ti.f32),
+                fwd: ti.types.vector(3, ti.f32), right: ti.types.vector(3, ti.f32),
+                up: ti.types.vector(3, ti.f32), tan_x: ti.f32, tan_y: ti.f32, sec_x: ti.f32, sec_y: ti.f32,
+                near: ti.f32, far: ti.f32, px_per_rad: ti.f32, lod_px: ti.f32, radius_scale: ti.f32):
+    """Compact the visible rocks into out_* (first ``count`` entries); count may exceed cap (then re-run)."""
+    count[None] = 0
+    for i in range(n):
+        p = ti.cast(pos[i], ti.f32)
+        r = ti.cast(radius[i], ti.f32)
+        d = p - eye
+        z = d.dot(fwd)
+        if z > near - r and d.norm_sqr() < far * far:
+            x = d.dot(right)
+            y = d.dot(up)
+            if ti.abs(x) < z * tan_x + r * sec_x and ti.abs(y) < z * tan_y + r * sec_y:
+                ph = phase[i]
+                rid = rock_id[i]
+                keep = True
+                draw_r = r
+                if ph != 1 and lod_px > 0:
+                    pr = r * px_per_rad / ti.max(z, near)  # projected radius, pixels
+                    if pr < lod_px:
+                        q = pr / lod_px
+                        if _unit(rid, 7) < q * q:  # keep a fraction q^2, drawn 1/q larger: same coverage
+                            draw_r = r / q
+                        else:
+                            keep = False
+                if keep:
+                    j = ti.atomic_add(count[None], 1)
+                    if j < cap:
+                        out_pos[j] = p
+                        out_rad[j] = draw_r * radius_scale
+                        out_col[j] = _rock_color(rid, ph)
+
+
+@ti.kernel
+def _fill_ground(verts: ti.template(), cols: ti.template(), n: ti.i32, corner: ti.types.vector(3, ti.f32),
+                 tile: ti.f32, parity: ti.i32, eye: ti.types.vector(3, ti.f32), fade0: ti.f32, fade1: ti.f32,
+                 ca: ti.types.vector(3, ti.f32), cb: ti.types.vector(3, ti.f32)):
+    """n x n checker tiles from ``corner`` (local); tile (a, b) has world parity (a + b + parity) & 1."""
+    mean = 0.5 * (ca + cb)
+    for t in range(n * n):
+        a = t // n
+        b = t - a * n
+        x0 = corner[0] + a * tile
+        y0 = corner[1] + b * tile
+        cx = x0 + 0.5 * tile - eye[0]
+        cy = y0 + 0.5 * tile - eye[1]
+        d = ti.sqrt(cx * cx + cy * cy)
+        s = ti.min(ti.max((d - fade0) / (fade1 - fade0), 0.0), 1.0)
+        w = 1.0 - s * s * (3.0 - 2.0 * s)
+        c = ca
+        if (a + b + parity) & 1:
+            c = cb
+        col = mean + (c - mean) * w
+        z = corner[2]
+        verts[4 * t + 0] = ti.Vector([x0, y0, z])
+        verts[4 * t + 1] = ti.Vector([x0 + tile, y0, z])
+        verts[4 * t + 2] = ti.Vector([x0 + tile, y0 + tile, z])
+        verts[4 * t + 3] = ti.Vector([x0, y0 + tile, z])
+        for k in ti.static(range(4)):
+            cols[4 * t + k] = col
+
+
+# ------------------------------------------------------------------------------------------------ geometry
+def _quad_faces(corners, normal, color):
+    """One flat quad (4 corners CCW seen from the normal side)."""
+    v = np.asarray(corners, np.float64)
+    return v, np.tile(normal, (4, 1)), np.tile(color, (4, 1)), np.array([0, 1, 2, 0, 2, 3])
+
+
+def _box(center, size, colors):
+    """Axis-aligned box: 24 vertices (flat faces). colors: dict face -> rgb for '+x','-x','+y','-y','+z','-z'."""
+    cx, cy, cz = center
+    hx, hy, hz = (s / 2 for s in size)
+    x0, x1, y0, y1, z0, z1 = cx - hx, cx + hx, cy - hy, cy + hy, cz - hz, cz + hz
+    faces = {
+        "+x": ([(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)], (1, 0, 0)),
+        "-x": ([(x0, y1, z0), (x0, y0, z0), (x0, y0, z1), (x0, y1, z1)], (-1, 0, 0)),
+        "+y": ([(x1, y1, z0), (x0, y1, z0), (x0, y1, z1), (x1, y1, z1)], (0, 1, 0)),
+        "-y": ([(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)], (0, -1, 0)),
+        "+z": ([(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], (0, 0, 1)),
+        "-z": ([(x0, y1, z0), (x1, y1, z0), (x1, y0, z0), (x0, y0, z0)], (0, 0, -1)),
+    }
+    return _merge([_quad_faces(c, n, colors[k]) for k, (c, n) in faces.items()])
+
+
+def _tire(center, radius, width, seg=20):
+    """Cylinder with its axis along y: dark tread and sidewalls, light hub discs."""
+    cx, cy, cz = center
+    th = np.linspace(0.0, 2.0 * np.pi, seg, endpoint=False)
+    c, s = np.cos(th), np.sin(th)
+    parts = []
+    # tread: 2 rings, smooth normals
+    ring = lambda y, rr: np.stack([cx + rr * c, np.full(seg, y), cz + rr * s], 1)
+    y0, y1 = cy - width / 2, cy + width / 2
+    v = np.concatenate([ring(y0, radius), ring(y1, radius)])
+    nrm = np.concatenate([np.stack([c, 0 * c, s], 1)] * 2)
+    idx = []
+    for k in range(seg):
+        k2 = (k + 1) % seg
+        idx += [k, k2, seg + k2, k, seg + k2, seg + k]
+    parts.append((v, nrm, np.tile(TIRE_COLOR, (2 * seg, 1)), np.array(idx)))
+    # sidewalls (annulus) and hubs (disc), both sides
+    for y, ny in ((y1, 1.0), (y0, -1.0)):
+        outer, inner = ring(y, radius), ring(y, 0.55 * radius)
+        v = np.concatenate([outer, inner])
+        idx = []
+        for k in range(seg):
+            k2 = (k + 1) % seg
+            a = [k, k2, seg + k2, k, seg + k2, seg + k]
+            idx += a if ny < 0 else [a[0], a[2], a[1], a[3], a[5], a[4]]
+        parts.append((v, np.tile((0, ny, 0), (2 * seg, 1)), np.tile(TIRE_COLOR, (2 * seg, 1)), np.array(idx)))
+        hub = np.concatenate([inner, [(cx, y + 0.002 * ny, cz)]])
+        idx = []
+        for k in range(seg):
+            k2 = (k + 1) % seg
+            idx += [seg, k2, k] if ny < 0 else [seg, k, k2]
+        parts.append((hub, np.tile((0, ny, 0), (seg + 1, 1)), np.tile(HUB_COLOR, (seg + 1, 1)), np.array(idx)))
+    return _merge(parts)
+
+
+def _merge(parts):
+    vs, ns, cs, ids, off = [], [], [], [], 0
+    for v, n, c, i in parts:
+        vs.append(np.asarray(v, np.float64))
+        ns.append(np.asarray(n, np.float64))
+        cs.append(np.asarray(c, np.float64))
+        ids.append(np.asarray(i, np.int64) + off)
+        off += len(v)
+    return np.concatenate(vs), np.concatenate(ns), np.concatenate(cs), np.concatenate(ids)
+
+
+def vehicle_mesh(spec, ground_z: float = 0.0):
+    """Body-frame mesh of one vehicle (x forward, y left, z up; origin at the body centre on the ground).
+
+    Returns (vertices, normals, colours, indices). Body: a lower box of the full length x width and a cabin
+    (glass sides, roof in the body colour); tires at (+-wheelbase/2, +-track/2), centre height tire_radius.
+    """
+    col = np.clip(np.asarray(spec.color, np.float64), 0, 1)
+    L, W, H = float(spec.length), float(spec.width), float(spec.height)
+    R, TW = float(spec.tire_radius), float(spec.tire_width)
+    bottom = ground_z + 0.55 * R
+    lower_h = 0.55 * H
+    lower = _box((0.0, 0.0, bottom + lower_h / 2), (L, W, lower_h), {k: col for k in ("+x", "-x", "+y", "-y", "+z", "-z")})
+    cab_h = H - lower_h
+    cab_l = 0.55 * L
+    glass = {k: np.array(GLASS_COLOR) for k in ("+x", "-x", "+y", "-y", "-z")}
+    glass["+z"] = col * 0.92
+    cabin = _box((-0.08 * L, 0.0, bottom + lower_h + cab_h / 2), (cab_l, 0.9 * W, cab_h), glass)
+    parts = [lower, cabin]
+    for sx in (0.5, -0.5):
+        for sy in (0.5, -0.5):
+            parts.append(_tire((sx * float(spec.wheelbase), sy * float(spec.track), ground_z + R), R, TW))
+    return _merge(parts)
+
+
+# ------------------------------------------------------------------------------------------------ camera
+class CameraRig:
+    """Chase camera: eye at ``offset`` in the followed vehicle's frame, looking ``look_ahead`` metres ahead.
+
+    The frame's heading is smoothed exponentially with time constant ``smoothing`` seconds (a first-order
+    low-pass, frame-rate independent: alpha = 1 - exp(-dt / smoothing)); positions are not lagged, so the
+    vehicle stays framed at any speed, and the camera swings round late in turns. The first update snaps.
+    """
+
+    def __init__(self, offset, look_ahead: float, smoothing: float):
+        self.offset = np.asarray(offset, np.float64)
+        self.look_ahead = float(look_ahead)
+        self.smoothing = float(smoothing)
+        self.heading = None  # smoothed heading, rad
+        self.t = None
+
+    def update(self, position, heading: float, t: float):
+        """Return (eye, target, smoothed heading), world float64."""
+        if self.heading is None or self.smoothing <= 0.0:
+            self.heading = float(heading)
+        else:
+            dt = max(0.0, float(t) - self.t)
+            alpha = 1.0 - math.exp(-dt / self.smoothing)
+            dh = math.remainder(float(heading) - self.heading, 2.0 * math.pi)
+            self.heading += alpha * dh
+        self.t = float(t)
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        p = np.asarray(position, np.float64)
+        eye = p + rot @ self.offset
+        target = p + rot @ np.array([self.look_ahead, 0.0, 0.0])
+        if np.linalg.norm(target - eye) < 1e-6:  # degenerate set-up: look forward
+            target = eye + rot @ np.array([1.0, 0.0, 0.0])
+        return eye, target, self.heading
+
+
+def _rgb(c) -> tuple:
+    if isinstance(c, str):
+        c = tuple(int(c[i:i + 2], 16) / 255 for i in (1, 3, 5))
+    return tuple(float(x) for x in c)
+
+
+# ------------------------------------------------------------------------------------------------ renderer
+class Renderer:
+    """Draws ``sim`` into a hidden GGUI window; :meth:`render_frame` returns the image (H, W, 3) uint8.
+
+    ``timings`` accumulates seconds spent in ``cull`` (rock culling kernel) and ``draw`` (everything else:
+    camera, ground, vehicles, overlays, GGUI drawing and the read-back).
+    """
+
+    def __init__(self, sim, resolution=None, fps=None, *, lod_pixels: float = DEFAULT_LOD_PIXELS,
+                 window_every: int = WINDOW_EVERY):
+        self.sim = sim
+        sc = sim.scene
+        rs = sc.render
+        w, h = (int(x) for x in (resolution if resolution is not None else rs.resolution))
+        check_resolution((w, h))
+        self.resolution = (w, h)
+        self.fps = float(fps if fps is not None else rs.fps)
+        self.background = _rgb(rs.background)
+        self.draw_distance = float(rs.draw_distance)
+        self.tile = float(rs.ground_tile)
+        self.lod_pixels = float(lod_pixels)
+        self.window_every = int(window_every)
+        self.flags = SimpleNamespace(bed_edge=bool(rs.bed_edge), tire_rays=bool(rs.tire_rays),
+                                     hash_cells=bool(rs.hash_cells))
+        cam = sc.camera
+        follow = cam.follow or getattr(sc.bed, "follow", None) or sc.vehicles[0].name
+        names = [v.name for v in sc.vehicles]
+        if follow not in names:
+            raise ValueError(f"camera.follow: no vehicle named {follow!r} (vehicles: {', '.join(names)})")
+        self.follow = names.index(follow)
+        self.fov = float(cam.fov)
+        self.rig = CameraRig(cam.offset, cam.look_ahead, cam.smoothing)
+        self.ground_z = float(sc.world.ground_z)
+        self.frames_drawn = 0
+        self.last_count = 0
+        self.timings = {"cull": 0.0, "draw": 0.0}
+        self._window = None
+        self._camera = ti.ui.Camera()
+        self._camera.up(*GL_UP)
+        self._camera.fov(self.fov)
+        self._camera.z_near(0.05)
+        self._camera.z_far(max(1000.0, 3.0 * self.draw_distance))
+
+        # rocks: compact buckets (power-of-two capacities), allocated when first needed
+        self.n_rocks = int(sim.n_rocks)
+        self._buckets = {}
+        self._count = ti.field(ti.i32, shape=())
+
+        # ground
+        tan_y = math.tan(math.radians(self.fov) / 2)
+        self.px_per_rad = (h / 2) / tan_y
+        cam_h = max(0.5, float(cam.offset[2]))
+        fade1 = math.sqrt(self.tile * self.px_per_rad * cam_h / 1.5)  # tiles ~1.5 px deep there
+        fade1 = min(max(fade1, 6.0 * self.tile), self.draw_distance * 1.5)
+        self.fade = (0.35 * fade1, fade1)
+        self.n_tiles = int(min(2 * math.ceil(fade1 / self.tile) + 4, 200))
+        self.n_tiles += self.n_tiles % 2
+        nt = self.n_tiles * self.n_tiles
+        self._g_verts = ti.Vector.field(3, ti.f32, 4 * nt)
+        self._g_cols = ti.Vector.field(3, ti.f32, 4 * nt)
+        self._g_norms = ti.Vector.field(3, ti.f32, 4 * nt)
+        self._g_norms.fill(ti.Vector([0.0, 0.0, 1.0]))
+        base = np.arange(nt, dtype=np.int32)[:, None] * 4
+        self._g_idx = ti.field(ti.i32, 6 * nt)
+        self._g_idx.from_numpy((base + np.array([0, 1, 2, 0, 2, 3], np.int32)).reshape(-1))
+        self._s_verts = ti.Vector.field(3, ti.f32, 8)
+        self._s_norms = ti.Vector.field(3, ti.f32, 8)
+        self._s_norms.fill(ti.Vector([0.0, 0.0, 1.0]))
+        self._s_idx = ti.field(ti.i32, 24)
+        # inner square 0..3 (CCW), outer 4..7; one trapezoid per side
+        sk = []
+        for k in range(4):
+            k2 = (k + 1) % 4
+            sk += [k, 4 + k, 4 + k2, k, 4 + k2, k2]
+        self._s_idx.from_numpy(np.array(sk, np.int32))
+
+        # vehicles: one merged mesh, transformed on the host each frame
+        meshes = [vehicle_mesh(v, 0.0) for v in sc.vehicles]
+        self._v_parts = [(len(m[0]), m) for m in meshes]
+        vs, ns, cs, ids = _merge([m for m in meshes])
+        self._v_local = (vs, ns)
+        nv = len(vs)
+        self._v_verts = ti.Vector.field(3, ti.f32, nv)
+        self._v_norms = ti.Vector.field(3, ti.f32, nv)
+        self._v_cols = ti.Vector.field(3, ti.f32, nv)
+        self._v_cols.from_numpy(cs.astype(np.float32))
+        self._v_idx = ti.field(ti.i32, len(ids))
+        self._v_idx.from_numpy(ids.astype(np.int32))
+        self._v_owner = np.concatenate([np.full(n, k) for k, (n, _) in enumerate(self._v_parts)])
+
+        # overlays
+        self._drawn = None
+        self._bed_lines = self._ray_lines = self._cell_lines = None
+        if self.flags.bed_edge:
+            self._bed_lines = ti.Vector.field(3, ti.f32, 256)
+        if self.flags.tire_rays:
+            self._ray_lines = ti.Vector.field(3, ti.f32, 2 * MAX_RAYS)
+        if self.flags.hash_cells:
+            self._cell_lines = ti.Vector.field(3, ti.f32, 24 * MAX_CELLS)
+        self._open_window()
+
+    # -------------------------------------------------------------------------------------------- window
+    def _open_window(self) -> None:
+        try:
+            self._window = ti.ui.Window("taichi-rocks", self.resolution, show_window=False, vsync=False)
+        except Exception as e:  # Taichi raises RuntimeError("Vulkan must be available for GGUI") and kin
+            if "vulkan" in str(e).lower() or "ggui" in str(e).lower():
+                raise RuntimeError(VULKAN_HINT) from e
+            raise
+        self._canvas = self._window.get_canvas()
+        self._scene = self._window.get_scene()
+
+    def _recycle_window(self) -> None:
+        self._close_window()
+        self._open_window()
+
+    def _close_window(self) -> None:
+        if self._window is not None:
+            try:
+                self._window.destroy()
+            except Exception:
+                pass
+            self._window = self._canvas = self._scene = None
+
+    def close(self) -> None:
+        self._close_window()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # -------------------------------------------------------------------------------------------- frame
+    def _bucket(self, need: int):
+        cap = MIN_BUCKET
+        while cap < need:
+            cap *= 2
+        cap = min(cap, max(self.n_rocks, 1))
+        if cap not in self._buckets:
+            self._buckets[cap] = (ti.Vector.field(3, ti.f32, cap), ti.field(ti.f32, cap),
+                                  ti.Vector.field(3, ti.f32, cap))
+        return cap, self._buckets[cap]
+
+    def camera_frame(self):
+        """Update the chase camera from the simulation; return (eye, target, heading) in world coordinates."""
+        pose = self.sim.vehicle_poses()[self.follow]
+        return self.rig.update(pose.position, pose.heading, self.sim.time)
+
+    def cull(self, eye_l, fwd, right, up) -> int:
+        """Fill a compact bucket with the visible rocks; return how many (also in ``self.last_count``)."""
+        sim, n = self.sim, self.n_rocks
+        if n == 0:
+            self.last_count = 0
+            self._drawn = None
+            return 0
+        w, h = self.resolution
+        tan_y = math.tan(math.radians(self.fov) / 2)
+        tan_x = tan_y * w / h
+        args = (eye_l, fwd, right, up, tan_x, tan_y, math.sqrt(1 + tan_x * tan_x), math.sqrt(1 + tan_y * tan_y),
+                0.05, self.draw_distance, self.px_per_rad, self.lod_pixels, h / w)
+        need = max(int(self.last_count * 1.25), 1)
+        for _ in range(2):
+            cap, (bp, br, bc) = self._bucket(need)
+            _cull_rocks(sim.world.pos, sim.world.radius, sim.world.rock_id, sim.world.phase, n, bp, br, bc,
+                        self._count, cap, *args)
+            count = int(self._count[None])
+            if count <= cap:
+                break
+            need = int(count * 1.25)
+        self.last_count = count
+        self._drawn = (bp, br, bc, count)
+        return count
+
+    def render_frame(self) -> np.ndarray:
+        """Draw the simulation's current state; return the upright image, (H, W, 3) uint8."""
+        t0 = time.perf_counter()
+        sim = self.sim
+        origin = np.asarray(sim.origin, np.float64)
+        eye, target, heading = self.camera_frame()
+        eye_l, target_l = to_gl(eye, origin), to_gl(target, origin)
+        fwd = target_l - eye_l
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, np.array(GL_UP, np.float32))
+        if np.linalg.norm(right) < 1e-6:  # looking straight down/up
+            right = np.array([math.sin(heading), -math.cos(heading), 0.0], np.float32)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        vec = lambda a: ti.Vector([float(x) for x in a])
+        t1 = time.perf_counter()
+        self.cull(vec(eye_l), vec(fwd), vec(right), vec(up))
+        t2 = time.perf_counter()
+
+        scene = self._scene
+        cam = self._camera
+        cam.position(*(float(x) for x in eye_l))
+        cam.lookat(*(float(x) for x in target_l))
+        cam.up(*GL_UP)
+        scene.set_camera(cam)
+        scene.ambient_light(AMBIENT)
+        c, s = math.cos(heading), math.sin(heading)
+        sd = np.array(SUN_DIR_CAMERA, np.float64)
+        sd = np.array([c * sd[0] - s * sd[1], s * sd[0] + c * sd[1], sd[2]])
+        sd /= np.linalg.norm(sd)
+        scene.point_light(tuple(float(x) for x in eye_l + 2000.0 * sd), SUN_COLOR)
+
+        self._draw_ground(scene, eye, origin)
+        self._draw_vehicles(scene, origin)
+        if self._drawn is not None and self._drawn[3] > 0:
+            bp, br, bc, count = self._drawn
+            scene.particles(bp, 0.03, per_vertex_color=bc, per_vertex_radius=br, index_count=count)
+        self._draw_overlays(scene, origin)
+
+        self._canvas.set_background_color(self.background)
+        self._canvas.scene(scene)
+        raw = self._window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y flipped
+        img = np.rot90(raw)[:, :, :3]
+        out = np.empty(img.shape, np.uint8)
+        np.multiply(img, 255.0, out=img)
+        np.add(img, 0.5, out=img)
+        np.clip(img, 0.0, 255.0, out=img)
+        out[...] = img
+        self.frames_drawn += 1
+        if self.window_every > 0 and self.frames_drawn % self.window_every == 0:
+            self._recycle_window()
+        t3 = time.perf_counter()
+        self.timings["cull"] += t2 - t1
+        self.timings["draw"] += (t1 - t0) + (t3 - t2)
+        return out
+
+    # -------------------------------------------------------------------------------------------- parts
+    def _draw_ground(self, scene, eye_world, origin) -> None:
+        tile, n = self.tile, self.n_tiles
+        i0 = math.floor(eye_world[0] / tile) - n // 2
+        j0 = math.floor(eye_world[1] / tile) - n // 2
+        corner_w = np.array([i0 * tile, j0 * tile, self.ground_z])
+        corner = to_gl(corner_w, origin)
+        eye_l = to_gl(eye_world, origin)
+        _fill_ground(self._g_verts, self._g_cols, n, ti.Vector([float(x) for x in corner]), tile, (i0 + j0) & 1,
+                     ti.Vector([float(x) for x in eye_l]), self.fade[0], self.fade[1],
+                     ti.Vector(GROUND_A), ti.Vector(GROUND_B))
+        scene.mesh(self._g_verts, indices=self._g_idx, normals=self._g_norms, per_vertex_color=self._g_cols)
+        # skirt: from the checker square out to 1.5 draw distances, in the checker's mean colour
+        z = float(corner[2])
+        x0, y0 = float(corner[0]), float(corner[1])
+        x1, y1 = x0 + n * tile, y0 + n * tile
+        ext = max(1.5 * self.draw_distance, n * tile)
+        ex, ey = float(eye_l[0]), float(eye_l[1])
+        X0, Y0, X1, Y1 = min(ex - ext, x0 - 1), min(ey - ext, y0 - 1), max(ex + ext, x1 + 1), max(ey + ext, y1 + 1)
+        sv = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z],
+                       [X0, Y0, z], [X1, Y0, z], [X1, Y1, z], [X0, Y1, z]], np.float32)
+        self._s_verts.from_numpy(sv)
+        mean = tuple(0.5 * (a + b) for a, b in zip(GROUND_A, GROUND_B))
+        scene.mesh(self._s_verts, indices=self._s_idx, normals=self._s_norms, color=mean)
+
+    def _draw_vehicles(self, scene, origin) -> None:
+        poses = self.sim.vehicle_poses()
+        vs, ns = self._v_local
+        out_v = np.empty_like(vs)
+        out_n = np.empty_like(ns)
+        start = 0
+        for k, (nv, _) in enumerate(self._v_parts):
+            p = poses[k]
+            c, s = math.cos(p.heading), math.sin(p.heading)
+            rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            sl = slice(start, start + nv)
+            out_v[sl] = vs[sl] @ rot.T + (np.asarray(p.position, np.float64) - origin)
+            out_n[sl] = ns[sl] @ rot.T
+            start += nv
+        self._v_verts.from_numpy(out_v.astype(np.float32))
+        self._v_norms.from_numpy(out_n.astype(np.float32))
+        scene.mesh(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols)
+
+    def _draw_overlays(self, scene, origin) -> None:
+        sim = self.sim
+        lift = 0.02
+        if self._bed_lines is not None:
+            c = np.asarray(sim.bed_center, np.float64) - origin
+            th = np.linspace(0, 2 * np.pi, 129)
+            ring = np.stack([c[0] + sim.scene.bed.radius * np.cos(th), c[1] + sim.scene.bed.radius * np.sin(th),
+                             np.full(129, self.ground_z - origin[2] + lift)], 1)
+            seg = np.stack([ring[:-1], ring[1:]], 1).reshape(-1, 3)
+            self._bed_lines.from_numpy(seg.astype(np.float32))
+            scene.lines(self._bed_lines, 3.0, color=BED_EDGE_COLOR)
+        if self._ray_lines is not None:
+            rays = np.asarray(sim.tire_rays(), np.float64).reshape(-1, 2, 3)[:MAX_RAYS]
+            if len(rays):
+                buf = np.zeros((2 * MAX_RAYS, 3), np.float32)
+                buf[:2 * len(rays)] = (rays - origin).reshape(-1, 3)
+                self._ray_lines.from_numpy(buf)
+                scene.lines(self._ray_lines, 4.0, color=RAY_COLOR, vertex_count=2 * len(rays))
+        if self._cell_lines is not None:
+            cells = np.asarray(sim.queried_cells(), np.int64).reshape(-1, 3)[:MAX_CELLS]
+            if len(cells):
+                l = float(sim.cell_size)
+                lo = cells.astype(np.float64) * l
+                corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.float64) * l
+                edges = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+                seg = np.array(edges).reshape(-1)
+                pts = lo[:, None, :] + corners[seg][None, :, :]  # (K, 24, 3) local
+                buf = np.zeros((24 * MAX_CELLS, 3), np.float32)
+                buf[:24 * len(cells)] = pts.reshape(-1, 3)
+                self._cell_lines.from_numpy(buf)
+                scene.lines(self._cell_lines, 1.5, color=CELL_COLOR, vertex_count=24 * len(cells))
+
+
+def check_resolution(res) -> tuple[int, int]:
+    """(width, height) as even ints >= 16, or ValueError with a clear message."""
+    try:
+        w, h = (int(x) for x in res)
+    except Exception:
+        raise ValueError(f"resolution must be [width, height], got {res!r}") from None
+    if w < 16 or h < 16 or w % 2 or h % 2:
+        raise ValueError(f"resolution must be two even integers >= 16 (H.264 in yuv420p needs even sides), "
+                         f"got {w}x{h}")
+    return w, h

@@ -1,0 +1,184 @@
+"""Scene files: shipped scenes, defaults, round trip, JSON Schema and the error messages of bad files.
+
+Each file in tests/bad_scenes/ starts with ``# expect: <key.path> | <phrase>``; adding a case is adding a file.
+"""
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from taichi_rocks.scene import (Scene, SceneError, estimate_memory, load_scene, parse_scene, scene_json_schema,
+                                scene_to_dict, scene_with, summarise)
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = sorted((ROOT / "scenes").glob("*.toml"))
+BAD = sorted((Path(__file__).parent / "bad_scenes").glob("*.toml"))
+CAR = {"name": "car"}
+
+
+def problems_of(fn, *args) -> list[str]:
+    with pytest.raises(SceneError) as info:
+        fn(*args)
+    assert str(info.value) == "\n".join(info.value.problems)
+    return info.value.problems
+
+
+def test_scene_module_does_not_import_taichi():
+    code = "import sys, taichi_rocks.scene; assert 'taichi' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+
+def test_shipped_scenes():
+    assert {p.stem for p in SCENES} >= {"convoy", "slalom", "circle", "minimal"}
+    for path in SCENES:
+        scene = load_scene(path)
+        assert scene.name == path.stem and scene.source == str(path)
+        assert scene.bed.follow == scene.camera.follow == scene.vehicles[0].name
+        assert "rocks" in summarise(scene)
+    convoy = load_scene(ROOT / "scenes/convoy.toml")
+    assert convoy.bed.rocks == 200000 and len(convoy.vehicles) == 4
+    assert all(v.path.speed == 20.0 and v.path.points[-1][0] - v.path.points[0][0] >= 20.0 * convoy.duration
+               for v in convoy.vehicles)
+    minimal = load_scene(ROOT / "scenes/minimal.toml")
+    assert (minimal.bed.rocks, minimal.bed.radius, minimal.duration, minimal.sim.dt) == (2000, 8.0, 2.0, 0.004)
+
+
+def test_defaults_filled_in():
+    scene = parse_scene({"vehicle": [{"name": "a", "color": "#ff8000"}, {"name": "b"}]})
+    assert isinstance(scene, Scene) and scene.source == "<scene>" and scene.name == "scene"
+    assert (scene.bed.follow, scene.camera.follow) == ("a", "a")
+    assert parse_scene({"bed": {"follow": "b"}, "vehicle": [CAR, {"name": "b"}]}).camera.follow == "b"
+    assert scene.world.gravity == 9.81 and scene.sim.hash.insert == "center" and scene.sim.hash.cell_size == "auto"
+    assert scene.bed.rock_radius == (0.015, 0.05) and scene.render.resolution == (1280, 720)
+    assert scene.vehicles[0].color == (1.0, 128 / 255, 0.0) and scene.vehicles[1].color == (0.8, 0.2, 0.1)
+    assert scene.vehicles[0].path.kind == "waypoints" and scene.vehicles[0].path.speed == 25.0
+    assert scene.vehicle("b") is scene.vehicles[1] and scene.vehicle_index("b") == 1
+    with pytest.raises(KeyError):
+        scene.vehicle("nobody")
+    with pytest.raises(Exception):
+        scene.duration = 3.0  # frozen
+
+
+def test_types_are_strict_but_ints_are_numbers():
+    scene = parse_scene({"duration": 3, "vehicle": [{"name": "c", "color": [1, 0, 0],
+                                                     "path": {"points": [[0, 0], [5, 0]], "speed": [1, 2]}}]})
+    assert scene.duration == 3.0 and isinstance(scene.duration, float)
+    assert scene.vehicles[0].color == (1.0, 0.0, 0.0) and all(isinstance(c, float) for c in scene.vehicles[0].color)
+    assert scene.vehicles[0].path.speed == (1.0, 2.0)
+    assert parse_scene({"bed": {"rocks": 0}, "vehicle": [CAR]}).bed.rocks == 0  # no rocks is fine
+    assert problems_of(parse_scene, {"seed": True, "vehicle": [CAR]}) == [
+        "<scene>: seed: expected an integer, got true"]
+    assert problems_of(parse_scene, {"bed": {"rocks": 10.0}, "vehicle": [CAR]}) == [
+        "<scene>: bed.rocks: expected an integer, got 10.0"]
+    assert problems_of(parse_scene, {"sim": {"precision": 32}, "vehicle": [CAR]}) == [
+        '<scene>: sim.precision: expected one of "f32", "f64", got 32']
+
+
+def test_round_trip_and_overrides():
+    scene = load_scene(ROOT / "scenes/slalom.toml")
+    data = scene_to_dict(scene)
+    assert "vehicle" in data and "vehicles" not in data
+    json.dumps(data)  # plain data
+    assert parse_scene(data, scene.source, "other") == scene
+    changed = scene_with(scene, {"sim.dt": 0.01, "effects.drag": "none", "bed.rocks": 10,
+                                 "vehicle[0].path.speed": 5.0, "sim.hash.cell_size": 0.1})
+    assert (changed.sim.dt, changed.effects.drag, changed.bed.rocks) == (0.01, "none", 10)
+    assert changed.vehicles[0].path.speed == 5.0 and changed.sim.hash.cell_size == 0.1
+    assert changed.vehicles[1] == scene.vehicles[1] and changed.source == scene.source and scene.sim.dt == 0.002
+    lines = problems_of(scene_with, scene, {"sim.dt": -1.0, "vehicle[1].tire_radius": "big"})
+    assert lines == [f"{scene.source}: sim.dt: must be > 0, got -1.0",
+                     f'{scene.source}: vehicle[1].tire_radius: expected a number, got "big"']
+    assert "no such item" in problems_of(scene_with, scene, {"vehicle[5].name": "x"})[0]
+
+
+def test_json_schema():
+    schema = json.loads(json.dumps(scene_json_schema()))
+    assert schema["$schema"].endswith("2020-12/schema") and schema["title"] and schema["description"]
+    assert schema["required"] == ["vehicle"] and schema["additionalProperties"] is False
+    assert schema["properties"]["vehicle"]["minItems"] == 1
+    defs = schema["$defs"]
+    assert defs["Sim"]["properties"]["integrator"]["enum"] == ["symplectic_euler", "heun", "rk4"]
+    assert defs["Sim"]["properties"]["dt"] == {**defs["Sim"]["properties"]["dt"], "default": 0.002,
+                                               "exclusiveMinimum": 0, "maximum": 0.1}
+    assert defs["Bed"]["properties"]["rocks"]["default"] == 100000
+    assert "source" not in json.dumps(schema)
+
+    def fields(node):  # every property of every table has a description (a table's may be on its $ref)
+        for name, prop in node.get("properties", {}).items():
+            assert prop.get("description") or defs[prop["$ref"].split("/")[-1]]["description"], name
+    for node in defs.values():
+        fields(node)
+    fields(schema)
+    try:
+        import jsonschema
+    except ImportError:  # optional extra check; the assertions above always run
+        return
+    jsonschema.Draft202012Validator.check_schema(schema)
+    for path in SCENES:
+        jsonschema.validate(scene_to_dict(load_scene(path)), schema)
+
+
+@pytest.mark.parametrize("path", BAD, ids=lambda p: p.stem)
+def test_bad_scene(path):
+    first = path.read_text().splitlines()[0]
+    assert first.startswith("# expect: "), "bad scene files start with '# expect: <key.path> | <phrase>'"
+    key, phrase = (s.strip() for s in first.removeprefix("# expect: ").split("|", 1))
+    lines = problems_of(load_scene, str(path))
+    assert all(line.startswith(f"{path}: ") for line in lines)
+    assert any(line.startswith(f"{path}: {key}: ") and phrase in line for line in lines), lines
+    text = "\n".join(lines)
+    for leak in ("Traceback", "pydantic", "http", "Input should", "function-", "@a", "@b"):
+        assert leak not in text
+
+
+def test_all_problems_reported(tmp_path):
+    path = tmp_path / "many.toml"
+    path.write_text("""
+duration = -1.0
+[bed]
+follow = "ghost"
+radious = 3.0
+rock_radius = [0.06, 0.05]
+[sim]
+integrator = "rk5"
+[[vehicle]]
+name = "a"
+wheelbase = 9.0
+path = { points = [[0.0, 0.0], [1.0, 0.0], [1.0, 0.0]] }
+[[vehicle]]
+name = "a"
+tire_radius = -0.3
+[render]
+resolution = [1281, 721]
+""")
+    lines = problems_of(load_scene, path)
+    expected = ["duration: must be > 0", "bed.rock_radius: min must be <= max", 'bed.radious: unknown key "radious"',
+                'sim.integrator: unknown value "rk5"', "vehicle[0].wheelbase: must be <= length",
+                "vehicle[0].path.points[2]: repeats the previous point",
+                "vehicle[1].tire_radius: must be > 0, got -0.3",
+                "render.resolution[0]: must be even", "render.resolution[1]: must be even",
+                'vehicle[1].name: duplicate vehicle name "a"', 'bed.follow: unknown vehicle "ghost"']
+    for want in expected:
+        assert any(line.startswith(f"{path}: {want}") for line in lines), (want, lines)
+    assert len(lines) == len(expected)
+
+
+def test_unreadable_files(tmp_path):
+    for path in (tmp_path / "missing.toml", tmp_path):
+        [line] = problems_of(load_scene, path)
+        assert line.startswith(f"{path}: cannot read scene: ")
+    assert problems_of(parse_scene, [1, 2]) == ["<scene>: expected a table, got [1, 2]"]
+
+
+def test_memory_estimate():
+    scene = parse_scene({"bed": {"rocks": 1000}, "vehicle": [CAR]})
+    base = estimate_memory(scene)
+    assert base > 0 and estimate_memory(scene_with(scene, {"bed.rocks": 2000})) == 2 * base
+    assert estimate_memory(scene_with(scene, {"sim.precision": "f64"})) > base
+    assert estimate_memory(scene_with(scene, {"sim.hash.insert": "aabb"})) > 5 * base
+    assert estimate_memory(scene_with(scene, {"bed.rocks": 0})) == 0
+    assert math.isclose(float(summarise(scene).split("about ")[-1].split()[0]), base / 1e6, abs_tol=0.05)
