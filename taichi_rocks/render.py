@@ -51,6 +51,7 @@ SUN_COLOR = (0.68, 0.66, 0.60)
 SUN_DIR_CAMERA = (-0.45, 0.55, 1.0)  # sun direction in the camera-heading frame (x fwd, y left, z up)
 GROUND_A = (0.56, 0.53, 0.44)
 GROUND_B = (0.49, 0.46, 0.38)
+HAZE = 2.5  # draw distances: e-folding distance of the ground's haze
 TIRE_COLOR = (0.09, 0.09, 0.10)
 HUB_COLOR = (0.62, 0.62, 0.64)
 GLASS_COLOR = (0.16, 0.20, 0.26)
@@ -168,33 +169,93 @@ def _cull_rocks(pos: ti.template(), radius: ti.template(), rock_id: ti.template(
                         out_col[j] = _rock_color(rid, ph)
 
 
+@ti.func
+def _smooth01(x):
+    s = ti.min(ti.max(x, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
 @ti.kernel
-def _fill_ground(verts: ti.template(), cols: ti.template(), n: ti.i32, corner: ti.types.vector(3, ti.f32),
-                 tile: ti.f32, parity: ti.i32, eye: ti.types.vector(3, ti.f32), fade0: ti.f32, fade1: ti.f32,
-                 ca: ti.types.vector(3, ti.f32), cb: ti.types.vector(3, ti.f32)):
-    """n x n checker tiles from ``corner`` (local); tile (a, b) has world parity (a + b + parity) & 1."""
-    mean = 0.5 * (ca + cb)
-    for t in range(n * n):
-        a = t // n
-        b = t - a * n
-        x0 = corner[0] + a * tile
-        y0 = corner[1] + b * tile
-        cx = x0 + 0.5 * tile - eye[0]
-        cy = y0 + 0.5 * tile - eye[1]
-        d = ti.sqrt(cx * cx + cy * cy)
-        s = ti.min(ti.max((d - fade0) / (fade1 - fade0), 0.0), 1.0)
-        w = 1.0 - s * s * (3.0 - 2.0 * s)
-        c = ca
-        if (a + b + parity) & 1:
-            c = cb
-        col = mean + (c - mean) * w
-        z = corner[2]
-        verts[4 * t + 0] = ti.Vector([x0, y0, z])
-        verts[4 * t + 1] = ti.Vector([x0 + tile, y0, z])
-        verts[4 * t + 2] = ti.Vector([x0 + tile, y0 + tile, z])
-        verts[4 * t + 3] = ti.Vector([x0, y0 + tile, z])
-        for k in ti.static(range(4)):
-            cols[4 * t + k] = col
+def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.types.vector(3, ti.f32),
+                  right: ti.types.vector(3, ti.f32), up: ti.types.vector(3, ti.f32), tan_x: ti.f32, tan_y: ti.f32,
+                  ground_z: ti.f32, wrap: ti.types.vector(2, ti.f32), tile: ti.f32,
+                  ca: ti.types.vector(3, ti.f32), cb: ti.types.vector(3, ti.f32), light: ti.types.vector(3, ti.f32),
+                  sky: ti.types.vector(3, ti.f32), horizon: ti.types.vector(3, ti.f32), haze_dist: ti.f32,
+                  cars: ti.template(), n_cars: ti.i32):
+    """Sky and ground, one ray per pixel, into the canvas background image (W, H), row 0 at the bottom.
+
+    Ground: the plane z = ground_z, a checker of ``tile`` metre squares whose parity is that of the *world*
+    tile (``wrap`` = origin mod 2 tiles), box-filtered over the pixel's footprint (no moire: far tiles blend
+    to the mean colour), lit like GGUI lights a mesh facing up (``light`` = ambient + sun * cos), darkened
+    under the vehicles (soft contact shadows), hazed towards ``horizon`` with distance. Sky: ``sky`` above,
+    lightening to ``horizon`` just above the horizon. Everything GGUI draws afterwards lies above the plane,
+    so painting the ground behind the 3D scene is exact. Parallel over rows; the ray varies linearly along
+    a row, so the inner loop only does the per-pixel part.
+    """
+    W, H = img.shape
+    h = eye[2] - ground_z
+    du = right * (2.0 * tan_x / W)  # ray step from one pixel to the next along a row
+    dv = up * (2.0 * tan_y / H)  # ... and along a column
+    for j in range(H):
+        v = ((j + 0.5) / H * 2.0 - 1.0) * tan_y
+        dr = fwd + up * v  # ray through the row's centre line; the pixel's ray is dr + right * u
+        for i in range(W):
+            u = ((i + 0.5) / W * 2.0 - 1.0) * tan_x
+            d = dr + right * u
+            dz = d[2]
+            elev = dz / ti.sqrt(d.norm_sqr())
+            col = horizon + (sky - horizon) * _smooth01(elev * (1.0 / 0.12))
+            if dz < 0.0 and h > 0.0:
+                t = h / -dz
+                hx = eye[0] + t * d[0]
+                hy = eye[1] + t * d[1]
+                # pixel footprint on the plane: d(hit)/d(pixel) along the image's x and y
+                ku = du[2] / dz
+                kv = dv[2] / dz
+                fx = ti.abs(t * (du[0] - d[0] * ku)) + ti.abs(t * (dv[0] - d[0] * kv))
+                fy = ti.abs(t * (du[1] - d[1] * ku)) + ti.abs(t * (dv[1] - d[1] * kv))
+                qx = (hx + wrap[0]) / tile
+                qy = (hy + wrap[1]) / tile
+                wx = fx / tile + 1e-4
+                wy = fy / tile + 1e-4
+                # box-filtered square waves (integral of the triangle wave), in [-1, 1]
+                ax = ti.abs((qx - 0.5 * wx) * 0.5 - ti.floor((qx - 0.5 * wx) * 0.5) - 0.5)
+                bx = ti.abs((qx + 0.5 * wx) * 0.5 - ti.floor((qx + 0.5 * wx) * 0.5) - 0.5)
+                ay = ti.abs((qy - 0.5 * wy) * 0.5 - ti.floor((qy - 0.5 * wy) * 0.5) - 0.5)
+                by = ti.abs((qy + 0.5 * wy) * 0.5 - ti.floor((qy + 0.5 * wy) * 0.5) - 0.5)
+                chk = 0.5 - 0.5 * (2.0 * (ax - bx) / wx) * (2.0 * (ay - by) / wy)
+                g = (ca + (cb - ca) * chk) * light
+                shade = 1.0
+                for k in range(n_cars):
+                    c = cars[k]  # x, y, cos, sin, half length, half width, shadow softness (local, m)
+                    rx = hx - c[0]
+                    ry = hy - c[1]
+                    ox = ti.abs(rx * c[2] + ry * c[3]) - c[4]
+                    oy = ti.abs(-rx * c[3] + ry * c[2]) - c[5]
+                    if ox < c[6] and oy < c[6]:
+                        dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
+                        shade *= 0.5 + 0.5 * _smooth01(dd / c[6])
+                x = t * ti.sqrt(d.norm_sqr()) / haze_dist
+                fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
+                col = g * shade + (horizon - g * shade) * fog
+            col = ti.min(ti.max(col, 0.0), 1.0) * 255.0 + 0.5
+            img[i, j] = ti.Vector([ti.cast(col[0], ti.u8), ti.cast(col[1], ti.u8), ti.cast(col[2], ti.u8),
+                                   ti.u8(255)])
+
+
+@ti.kernel
+def _to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
+    """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), in 32 x 32
+    tiles so that both the reads and the transposed writes stay in cache."""
+    H = out.shape[0]
+    W = out.shape[1]
+    for by, bx in ti.ndrange((H + 31) // 32, (W + 31) // 32):
+        for dx, dy in ti.ndrange(32, 32):
+            x = bx * 32 + dx
+            yy = by * 32 + dy  # row of the read-back (0 = bottom)
+            if x < W and yy < H:
+                for c in ti.static(range(3)):
+                    out[H - 1 - yy, x, c] = ti.cast(ti.min(ti.max(raw[x, yy, c], 0.0), 1.0) * 255.0 + 0.5, ti.u8)
 
 
 # ------------------------------------------------------------------------------------------------ geometry
@@ -333,11 +394,17 @@ def _rgb(c) -> tuple:
 
 
 # ------------------------------------------------------------------------------------------------ renderer
+MAX_CARS = 32  # vehicles casting a contact shadow
+
+
 class Renderer:
     """Draws ``sim`` into a hidden GGUI window; :meth:`render_frame` returns the image (H, W, 3) uint8.
 
-    ``timings`` accumulates seconds spent in ``cull`` (rock culling kernel) and ``draw`` (everything else:
-    camera, ground, vehicles, overlays, GGUI drawing and the read-back).
+    ``lod_pixels``: resting rocks whose projected radius is below this many pixels are thinned (a fraction
+    q^2 kept, chosen by a hash of rock_id, drawn 1/q larger, q = projected radius / lod_pixels), which keeps
+    the far bed's look at a fraction of the cost; 0 disables it. ``window_every``: frames between window
+    re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock culling kernel) and ``draw``
+    (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, lod_pixels: float = DEFAULT_LOD_PIXELS,
@@ -345,11 +412,13 @@ class Renderer:
         self.sim = sim
         sc = sim.scene
         rs = sc.render
-        w, h = (int(x) for x in (resolution if resolution is not None else rs.resolution))
-        check_resolution((w, h))
-        self.resolution = (w, h)
+        self.resolution = check_resolution(resolution if resolution is not None else rs.resolution)
+        w, h = self.resolution
         self.fps = float(fps if fps is not None else rs.fps)
+        if not self.fps > 0:
+            raise ValueError(f"fps must be > 0, got {fps!r}")
         self.background = _rgb(rs.background)
+        self.horizon = tuple(float(c + (1.0 - c) * 0.45) for c in self.background)
         self.draw_distance = float(rs.draw_distance)
         self.tile = float(rs.ground_tile)
         self.lod_pixels = float(lod_pixels)
@@ -357,18 +426,21 @@ class Renderer:
         self.flags = SimpleNamespace(bed_edge=bool(rs.bed_edge), tire_rays=bool(rs.tire_rays),
                                      hash_cells=bool(rs.hash_cells))
         cam = sc.camera
-        follow = cam.follow or getattr(sc.bed, "follow", None) or sc.vehicles[0].name
         names = [v.name for v in sc.vehicles]
+        follow = cam.follow or getattr(sc.bed, "follow", None) or names[0]
         if follow not in names:
             raise ValueError(f"camera.follow: no vehicle named {follow!r} (vehicles: {', '.join(names)})")
         self.follow = names.index(follow)
         self.fov = float(cam.fov)
+        self.tan_y = math.tan(math.radians(self.fov) / 2)
+        self.tan_x = self.tan_y * w / h
+        self.px_per_rad = (h / 2) / self.tan_y  # pixels per metre at 1 m depth
         self.rig = CameraRig(cam.offset, cam.look_ahead, cam.smoothing)
         self.ground_z = float(sc.world.ground_z)
         self.frames_drawn = 0
         self.last_count = 0
         self.timings = {"cull": 0.0, "draw": 0.0}
-        self._window = None
+
         self._camera = ti.ui.Camera()
         self._camera.up(*GL_UP)
         self._camera.fov(self.fov)
@@ -379,51 +451,27 @@ class Renderer:
         self.n_rocks = int(sim.n_rocks)
         self._buckets = {}
         self._count = ti.field(ti.i32, shape=())
+        self._drawn = None
 
-        # ground
-        tan_y = math.tan(math.radians(self.fov) / 2)
-        self.px_per_rad = (h / 2) / tan_y
-        cam_h = max(0.5, float(cam.offset[2]))
-        fade1 = math.sqrt(self.tile * self.px_per_rad * cam_h / 1.5)  # tiles ~1.5 px deep there
-        fade1 = min(max(fade1, 6.0 * self.tile), self.draw_distance * 1.5)
-        self.fade = (0.35 * fade1, fade1)
-        self.n_tiles = int(min(2 * math.ceil(fade1 / self.tile) + 4, 200))
-        self.n_tiles += self.n_tiles % 2
-        nt = self.n_tiles * self.n_tiles
-        self._g_verts = ti.Vector.field(3, ti.f32, 4 * nt)
-        self._g_cols = ti.Vector.field(3, ti.f32, 4 * nt)
-        self._g_norms = ti.Vector.field(3, ti.f32, 4 * nt)
-        self._g_norms.fill(ti.Vector([0.0, 0.0, 1.0]))
-        base = np.arange(nt, dtype=np.int32)[:, None] * 4
-        self._g_idx = ti.field(ti.i32, 6 * nt)
-        self._g_idx.from_numpy((base + np.array([0, 1, 2, 0, 2, 3], np.int32)).reshape(-1))
-        self._s_verts = ti.Vector.field(3, ti.f32, 8)
-        self._s_norms = ti.Vector.field(3, ti.f32, 8)
-        self._s_norms.fill(ti.Vector([0.0, 0.0, 1.0]))
-        self._s_idx = ti.field(ti.i32, 24)
-        # inner square 0..3 (CCW), outer 4..7; one trapezoid per side
-        sk = []
-        for k in range(4):
-            k2 = (k + 1) % 4
-            sk += [k, 4 + k, 4 + k2, k, 4 + k2, k2]
-        self._s_idx.from_numpy(np.array(sk, np.int32))
+        # sky and ground: the canvas background image; contact shadows of the vehicles
+        self._sky = ti.Vector.field(4, ti.u8)
+        ti.root.dense(ti.j, h).dense(ti.i, w).place(self._sky)  # rows contiguous: written row by row
+        self._cars = ti.Vector.field(7, ti.f32, shape=MAX_CARS)
+        self._out = np.empty((h, w, 3), np.uint8)
 
         # vehicles: one merged mesh, transformed on the host each frame
         meshes = [vehicle_mesh(v, 0.0) for v in sc.vehicles]
-        self._v_parts = [(len(m[0]), m) for m in meshes]
-        vs, ns, cs, ids = _merge([m for m in meshes])
+        self._v_sizes = [len(m[0]) for m in meshes]
+        vs, ns, cs, ids = _merge(meshes)
         self._v_local = (vs, ns)
-        nv = len(vs)
-        self._v_verts = ti.Vector.field(3, ti.f32, nv)
-        self._v_norms = ti.Vector.field(3, ti.f32, nv)
-        self._v_cols = ti.Vector.field(3, ti.f32, nv)
+        self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
+        self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
+        self._v_cols = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols.from_numpy(cs.astype(np.float32))
         self._v_idx = ti.field(ti.i32, len(ids))
         self._v_idx.from_numpy(ids.astype(np.int32))
-        self._v_owner = np.concatenate([np.full(n, k) for k, (n, _) in enumerate(self._v_parts)])
 
-        # overlays
-        self._drawn = None
+        # debug overlays
         self._bed_lines = self._ray_lines = self._cell_lines = None
         if self.flags.bed_edge:
             self._bed_lines = ti.Vector.field(3, ti.f32, 256)
@@ -431,32 +479,31 @@ class Renderer:
             self._ray_lines = ti.Vector.field(3, ti.f32, 2 * MAX_RAYS)
         if self.flags.hash_cells:
             self._cell_lines = ti.Vector.field(3, ti.f32, 24 * MAX_CELLS)
+
+        self._window = self._canvas = self._scene = None
         self._open_window()
 
     # -------------------------------------------------------------------------------------------- window
     def _open_window(self) -> None:
         try:
             self._window = ti.ui.Window("taichi-rocks", self.resolution, show_window=False, vsync=False)
-        except Exception as e:  # Taichi raises RuntimeError("Vulkan must be available for GGUI") and kin
+        except Exception as e:  # Taichi: RuntimeError("Vulkan must be available for GGUI") and kin
             if "vulkan" in str(e).lower() or "ggui" in str(e).lower():
                 raise RuntimeError(VULKAN_HINT) from e
             raise
         self._canvas = self._window.get_canvas()
         self._scene = self._window.get_scene()
 
-    def _recycle_window(self) -> None:
-        self._close_window()
-        self._open_window()
-
     def _close_window(self) -> None:
         if self._window is not None:
             try:
                 self._window.destroy()
-            except Exception:
+            except Exception:  # already gone
                 pass
-            self._window = self._canvas = self._scene = None
+        self._window = self._canvas = self._scene = None
 
     def close(self) -> None:
+        """Release the window (the fields stay until Taichi is reset)."""
         self._close_window()
 
     def __enter__(self):
@@ -466,6 +513,23 @@ class Renderer:
         self.close()
 
     # -------------------------------------------------------------------------------------------- frame
+    def view(self):
+        """Update the chase camera from the simulation; return the view in local f32 coordinates:
+        (eye, target, forward, right, up, heading)."""
+        sim = self.sim
+        pose = sim.vehicle_poses()[self.follow]
+        eye_w, target_w, heading = self.rig.update(pose.position, pose.heading, sim.time)
+        origin = np.asarray(sim.origin, np.float64)
+        eye, target = to_gl(eye_w, origin), to_gl(target_w, origin)
+        fwd = (target - eye).astype(np.float64)
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, GL_UP)
+        if np.linalg.norm(right) < 1e-6:  # looking straight down or up
+            right = np.array([math.sin(heading), -math.cos(heading), 0.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        return eye, target, fwd.astype(np.float32), right.astype(np.float32), up.astype(np.float32), heading
+
     def _bucket(self, need: int):
         cap = MIN_BUCKET
         while cap < need:
@@ -476,125 +540,104 @@ class Renderer:
                                   ti.Vector.field(3, ti.f32, cap))
         return cap, self._buckets[cap]
 
-    def camera_frame(self):
-        """Update the chase camera from the simulation; return (eye, target, heading) in world coordinates."""
-        pose = self.sim.vehicle_poses()[self.follow]
-        return self.rig.update(pose.position, pose.heading, self.sim.time)
-
-    def cull(self, eye_l, fwd, right, up) -> int:
-        """Fill a compact bucket with the visible rocks; return how many (also in ``self.last_count``)."""
+    def cull(self, eye, fwd, right, up) -> int:
+        """Compact the visible rocks into a bucket; return how many (also ``self.last_count``)."""
         sim, n = self.sim, self.n_rocks
+        self._drawn = None
         if n == 0:
             self.last_count = 0
-            self._drawn = None
             return 0
         w, h = self.resolution
-        tan_y = math.tan(math.radians(self.fov) / 2)
-        tan_x = tan_y * w / h
-        args = (eye_l, fwd, right, up, tan_x, tan_y, math.sqrt(1 + tan_x * tan_x), math.sqrt(1 + tan_y * tan_y),
-                0.05, self.draw_distance, self.px_per_rad, self.lod_pixels, h / w)
+        args = (_vec(eye), _vec(fwd), _vec(right), _vec(up), self.tan_x, self.tan_y,
+                math.sqrt(1 + self.tan_x ** 2), math.sqrt(1 + self.tan_y ** 2), 0.05, self.draw_distance,
+                self.px_per_rad, self.lod_pixels, h / w)  # h / w: GGUI 1.7.4 draws particles w/h too large
         need = max(int(self.last_count * 1.25), 1)
-        for _ in range(2):
+        while True:
             cap, (bp, br, bc) = self._bucket(need)
             _cull_rocks(sim.world.pos, sim.world.radius, sim.world.rock_id, sim.world.phase, n, bp, br, bc,
                         self._count, cap, *args)
             count = int(self._count[None])
             if count <= cap:
                 break
-            need = int(count * 1.25)
+            need = count
         self.last_count = count
         self._drawn = (bp, br, bc, count)
         return count
 
     def render_frame(self) -> np.ndarray:
-        """Draw the simulation's current state; return the upright image, (H, W, 3) uint8."""
+        """Draw the simulation's current state; return the upright image, (H, W, 3) uint8.
+
+        The returned array is reused by the next call: copy it to keep it.
+        """
         t0 = time.perf_counter()
         sim = self.sim
         origin = np.asarray(sim.origin, np.float64)
-        eye, target, heading = self.camera_frame()
-        eye_l, target_l = to_gl(eye, origin), to_gl(target, origin)
-        fwd = target_l - eye_l
-        fwd /= np.linalg.norm(fwd)
-        right = np.cross(fwd, np.array(GL_UP, np.float32))
-        if np.linalg.norm(right) < 1e-6:  # looking straight down/up
-            right = np.array([math.sin(heading), -math.cos(heading), 0.0], np.float32)
-        right /= np.linalg.norm(right)
-        up = np.cross(right, fwd)
-        vec = lambda a: ti.Vector([float(x) for x in a])
+        eye, target, fwd, right, up, heading = self.view()
         t1 = time.perf_counter()
-        self.cull(vec(eye_l), vec(fwd), vec(right), vec(up))
+        self.cull(eye, fwd, right, up)
         t2 = time.perf_counter()
 
-        scene = self._scene
-        cam = self._camera
-        cam.position(*(float(x) for x in eye_l))
-        cam.lookat(*(float(x) for x in target_l))
-        cam.up(*GL_UP)
-        scene.set_camera(cam)
-        scene.ambient_light(AMBIENT)
+        poses = sim.vehicle_poses()
         c, s = math.cos(heading), math.sin(heading)
         sd = np.array(SUN_DIR_CAMERA, np.float64)
         sd = np.array([c * sd[0] - s * sd[1], s * sd[0] + c * sd[1], sd[2]])
         sd /= np.linalg.norm(sd)
-        scene.point_light(tuple(float(x) for x in eye_l + 2000.0 * sd), SUN_COLOR)
+        self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
+        self._canvas.set_background_color(self.background)
+        self._canvas.set_image(self._sky)
 
-        self._draw_ground(scene, eye, origin)
-        self._draw_vehicles(scene, origin)
+        scene = self._scene
+        cam = self._camera
+        cam.position(*(float(x) for x in eye))
+        cam.lookat(*(float(x) for x in target))
+        cam.up(*GL_UP)
+        scene.set_camera(cam)
+        scene.ambient_light(AMBIENT)
+        scene.point_light(tuple(float(x) for x in eye + 2000.0 * sd), SUN_COLOR)
+        self._draw_vehicles(scene, origin, poses)
         if self._drawn is not None and self._drawn[3] > 0:
             bp, br, bc, count = self._drawn
             scene.particles(bp, 0.03, per_vertex_color=bc, per_vertex_radius=br, index_count=count)
         self._draw_overlays(scene, origin)
-
-        self._canvas.set_background_color(self.background)
         self._canvas.scene(scene)
-        raw = self._window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y flipped
-        img = np.rot90(raw)[:, :, :3]
-        out = np.empty(img.shape, np.uint8)
-        np.multiply(img, 255.0, out=img)
-        np.add(img, 0.5, out=img)
-        np.clip(img, 0.0, 255.0, out=img)
-        out[...] = img
+        raw = self._window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
+        _to_u8(raw, self._out)
         self.frames_drawn += 1
         if self.window_every > 0 and self.frames_drawn % self.window_every == 0:
-            self._recycle_window()
+            self._close_window()
+            self._open_window()
         t3 = time.perf_counter()
         self.timings["cull"] += t2 - t1
         self.timings["draw"] += (t1 - t0) + (t3 - t2)
-        return out
+        return self._out
 
     # -------------------------------------------------------------------------------------------- parts
-    def _draw_ground(self, scene, eye_world, origin) -> None:
-        tile, n = self.tile, self.n_tiles
-        i0 = math.floor(eye_world[0] / tile) - n // 2
-        j0 = math.floor(eye_world[1] / tile) - n // 2
-        corner_w = np.array([i0 * tile, j0 * tile, self.ground_z])
-        corner = to_gl(corner_w, origin)
-        eye_l = to_gl(eye_world, origin)
-        _fill_ground(self._g_verts, self._g_cols, n, ti.Vector([float(x) for x in corner]), tile, (i0 + j0) & 1,
-                     ti.Vector([float(x) for x in eye_l]), self.fade[0], self.fade[1],
-                     ti.Vector(GROUND_A), ti.Vector(GROUND_B))
-        scene.mesh(self._g_verts, indices=self._g_idx, normals=self._g_norms, per_vertex_color=self._g_cols)
-        # skirt: from the checker square out to 1.5 draw distances, in the checker's mean colour
-        z = float(corner[2])
-        x0, y0 = float(corner[0]), float(corner[1])
-        x1, y1 = x0 + n * tile, y0 + n * tile
-        ext = max(1.5 * self.draw_distance, n * tile)
-        ex, ey = float(eye_l[0]), float(eye_l[1])
-        X0, Y0, X1, Y1 = min(ex - ext, x0 - 1), min(ey - ext, y0 - 1), max(ex + ext, x1 + 1), max(ey + ext, y1 + 1)
-        sv = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z],
-                       [X0, Y0, z], [X1, Y0, z], [X1, Y1, z], [X0, Y1, z]], np.float32)
-        self._s_verts.from_numpy(sv)
-        mean = tuple(0.5 * (a + b) for a, b in zip(GROUND_A, GROUND_B))
-        scene.mesh(self._s_verts, indices=self._s_idx, normals=self._s_norms, color=mean)
+    def _paint_sky_and_ground(self, eye, fwd, right, up, origin, poses, sun_dir) -> None:
+        period = 2.0 * self.tile
+        wrap = (float(np.mod(origin[0], period)), float(np.mod(origin[1], period)))
+        light = tuple(a + l * max(float(sun_dir[2]), 0.0) for a, l in zip(AMBIENT, SUN_COLOR))
+        cars = np.zeros((MAX_CARS, 7), np.float32)
+        specs = self.sim.scene.vehicles
+        k = 0
+        for p, v in zip(poses, specs):
+            if k == MAX_CARS:
+                break
+            loc = np.asarray(p.position, np.float64) - origin
+            cars[k] = (loc[0], loc[1], math.cos(p.heading), math.sin(p.heading), 0.5 * v.length, 0.5 * v.width,
+                       0.35 + 0.4 * v.width)
+            k += 1
+        self._cars.from_numpy(cars)
+        _paint_ground(self._sky, _vec(eye), _vec(fwd), _vec(right), _vec(up), self.tan_x, self.tan_y,
+                      self.ground_z - float(origin[2]), ti.Vector(wrap), self.tile, ti.Vector(GROUND_A),
+                      ti.Vector(GROUND_B), ti.Vector(light), ti.Vector(self.background), ti.Vector(self.horizon),
+                      HAZE * self.draw_distance, self._cars, k)
 
-    def _draw_vehicles(self, scene, origin) -> None:
-        poses = self.sim.vehicle_poses()
+    def _draw_vehicles(self, scene, origin, poses) -> None:
         vs, ns = self._v_local
         out_v = np.empty_like(vs)
         out_n = np.empty_like(ns)
         start = 0
-        for k, (nv, _) in enumerate(self._v_parts):
-            p = poses[k]
+        for p, nv in zip(poses, self._v_sizes):
             c, s = math.cos(p.heading), math.sin(p.heading)
             rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
             sl = slice(start, start + nv)
@@ -607,14 +650,14 @@ class Renderer:
 
     def _draw_overlays(self, scene, origin) -> None:
         sim = self.sim
-        lift = 0.02
+        lift = 0.02  # m above the ground
         if self._bed_lines is not None:
             c = np.asarray(sim.bed_center, np.float64) - origin
             th = np.linspace(0, 2 * np.pi, 129)
-            ring = np.stack([c[0] + sim.scene.bed.radius * np.cos(th), c[1] + sim.scene.bed.radius * np.sin(th),
+            rad = float(sim.scene.bed.radius)
+            ring = np.stack([c[0] + rad * np.cos(th), c[1] + rad * np.sin(th),
                              np.full(129, self.ground_z - origin[2] + lift)], 1)
-            seg = np.stack([ring[:-1], ring[1:]], 1).reshape(-1, 3)
-            self._bed_lines.from_numpy(seg.astype(np.float32))
+            self._bed_lines.from_numpy(np.stack([ring[:-1], ring[1:]], 1).reshape(-1, 3).astype(np.float32))
             scene.lines(self._bed_lines, 3.0, color=BED_EDGE_COLOR)
         if self._ray_lines is not None:
             rays = np.asarray(sim.tire_rays(), np.float64).reshape(-1, 2, 3)[:MAX_RAYS]
@@ -626,16 +669,19 @@ class Renderer:
         if self._cell_lines is not None:
             cells = np.asarray(sim.queried_cells(), np.int64).reshape(-1, 3)[:MAX_CELLS]
             if len(cells):
-                l = float(sim.cell_size)
-                lo = cells.astype(np.float64) * l
-                corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.float64) * l
-                edges = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
-                seg = np.array(edges).reshape(-1)
-                pts = lo[:, None, :] + corners[seg][None, :, :]  # (K, 24, 3) local
+                size = float(sim.cell_size)
+                corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.float64)
+                edges = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
+                                  if bin(a ^ b).count("1") == 1]).reshape(-1)
+                pts = (cells[:, None, :].astype(np.float64) + corners[edges][None]) * size  # (K, 24, 3) local
                 buf = np.zeros((24 * MAX_CELLS, 3), np.float32)
                 buf[:24 * len(cells)] = pts.reshape(-1, 3)
                 self._cell_lines.from_numpy(buf)
                 scene.lines(self._cell_lines, 1.5, color=CELL_COLOR, vertex_count=24 * len(cells))
+
+
+def _vec(a):
+    return ti.Vector([float(x) for x in a])
 
 
 def check_resolution(res) -> tuple[int, int]:

@@ -1,0 +1,26 @@
+# The two commands a new user needs:  make demo  (renders the default scene to a video)  and  make test.
+VENV  ?= .venv
+PY    := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+SCENE ?= scenes/convoy.toml
+
+.PHONY: setup demo test bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml tools/setup.sh
+	bash tools/setup.sh $(VENV)
+	touch $(STAMP)
+
+demo: setup
+	$(VENV)/bin/taichi-rocks render $(SCENE) --overwrite
+
+test: setup
+	$(PY) -m pytest -q
+
+bench: setup
+	$(VENV)/bin/pip install -q -e '.[bench]'
+	$(VENV)/bin/taichi-rocks bench
+
+clean:
+	rm -rf $(VENV) renders/*/ .pytest_cache

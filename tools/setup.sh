@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs what taichi-rocks needs on a fresh Debian/Ubuntu machine: a Vulkan driver for the offscreen
+# renderer (Mesa's software lavapipe when no Vulkan device is present) and a virtualenv with the package.
+set -euo pipefail
+venv=${1:-.venv}
+
+have_vulkan() {
+  ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1 &&
+    ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1'
+}
+
+if ! have_vulkan; then
+  echo "setup: no Vulkan driver found; installing Mesa lavapipe (mesa-vulkan-drivers libvulkan1)" >&2
+  if [ "$(id -u)" = 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else SUDO=""; fi
+  if command -v apt-get >/dev/null; then
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1 >/dev/null
+  else
+    echo "setup: no apt-get here: install a Vulkan driver (Mesa lavapipe) yourself to render" >&2
+  fi
+fi
+
+python=${PYTHON:-python3}
+if ! "$python" -c 'import sys; sys.exit(not ((3, 11) <= sys.version_info[:2] < (3, 14)))'; then
+  echo "setup: taichi-rocks needs Python 3.11-3.13 (Taichi 1.7.4 wheels); found $("$python" --version)" >&2
+  exit 2
+fi
+[ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
+"$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
+"$venv/bin/python" -m pip install -q -e '.[test]'
+echo "setup: ready ($venv)" >&2
