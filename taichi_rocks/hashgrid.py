@@ -46,34 +46,54 @@ def aabb_cells(p, r, cell):
 # Build: count (fused into the rock pass by the simulation), scan, scatter.
 
 @ti.func
-def count_rock(w: ti.template(), i, center: ti.template()):
-    """Add rock i to the per-slot counts (cell_start doubles as the count array)."""
-    cell = w.par[Par.CELL]
-    n = w.ipar[IPar.TABLE]
-    p = w.pos[i]
-    if ti.static(center):
-        s = hash_cell(cell_of(p, cell), n)
-        w.slot[i] = s
-        ti.atomic_add(w.cell_start[s], 1)
-    else:
-        lo, hi = aabb_cells(p, w.radius[i], cell)
-        for a in range(lo[0], hi[0] + 1):
-            for b in range(lo[1], hi[1] + 1):
-                for c in range(lo[2], hi[2] + 1):
-                    ti.atomic_add(w.cell_start[hash_cell(ti.Vector([a, b, c]), n)], 1)
+def near_a_tire(w: ti.template(), p, grid_origin):
+    """Scope "tires": is the rock on a tile of the mask (tiles around every tire's query region)?"""
+    tx = ti.cast(ti.floor((p[0] - grid_origin[0]) / w.tile_size), ti.i32)
+    ty = ti.cast(ti.floor((p[1] - grid_origin[1]) / w.tile_size), ti.i32)
+    near = False
+    if 0 <= tx < w.tiles[0] and 0 <= ty < w.tiles[1]:
+        near = w.tile_mask[tx, ty] != 0
+    return near
+
+
+@ti.func
+def count_rock(w: ti.template(), i, center: ti.template(), grid_origin):
+    """Add rock i to the per-slot counts (cell_start doubles as the count array). With a mask, rocks
+    away from every tire are skipped and the others listed for the scatter."""
+    take = True
+    if ti.static(w.masked):
+        take = near_a_tire(w, w.pos[i], grid_origin)
+        if take:
+            w.listed[ti.atomic_add(w.n_listed[None], 1)] = i
+    if take:
+        cell = w.par[Par.CELL]
+        p = w.pos[i]
+        if ti.static(center):
+            s = hash_cell(cell_of(p, cell), w.table_size)
+            w.slot[i] = s
+            ti.atomic_add(w.cell_start[s], 1)
+        else:
+            lo, hi = aabb_cells(p, w.radius[i], cell)
+            for a in range(lo[0], hi[0] + 1):
+                for b in range(lo[1], hi[1] + 1):
+                    for c in range(lo[2], hi[2] + 1):
+                        ti.atomic_add(w.cell_start[hash_cell(ti.Vector([a, b, c]), w.table_size)], 1)
 
 
 @ti.kernel
 def clear_counts(w: ti.template()):
     for s in w.cell_start:
         w.cell_start[s] = 0
+    if ti.static(w.masked):
+        w.n_listed[None] = 0
 
 
 @ti.kernel
-def count_all(w: ti.template(), center: ti.template()):
+def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
     """Count pass alone (the simulation fuses it into the rock pass; kept for tests and profiling)."""
+    g = ti.Vector([ti.cast(gx, w.real), ti.cast(gy, w.real)])
     for i in range(w.ipar[IPar.N_ROCKS]):
-        count_rock(w, i, center)
+        count_rock(w, i, center, g)
 
 
 @ti.kernel
@@ -83,7 +103,7 @@ def inclusive_scan(w: ti.template()) -> ti.i32:
     ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
     about a nanosecond per slot there.
     """
-    n = w.ipar[IPar.TABLE]
+    n = w.table_size
     ti.loop_config(serialize=True)
     for s in range(1, n):
         w.cell_start[s] += w.cell_start[s - 1]
@@ -91,22 +111,30 @@ def inclusive_scan(w: ti.template()) -> ti.i32:
     return w.cell_start[n]
 
 
+@ti.func
+def scatter_rock(w: ti.template(), i, center: ti.template()):
+    if ti.static(center):
+        e = ti.atomic_sub(w.cell_start[w.slot[i]], 1) - 1
+        w.entries[e] = i
+    else:
+        lo, hi = aabb_cells(w.pos[i], w.radius[i], w.par[Par.CELL])
+        for a in range(lo[0], hi[0] + 1):
+            for b in range(lo[1], hi[1] + 1):
+                for c in range(lo[2], hi[2] + 1):
+                    e = ti.atomic_sub(w.cell_start[hash_cell(ti.Vector([a, b, c]), w.table_size)], 1) - 1
+                    w.entries[e] = i
+
+
 @ti.kernel
 def scatter(w: ti.template(), center: ti.template()):
-    """Place each rock in its slots. atomic_sub on the inclusive ends leaves cell_start[s] = start of s."""
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        if ti.static(center):
-            e = ti.atomic_sub(w.cell_start[w.slot[i]], 1) - 1
-            w.entries[e] = i
-        else:
-            cell = w.par[Par.CELL]
-            n = w.ipar[IPar.TABLE]
-            lo, hi = aabb_cells(w.pos[i], w.radius[i], cell)
-            for a in range(lo[0], hi[0] + 1):
-                for b in range(lo[1], hi[1] + 1):
-                    for c in range(lo[2], hi[2] + 1):
-                        e = ti.atomic_sub(w.cell_start[hash_cell(ti.Vector([a, b, c]), n)], 1) - 1
-                        w.entries[e] = i
+    """Place each counted rock in its slots. atomic_sub on the inclusive ends leaves cell_start[s] = start
+    of slot s."""
+    if ti.static(w.masked):
+        for k in range(w.n_listed[None]):
+            scatter_rock(w, w.listed[k], center)
+    else:
+        for i in range(w.ipar[IPar.N_ROCKS]):
+            scatter_rock(w, i, center)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ class Plan:
     flight: bool
     recycle: bool
     center: bool  # centre insert (else AABB)
+    scope_all: bool  # hash every rock (else only those near a tire's query region)
     swept: bool
     substeps: int
     reorder_every: int
@@ -31,9 +32,11 @@ class Plan:
         n = scene.bed.rocks
         splash = bool(fx.splash and any(v.splash for v in scene.vehicles) and n > 0)
         center = sim.hash.insert == "center"
+        scope_all = sim.hash.scope == "all"
         return cls(splash=splash, flight=splash, recycle=bool(fx.recycle and n > 0), center=center,
+                   scope_all=scope_all,
                    swept=sim.detection == "swept", substeps=int(sim.substeps) if sim.detection == "ray" else 1,
-                   reorder_every=int(sim.hash.reorder_every) if (splash and center) else 0,
+                   reorder_every=int(sim.hash.reorder_every) if (splash and center and scope_all) else 0,
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
                    cell_size=cell_size(scene))
 
@@ -45,7 +48,8 @@ class Plan:
         if self.recycle:
             out.append("recycle")
         if self.splash:
-            out.append(f"hash build ({'centre' if self.center else 'aabb'} insert, cell {self.cell_size:g} m)")
+            out.append(f"hash build ({'centre' if self.center else 'aabb'} insert, cell {self.cell_size:g} m, "
+                       f"{'every rock' if self.scope_all else 'rocks near tires'})")
             out.append("tire pass (" + ("swept" if self.swept else f"ray x{self.substeps}") + ")")
         return out
 

@@ -189,43 +189,45 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
     to the mean colour), lit like GGUI lights a mesh facing up (``light`` = ambient + sun * cos), darkened
     under the vehicles (soft contact shadows), hazed towards ``horizon`` with distance. Sky: ``sky`` above,
     lightening to ``horizon`` just above the horizon. Everything GGUI draws afterwards lies above the plane,
-    so painting the ground behind the 3D scene is exact. Parallel over rows; the ray varies linearly along
-    a row, so the inner loop only does the per-pixel part.
+    so painting the ground behind the 3D scene is exact. Parallel over rows: the camera has no roll (its
+    right vector is horizontal), so a row's rays share their height and distance to the plane.
     """
     W, H = img.shape
     h = eye[2] - ground_z
-    du = right * (2.0 * tan_x / W)  # ray step from one pixel to the next along a row
-    dv = up * (2.0 * tan_y / H)  # ... and along a column
+    inv_tile = 1.0 / tile
     for j in range(H):
         v = ((j + 0.5) / H * 2.0 - 1.0) * tan_y
         dr = fwd + up * v  # ray through the row's centre line; the pixel's ray is dr + right * u
-        for i in range(W):
-            u = ((i + 0.5) / W * 2.0 - 1.0) * tan_x
-            d = dr + right * u
-            dz = d[2]
-            elev = dz / ti.sqrt(d.norm_sqr())
-            col = horizon + (sky - horizon) * _smooth01(elev * (1.0 / 0.12))
-            if dz < 0.0 and h > 0.0:
-                t = h / -dz
-                hx = eye[0] + t * d[0]
-                hy = eye[1] + t * d[1]
-                # pixel footprint on the plane: d(hit)/d(pixel) along the image's x and y
-                ku = du[2] / dz
-                kv = dv[2] / dz
-                fx = ti.abs(t * (du[0] - d[0] * ku)) + ti.abs(t * (dv[0] - d[0] * kv))
-                fy = ti.abs(t * (du[1] - d[1] * ku)) + ti.abs(t * (dv[1] - d[1] * kv))
-                qx = (hx + wrap[0]) / tile
-                qy = (hy + wrap[1]) / tile
-                wx = fx / tile + 1e-4
-                wy = fy / tile + 1e-4
-                # box-filtered square waves (integral of the triangle wave), in [-1, 1]
-                ax = ti.abs((qx - 0.5 * wx) * 0.5 - ti.floor((qx - 0.5 * wx) * 0.5) - 0.5)
-                bx = ti.abs((qx + 0.5 * wx) * 0.5 - ti.floor((qx + 0.5 * wx) * 0.5) - 0.5)
-                ay = ti.abs((qy - 0.5 * wy) * 0.5 - ti.floor((qy - 0.5 * wy) * 0.5) - 0.5)
-                by = ti.abs((qy + 0.5 * wy) * 0.5 - ti.floor((qy + 0.5 * wy) * 0.5) - 0.5)
-                chk = 0.5 - 0.5 * (2.0 * (ax - bx) / wx) * (2.0 * (ay - by) / wy)
+        dz = dr[2]  # right is horizontal (no roll), so the whole row shares dz and the plane distance t
+        if dz < 0.0 and h > 0.0:
+            t = h / -dz
+            # pixel footprint on the plane: d(hit)/d(column) = t * du (du horizontal),
+            # d(hit)/d(row) = t * (dv - d * dv_z / dz), d = dr + right * u
+            gu = right * (2.0 * tan_x / W * t)
+            gv0 = t * (up * (2.0 * tan_y / H) - dr * (up[2] * (2.0 * tan_y / H) / dz))
+            gv1 = -t * right * (up[2] * (2.0 * tan_y / H) / dz)  # times u
+            bx0 = eye[0] + t * dr[0]
+            by0 = eye[1] + t * dr[1]
+            r2 = dr.norm_sqr()
+            for i in range(W):
+                u = ((i + 0.5) / W * 2.0 - 1.0) * tan_x
+                hx = bx0 + t * u * right[0]
+                hy = by0 + t * u * right[1]
+                fx = ti.abs(gu[0]) + ti.abs(gv0[0] + gv1[0] * u)
+                fy = ti.abs(gu[1]) + ti.abs(gv0[1] + gv1[1] * u)
+                qx = (hx + wrap[0]) * inv_tile
+                qy = (hy + wrap[1]) * inv_tile
+                wx = fx * inv_tile + 1e-4
+                wy = fy * inv_tile + 1e-4
+                # box-filtered square waves (difference of the integrated triangle wave), in [-1, 1]
+                sa = (qx - 0.5 * wx) * 0.5
+                sb = (qx + 0.5 * wx) * 0.5
+                ta = (qy - 0.5 * wy) * 0.5
+                tb = (qy + 0.5 * wy) * 0.5
+                sx = 2.0 * (ti.abs(sa - ti.floor(sa) - 0.5) - ti.abs(sb - ti.floor(sb) - 0.5)) / wx
+                sy = 2.0 * (ti.abs(ta - ti.floor(ta) - 0.5) - ti.abs(tb - ti.floor(tb) - 0.5)) / wy
+                chk = 0.5 - 0.5 * sx * sy
                 g = (ca + (cb - ca) * chk) * light
-                shade = 1.0
                 for k in range(n_cars):
                     c = cars[k]  # x, y, cos, sin, half length, half width, shadow softness (local, m)
                     rx = hx - c[0]
@@ -234,13 +236,19 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
                     oy = ti.abs(-rx * c[3] + ry * c[2]) - c[5]
                     if ox < c[6] and oy < c[6]:
                         dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
-                        shade *= 0.5 + 0.5 * _smooth01(dd / c[6])
-                x = t * ti.sqrt(d.norm_sqr()) / haze_dist
+                        g *= 0.5 + 0.5 * _smooth01(dd / c[6])
+                x = t * ti.sqrt(r2 + u * u) / haze_dist  # distance / haze distance (right is a unit normal to dr)
                 fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
-                col = g * shade + (horizon - g * shade) * fog
-            col = ti.min(ti.max(col, 0.0), 1.0) * 255.0 + 0.5
-            img[i, j] = ti.Vector([ti.cast(col[0], ti.u8), ti.cast(col[1], ti.u8), ti.cast(col[2], ti.u8),
-                                   ti.u8(255)])
+                col = ti.min(ti.max(g + (horizon - g) * fog, 0.0), 1.0) * 255.0 + 0.5
+                img[i, j] = ti.Vector([ti.cast(col[0], ti.u8), ti.cast(col[1], ti.u8), ti.cast(col[2], ti.u8),
+                                       ti.u8(255)])
+        else:  # sky: one colour per row (elevation of the row's centre)
+            elev = dz / ti.sqrt(dr.norm_sqr())
+            col = ti.min(ti.max(horizon + (sky - horizon) * _smooth01(elev * (1.0 / 0.12)), 0.0), 1.0)
+            col = col * 255.0 + 0.5
+            px = ti.Vector([ti.cast(col[0], ti.u8), ti.cast(col[1], ti.u8), ti.cast(col[2], ti.u8), ti.u8(255)])
+            for i in range(W):
+                img[i, j] = px
 
 
 @ti.kernel

@@ -154,7 +154,9 @@ class Hash(_Table):
                                                      "or only in its centre's cell")
     cell_size: CellSize = _f("auto", '"auto", "min_radius", "max_diameter" or a number of metres > 0')
     table_size: TableSize = _f("auto", '"auto" or the number of table slots (int >= 1)')
-    reorder_every: Int = _f(64, "steps between re-sorting rocks by cell (0 = never)", ge=0)
+    reorder_every: Int = _f(64, "steps between re-sorting rocks by cell (0 = never; scope \"all\" only)", ge=0)
+    scope: Literal["tires", "all"] = _f("tires", "hash only the rocks near a tire's query (same hits, less "
+                                                 "work) or every rock (the full table)")
 
 
 class Sim(_Table):

@@ -34,7 +34,7 @@ ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than 
 
 @ti.kernel
 def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, my: ti.f64, lx: ti.f64,
-              ly: ti.f64, step: ti.i32, flight: ti.template(), recycle: ti.template(), count: ti.template(),
+              ly: ti.f64, gx: ti.f64, gy: ti.f64, step: ti.i32, flight: ti.template(), recycle: ti.template(), count: ti.template(),
               center: ti.template(), integrator: ti.template(), gravity: ti.template(), drag: ti.template(),
               ground: ti.template()):
     """Pass 1 fused: flight, recycling, counting for the hash — one read of each rock per step."""
@@ -42,13 +42,14 @@ def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, 
     centre = ti.Vector([ti.cast(cx, w.real), ti.cast(cy, w.real)])
     move = ti.Vector([ti.cast(mx, w.real), ti.cast(my, w.real)])
     lead = ti.Vector([ti.cast(lx, w.real), ti.cast(ly, w.real)])
+    grid = ti.Vector([ti.cast(gx, w.real), ti.cast(gy, w.real)])
     for i in range(w.ipar[IPar.N_ROCKS]):
         if ti.static(flight):
             fly(w, i, h, integrator, gravity, drag, ground)
         if ti.static(recycle):
             recycle_to_leading_edge(w, i, centre, move, lead, step)
         if ti.static(count):
-            hashgrid.count_rock(w, i, center)
+            hashgrid.count_rock(w, i, center, grid)
 
 
 @ti.kernel
@@ -147,15 +148,28 @@ class Simulation:
                 per_axis = np.floor(2.0 * radius / self.cell_size * (1.0 + 1e-5) + 1e-3).astype(np.int64) + 2
                 entries = int(np.sum(per_axis ** 3))
                 expected = int(np.sum((2.0 * radius / self.cell_size + 1.0) ** 3))
-            ts = sim.hash.table_size
-            table = next_prime(max(expected, 1)) if ts == "auto" else int(ts)
-        self.table_size = table
         n_tires = 2 * len(self.fleet.splashing) if splash else 0
-        substeps = plan.substeps
         ray_len = max((v.tire_radius for v in scene.vehicles), default=1.0)
+        # scope "tires": rocks are hashed only on tiles of a coarse XY mask around the tires' queries
+        self.tile = max(0.5, 4.0 * self.cell_size)
+        self._margin = r_max + (dilation_cells(r_max, self.cell_size) + 1) * self.cell_size
+        half = bed.radius + 2.0 * self.tile
+        self._grid_half = half
+        tiles = None
+        if splash and not plan.scope_all:
+            side = int(math.ceil(2.0 * half / self.tile))
+            tiles = (side, side)
+            # expected hashed share of the bed: a tire's region is about (2 margin + tile + v dt)^2
+            reach = 2.0 * self._margin + 2.0 * self.tile + 60.0 * self.dt
+            share = min(1.0, n_tires * reach * reach / (math.pi * bed.radius ** 2))
+            expected = max(1, int(expected * share))
+        if splash:
+            ts = sim.hash.table_size
+            table = next_prime(max(expected, 1024 if tiles else 1)) if ts == "auto" else int(ts)
+        self.table_size = table
         self.w = w = World(n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
-                           substeps=substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
-                           reorder=self.plan.reorder_every > 0)
+                           substeps=plan.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
+                           reorder=self.plan.reorder_every > 0, tiles=tiles, tile_size=self.tile)
         self.world = w
 
         # parameters
@@ -245,13 +259,34 @@ class Simulation:
             data[far, 0:12] = np.tile(park, 4)
             data[far, 17] = 0.0
         w.ray.from_numpy(data.astype(w.np_real()))
+        if w.masked:
+            self._upload_mask(data[~far, :12].reshape(-1, 4, 3))
+
+    def _grid_origin(self) -> np.ndarray:
+        return self.bed_center[:2] - self.origin[:2] - self._grid_half
+
+    def _upload_mask(self, rays: np.ndarray) -> None:
+        """Mark the tiles that a tire's query can reach this step: the XY box of its ray at the previous
+        and the current step, grown by the query's reach (dilation cells and the largest rock)."""
+        w = self.w
+        mask = np.zeros(w.tiles, np.int32)
+        if len(rays):
+            g = self._grid_origin()
+            lo = np.floor((rays[:, :, :2].min(axis=1) - self._margin - g) / self.tile).astype(np.int64)
+            hi = np.floor((rays[:, :, :2].max(axis=1) + self._margin - g) / self.tile).astype(np.int64)
+            lo = np.clip(lo, 0, np.array(w.tiles) - 1)
+            hi = np.clip(hi, 0, np.array(w.tiles) - 1)
+            for (x0, y0), (x1, y1) in zip(lo, hi):
+                mask[x0:x1 + 1, y0:y1 + 1] = 1
+        w.tile_mask.from_numpy(mask)
 
     def _build_hash(self, initial: bool = False) -> None:
         """Scan and scatter (the counts come from the rock pass, or are made here at the start)."""
         w, p = self.w, self.plan
         if initial:
             hashgrid.clear_counts(w)
-            hashgrid.count_all(w, p.center)
+            g = self._grid_origin()
+            hashgrid.count_all(w, p.center, float(g[0]), float(g[1]))
         total = hashgrid.inclusive_scan(w)
         if total > w.entry_capacity:  # cannot happen: the capacity is an upper bound; never lose a rock
             raise RuntimeError(f"hash table needs {total} entries, capacity {w.entry_capacity}")
@@ -309,9 +344,10 @@ class Simulation:
             if p.splash:
                 hashgrid.clear_counts(w)
             lc = self.bed_center[:2] - self.origin[:2]
+            g = self._grid_origin()
             rock_pass(w, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
-                      float(self._lead[0]), float(self._lead[1]), self.step_count, p.flight, p.recycle,
-                      p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
+                      float(self._lead[0]), float(self._lead[1]), float(g[0]), float(g[1]), self.step_count,
+                      p.flight, p.recycle, p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
         if p.splash:
             self._build_hash()
             if not p.swept:

@@ -119,7 +119,7 @@ def try_launch(w: ti.template(), i, t, step, ground: ti.template()):
 
 @ti.func
 def slot_range(w: ti.template(), c):
-    s = hash_cell(c, w.ipar[IPar.TABLE])
+    s = hash_cell(c, w.table_size)
     return w.cell_start[s], w.cell_start[s + 1]
 
 

@@ -83,7 +83,8 @@ class World:
     """All fields of one simulation. ``n`` rocks; ``n_tires`` splashing rear tires."""
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
-                 substeps: int = 1, ray_capacity: int = 0, reorder: bool = False):
+                 substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
+                 tile_size: float = 1.0):
         self.n = n
         self.real = real
         cap = max(n, 1)  # Taichi fields cannot be empty
@@ -107,6 +108,15 @@ class World:
             self.entries = ti.field(ti.i32, shape=self.entry_capacity)
             self.slot = ti.field(ti.i32, shape=cap)  # centre-cell slot of each rock (centre insert)
             self.hit_step = ti.field(ti.i32, shape=cap)  # last step a rock was launched
+        # scope "tires": a coarse XY mask around the tires' query regions; only rocks on marked tiles are
+        # hashed, listed in `listed` (compile-time switch: `masked` is a Python attribute)
+        self.masked = self.hashed and tiles is not None
+        if self.masked:
+            self.tiles = tuple(int(t) for t in tiles)
+            self.tile_size = float(tile_size)
+            self.tile_mask = ti.field(ti.i32, shape=self.tiles)
+            self.listed = ti.field(ti.i32, shape=cap)
+            self.n_listed = ti.field(ti.i32, shape=())
         self.n_tires = n_tires
         self.substeps = substeps
         if n_tires > 0:

@@ -78,7 +78,7 @@ class Probe:
         w.hit_step.from_numpy(np.full(cap, -1, np.int32))
         self.rays = rays
         hashgrid.clear_counts(w)
-        hashgrid.count_all(w, self.center)
+        hashgrid.count_all(w, self.center, 0.0, 0.0)
         self.total = hashgrid.inclusive_scan(w)
         hashgrid.scatter(w, self.center)
 

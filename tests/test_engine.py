@@ -222,7 +222,7 @@ def test_splash_off_allocates_and_runs_nothing_of_it():
     assert sim.plan.passes() == ["recycle"]
 
 
-def test_reproducible_and_independent_of_memory_order():
+def test_reproducible_and_independent_of_memory_order_and_hash_settings():
     sc = scene(rocks=6000)
     _, a = run_states(sc)
     _, b = run_states(sc)
@@ -230,8 +230,10 @@ def test_reproducible_and_independent_of_memory_order():
 
     _, c = run_states(scene_with(sc, {"sim.hash.reorder_every": 0}))
     _, d = run_states(scene_with(sc, {"sim.hash.insert": "aabb"}))
+    _, e = run_states(scene_with(sc, {"sim.hash.scope": "all"}))
+    _, f = run_states(scene_with(sc, {"sim.hash.scope": "all", "sim.hash.insert": "aabb", "sim.hash.table_size": 97}))
     assert a["launches_total"] > 5
-    for other in (b, c, d):
+    for other in (b, c, d, e, f):
         np.testing.assert_array_equal(a["positions"], other["positions"])
         np.testing.assert_array_equal(a["velocities"], other["velocities"])
 
