@@ -382,6 +382,44 @@ class Simulation:
             "launches_total": self.launches_total,
         }
 
+    # ------------------------------------------------------------------------------------------------
+    _ROCK_FIELDS = ("pos", "vel", "radius", "friction", "rock_id", "phase")
+
+    def checkpoint(self) -> dict:
+        """Everything needed to continue bit-identically: rock fields in memory order, clock, origin."""
+        w = self.w
+        data = {f"rock_{k}": getattr(w, k).to_numpy() for k in self._ROCK_FIELDS}
+        if self.plan.splash:
+            data["rock_hit_step"] = w.hit_step.to_numpy()
+        data.update(step_count=np.int64(self.step_count), time=np.float64(self.time), origin=self.origin.copy(),
+                    bed_center=self.bed_center.copy(), lead=self._lead.copy(),
+                    launches=np.int64(self.launches_total), scene=np.array(self.scene.name),
+                    seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
+        return data
+
+    def restore(self, data: dict) -> None:
+        """Continue from a checkpoint() of a simulation of the same scene."""
+        if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
+            raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
+        w = self.w
+        for k in self._ROCK_FIELDS:
+            getattr(w, k).from_numpy(np.asarray(data[f"rock_{k}"]))
+        if self.plan.splash:
+            w.hit_step.from_numpy(np.asarray(data["rock_hit_step"]))
+        self.step_count = int(data["step_count"])
+        self.time = float(data["time"])
+        self.origin = np.array(data["origin"], dtype=np.float64)
+        self.bed_center = np.array(data["bed_center"], dtype=np.float64)
+        self._lead = np.array(data["lead"], dtype=np.float64)
+        w.launches[None] = int(data["launches"])
+        par = self._par.copy()
+        par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
+        w.par.from_numpy(par.astype(w.np_real()))
+        self._poses = self.fleet.poses(self.time)
+        self._tires_prev = self.fleet.rear_tires(self._poses)
+        if self.plan.splash:
+            self._upload_rays(self._tires_prev, self._tires_prev)
+
     def check_health(self) -> None:
         """The runtime guard: raise HealthError naming the step, the rock and the value when a rock is
         non-finite, outside the bed (with recycling) or below the ground (with ground contact)."""
