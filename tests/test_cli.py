@@ -1,0 +1,106 @@
+"""The command line as a user meets it: exit codes, one-line errors, outputs never clobbered or half-written,
+reproducible across processes."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BAD = sorted((ROOT / "tests" / "bad_scenes").glob("*.toml"))
+
+
+def cli(*args, cwd=None, timeout=300):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "taichi_rocks", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_check_good_scenes():
+    r = cli("check", *sorted((ROOT / "scenes").glob("*.toml")))
+    assert r.returncode == 0, r.stderr
+    assert "passes per step" in r.stdout and "convoy" in r.stdout
+
+
+def test_check_bad_scenes_one_line_each_exit_2():
+    r = cli("check", *BAD)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    lines = r.stderr.strip().splitlines()
+    for path in BAD:  # every file is reported, each line starts with the file
+        assert any(line.startswith(str(path)) for line in lines), path
+    for line in lines:
+        assert line.startswith(str(ROOT / "tests" / "bad_scenes")), line
+
+
+def test_simulate_bad_scene_creates_nothing(tmp_path):
+    out = tmp_path / "x.npz"
+    r = cli("simulate", BAD[0], "--out", out)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().startswith(str(BAD[0]))
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["--frames", "0"], ["--frames", "-3"], ["--fps", "nan"], ["--arch", "tpu"]])
+def test_usage_errors(tmp_path, args):
+    r = cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", tmp_path / "x.npz", *args)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_file_and_directory(tmp_path):
+    for target in (tmp_path / "nope.toml", tmp_path):
+        r = cli("check", target)
+        assert r.returncode == 2 and "Traceback" not in r.stderr
+        assert r.stderr.startswith(str(target)) and "cannot read scene" in r.stderr
+
+
+def test_schema_is_json_with_the_enums():
+    r = cli("schema")
+    assert r.returncode == 0
+    schema = json.loads(r.stdout)
+    assert "rk4" in json.dumps(schema) and "quadratic" in json.dumps(schema)
+
+
+def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(tmp_path):
+    scene = ROOT / "scenes" / "minimal.toml"
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    r = cli("simulate", scene, "--out", a, "--frames", "12")
+    assert r.returncode == 0, r.stderr
+    assert cli("simulate", scene, "--out", b, "--frames", "12").returncode == 0
+    da, db = np.load(a), np.load(b)
+    assert da["positions"].shape == (12, 2000, 3) and da["positions"].dtype == np.float64
+    assert da["vehicle_positions"].shape == (12, 1, 3) and list(da["vehicle_names"]) == ["car"]
+    np.testing.assert_allclose(da["time"], np.arange(12) / 30.0)
+    for k in da.files:
+        np.testing.assert_array_equal(da[k], db[k])
+    assert da["launches"].sum() > 0
+    before = a.read_bytes()
+    r = cli("simulate", scene, "--out", a, "--frames", "3")
+    assert r.returncode == 2 and "--overwrite" in r.stderr and "Traceback" not in r.stderr
+    assert a.read_bytes() == before
+    assert cli("simulate", scene, "--out", a, "--frames", "3", "--overwrite").returncode == 0
+    assert np.load(a)["positions"].shape[0] == 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "b.npz"]  # no temporaries left
+
+
+def test_interrupted_simulate_leaves_no_file(tmp_path):
+    out = tmp_path / "big.npz"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([sys.executable, "-m", "taichi_rocks", "simulate", str(ROOT / "scenes" / "minimal.toml"),
+                          "--out", str(out), "--frames", "100000"], env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not any(tmp_path.iterdir()):
+        time.sleep(0.2)  # wait until it is writing its temporaries
+    time.sleep(1.0)
+    p.send_signal(signal.SIGINT)
+    err = p.communicate(timeout=60)[1]
+    assert p.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert not out.exists() and list(tmp_path.iterdir()) == []
