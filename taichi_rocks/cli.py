@@ -8,8 +8,6 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import json
 import math
 import os
@@ -95,13 +93,6 @@ def _err(msg: str) -> None:
     print(msg, file=sys.stderr)
 
 
-@contextlib.contextmanager
-def _quiet_import():
-    """Taichi prints a banner on stdout when imported; keep stdout for results."""
-    with contextlib.redirect_stdout(io.StringIO()):
-        yield
-
-
 def _frames(scene, args) -> tuple[int, float]:
     fps = args.fps or float(scene.render.fps)
     frames = args.frames or max(1, int(round(scene.duration * fps)))
@@ -145,9 +136,8 @@ def cmd_simulate(args) -> int:
         raise UsageError(f"{out}: is a directory, expected an .npz file name")
     frames, fps = _frames(scene, args)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with _quiet_import():
-        from .recording import record
-        from .simulation import Simulation
+    from .recording import record
+    from .simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch, seed=args.seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
@@ -161,8 +151,7 @@ def cmd_render(args) -> int:
     from .scene import load_scene
 
     scene = load_scene(args.scene)
-    with _quiet_import():
-        from .render import render_scene
+    from .render import render_scene
     kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
                   profile=args.profile)
@@ -182,8 +171,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    with _quiet_import():
-        from .bench import run_bench
+    from .bench import run_bench
     info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK

@@ -104,3 +104,11 @@ def test_interrupted_simulate_leaves_no_file(tmp_path):
     assert p.returncode == 130, err
     assert "interrupted" in err and "Traceback" not in err
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_gpu_falls_back_to_cpu_with_one_warning(tmp_path):
+    r = cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", tmp_path / "g.npz", "--frames", "2", "--arch", "gpu")
+    assert r.returncode == 0, r.stderr
+    warnings = [line for line in r.stderr.splitlines() if "warning" in line.lower()]
+    assert len(warnings) == 1 and "CPU" in warnings[0]
+    assert r.stdout.startswith("wrote ")  # nothing else on stdout (no Taichi banner)
