@@ -80,12 +80,17 @@ def count_rock(w: ti.template(), i, center: ti.template(), grid_origin):
                         ti.atomic_add(w.cell_start[hash_cell(ti.Vector([a, b, c]), w.table_size)], 1)
 
 
-@ti.kernel
-def clear_counts(w: ti.template()):
+@ti.func
+def clear_all(w: ti.template()):
     for s in w.cell_start:
         w.cell_start[s] = 0
     if ti.static(w.masked):
         w.n_listed[None] = 0
+
+
+@ti.kernel
+def clear_counts(w: ti.template()):
+    clear_all(w)
 
 
 @ti.kernel
@@ -96,9 +101,9 @@ def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
         count_rock(w, i, center, g)
 
 
-@ti.kernel
-def inclusive_scan(w: ti.template()) -> ti.i32:
-    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total. Returns the total.
+@ti.func
+def scan_counts(w: ti.template()):
+    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total.
 
     ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
     about a nanosecond per slot there.
@@ -108,7 +113,13 @@ def inclusive_scan(w: ti.template()) -> ti.i32:
     for s in range(1, n):
         w.cell_start[s] += w.cell_start[s - 1]
     w.cell_start[n] = w.cell_start[n - 1]
-    return w.cell_start[n]
+
+
+@ti.kernel
+def inclusive_scan(w: ti.template()) -> ti.i32:
+    """The scan alone; returns the number of (rock, cell) entries."""
+    scan_counts(w)
+    return w.cell_start[w.table_size]
 
 
 @ti.func
@@ -125,8 +136,8 @@ def scatter_rock(w: ti.template(), i, center: ti.template()):
                     w.entries[e] = i
 
 
-@ti.kernel
-def scatter(w: ti.template(), center: ti.template()):
+@ti.func
+def scatter_all(w: ti.template(), center: ti.template()):
     """Place each counted rock in its slots. atomic_sub on the inclusive ends leaves cell_start[s] = start
     of slot s."""
     if ti.static(w.masked):
@@ -135,6 +146,11 @@ def scatter(w: ti.template(), center: ti.template()):
     else:
         for i in range(w.ipar[IPar.N_ROCKS]):
             scatter_rock(w, i, center)
+
+
+@ti.kernel
+def scatter(w: ti.template(), center: ti.template()):
+    scatter_all(w, center)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -43,6 +43,7 @@ GL_UP = (0.0, 0.0, 1.0)  # GGUI camera up: the simulation's +Z (no axis swap any
 VULKAN_HINT = ("GGUI needs Vulkan: install Mesa's software driver with "
                "`apt-get install -y mesa-vulkan-drivers libvulkan1`")
 DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this many pixels are thinned
+ROCK_MODES = ("splat", "particles")
 WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
 
 # Looks (linear RGB as GGUI shades it: colour * (ambient + sum of Lambert terms)).
@@ -131,15 +132,100 @@ def rock_color(rock_id: int, phase: int = 0) -> np.ndarray:
     return col
 
 
+@ti.func
+def _smooth01(x):
+    s = ti.min(ti.max(x, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@ti.func
+def _empty_key():
+    """The depth-buffer value of a pixel no rock covers."""
+    return ti.cast(0x7FFFFFFF, ti.i64) << 32
+
+
+@ti.func
+def _splat_rock(zbuf, acc, rows, X, Y, pr, z, r, base, fwd, right, up, sun, amb, sunc):
+    """Draw one resting rock into the software buffers: centre (X, Y) in pixels (row 0 at the bottom),
+    projected radius pr pixels, view depth z.
+
+    pr >= 1: an opaque shaded sphere, pixel by pixel, depth-tested through an atomic min on (depth, rgb)
+    packed in an i64 (order independent, so deterministic). pr < 1: its shaded colour spread bilinearly over
+    the 2 x 2 pixels around its centre with weight = its area in pixels, accumulated in fixed point (again
+    order independent); the ground pass blends it by coverage, which antialiases the far gravel.
+    Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)).
+    """
+    W, H = zbuf.shape
+    if pr < 1.0:
+        lam = (2.0 / 3.0) * ti.max(-fwd.dot(sun), 0.0)  # mean of n . l over the visible disc
+        c = ti.min(ti.max(base * (amb + sunc * lam), 0.0), 1.0)
+        area = 3.14159265 * pr * pr
+        fx = X - 0.5
+        fy = Y - 0.5
+        i0 = ti.cast(ti.floor(fx), ti.i32)
+        j0 = ti.cast(ti.floor(fy), ti.i32)
+        ax = fx - i0
+        ay = fy - j0
+        for di, dj in ti.static(ti.ndrange(2, 2)):
+            ii = i0 + di
+            jj = j0 + dj
+            if 0 <= ii < W and 0 <= jj < H:
+                wx = ax if di == 1 else 1.0 - ax
+                wy = ay if dj == 1 else 1.0 - ay
+                q = wx * wy * area * 4096.0
+                if q >= 1.0:
+                    acc[ii, jj] += ti.Vector([ti.cast(c[0] * q + 0.5, ti.i32), ti.cast(c[1] * q + 0.5, ti.i32),
+                                              ti.cast(c[2] * q + 0.5, ti.i32), ti.cast(q + 0.5, ti.i32)])
+        ti.atomic_min(rows[0], ti.max(j0, 0))
+        ti.atomic_max(rows[1], ti.min(j0 + 1, H - 1))
+    else:
+        i_lo = ti.max(ti.cast(ti.floor(X - pr), ti.i32), 0)
+        i_hi = ti.min(ti.cast(ti.floor(X + pr), ti.i32), W - 1)
+        j_lo = ti.max(ti.cast(ti.floor(Y - pr), ti.i32), 0)
+        j_hi = ti.min(ti.cast(ti.floor(Y + pr), ti.i32), H - 1)
+        inv = 1.0 / pr
+        for jj in range(j_lo, j_hi + 1):
+            dy = (jj + 0.5 - Y) * inv
+            for ii in range(i_lo, i_hi + 1):
+                dx = (ii + 0.5 - X) * inv
+                d2 = dx * dx + dy * dy
+                if d2 < 1.0:
+                    nz = ti.sqrt(1.0 - d2)
+                    nrm = right * dx + up * dy - fwd * nz
+                    c = ti.min(ti.max(base * (amb + sunc * ti.max(nrm.dot(sun), 0.0)), 0.0), 1.0) * 255.0 + 0.5
+                    depth = ti.max(z - r * nz, 1e-4)
+                    key = (ti.cast(ti.bit_cast(depth, ti.i32), ti.i64) << 24) | \
+                        ti.cast((ti.cast(c[0], ti.i32) << 16) | (ti.cast(c[1], ti.i32) << 8) | ti.cast(c[2], ti.i32),
+                                ti.i64)
+                    ti.atomic_min(zbuf[ii, jj], key)
+        if j_lo <= j_hi:
+            ti.atomic_min(rows[0], j_lo)
+            ti.atomic_max(rows[1], j_hi)
+
+
 @ti.kernel
-def _cull_rocks(pos: ti.template(), radius: ti.template(), rock_id: ti.template(), phase: ti.template(),
+def _rocks_pass(pos: ti.template(), radius: ti.template(), rock_id: ti.template(), phase: ti.template(),
                 n: ti.i32, out_pos: ti.template(), out_rad: ti.template(), out_col: ti.template(),
-                count: ti.template(), cap: ti.i32, eye: ti.types.vector(3, ti.f32),
-                fwd: ti.types.vector(3, ti.f32), right: ti.types.vector(3, ti.f32),
-                up: ti.types.vector(3, ti.f32), tan_x: ti.f32, tan_y: ti.f32, sec_x: ti.f32, sec_y: ti.f32,
-                near: ti.f32, far: ti.f32, px_per_rad: ti.f32, lod_px: ti.f32, radius_scale: ti.f32):
-    """Compact the visible rocks into out_* (first ``count`` entries); count may exceed cap (then re-run)."""
+                count: ti.template(), cap: ti.i32, zbuf: ti.template(), acc: ti.template(), rows: ti.template(),
+                eye: ti.types.vector(3, ti.f32), fwd: ti.types.vector(3, ti.f32),
+                right: ti.types.vector(3, ti.f32), up: ti.types.vector(3, ti.f32), tan_x: ti.f32, tan_y: ti.f32,
+                sec_x: ti.f32, sec_y: ti.f32, near: ti.f32, far: ti.f32, px_per_rad: ti.f32, lod_px: ti.f32,
+                radius_scale: ti.f32, sun: ti.types.vector(3, ti.f32), amb: ti.types.vector(3, ti.f32),
+                sunc: ti.types.vector(3, ti.f32), splat: ti.template()):
+    """Cull the rocks to the view frustum and the draw distance, then
+
+    * ``splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`), flying
+      rocks are compacted into out_* for GGUI;
+    * otherwise every visible rock is compacted into out_* (atomic counter; the first ``count`` entries are
+      valid, count may exceed cap: then the caller re-runs with a bigger bucket), far resting rocks thinned
+      (a fraction q^2 kept by a hash of rock_id and drawn 1/q larger, q = projected radius / lod_px).
+    """
     count[None] = 0
+    if ti.static(splat):
+        rows[0] = zbuf.shape[1]
+        rows[1] = -1
+    W = ti.cast(zbuf.shape[0], ti.f32)
+    H = ti.cast(zbuf.shape[1], ti.f32)
     for i in range(n):
         p = ti.cast(pos[i], ti.f32)
         r = ti.cast(radius[i], ti.f32)
@@ -151,6 +237,14 @@ def _cull_rocks(pos: ti.template(), radius: ti.template(), rock_id: ti.template(
             if ti.abs(x) < z * tan_x + r * sec_x and ti.abs(y) < z * tan_y + r * sec_y:
                 ph = phase[i]
                 rid = rock_id[i]
+                if ti.static(splat):
+                    if ph != 1:
+                        if z > near:
+                            zz = ti.max(z, near)
+                            _splat_rock(zbuf, acc, rows, (x / (zz * tan_x) + 1.0) * 0.5 * W,
+                                        (y / (zz * tan_y) + 1.0) * 0.5 * H, r * px_per_rad / zz, zz, r,
+                                        _rock_color(rid, ph), fwd, right, up, sun, amb, sunc)
+                        continue
                 keep = True
                 draw_r = r
                 if ph != 1 and lod_px > 0:
@@ -169,10 +263,37 @@ def _cull_rocks(pos: ti.template(), radius: ti.template(), rock_id: ti.template(
                         out_col[j] = _rock_color(rid, ph)
 
 
+@ti.kernel
+def _clear_buffers(zbuf: ti.template(), acc: ti.template()):
+    for i, j in zbuf:
+        zbuf[i, j] = _empty_key()
+        acc[i, j] = ti.Vector([0, 0, 0, 0])
+
+
 @ti.func
-def _smooth01(x):
-    s = ti.min(ti.max(x, 0.0), 1.0)
-    return s * s * (3.0 - 2.0 * s)
+def _composite(col, zbuf, acc, i, j):
+    """Blend the splatted rocks of pixel (i, j) over ``col`` and reset the pixel's buffers."""
+    a = acc[i, j]
+    if a[3] > 0:
+        w = a[3] * (1.0 / 4096.0)
+        rgb = ti.Vector([a[0], a[1], a[2]]) * (1.0 / 4096.0)
+        if w >= 1.0:
+            col = rgb / w
+        else:
+            col = col * (1.0 - w) + rgb
+        acc[i, j] = ti.Vector([0, 0, 0, 0])
+    key = zbuf[i, j]
+    if key != _empty_key():
+        rgb = ti.cast(key & 0xFFFFFF, ti.i32)
+        col = ti.Vector([(rgb >> 16) & 255, (rgb >> 8) & 255, rgb & 255]) * (1.0 / 255.0)
+        zbuf[i, j] = _empty_key()
+    return col
+
+
+@ti.func
+def _to_rgba8(col):
+    c = ti.min(ti.max(col, 0.0), 1.0) * 255.0 + 0.5
+    return ti.Vector([ti.cast(c[0], ti.u8), ti.cast(c[1], ti.u8), ti.cast(c[2], ti.u8), ti.u8(255)])
 
 
 @ti.kernel
@@ -181,16 +302,20 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
                   ground_z: ti.f32, wrap: ti.types.vector(2, ti.f32), tile: ti.f32,
                   ca: ti.types.vector(3, ti.f32), cb: ti.types.vector(3, ti.f32), light: ti.types.vector(3, ti.f32),
                   sky: ti.types.vector(3, ti.f32), horizon: ti.types.vector(3, ti.f32), haze_dist: ti.f32,
-                  cars: ti.template(), n_cars: ti.i32):
-    """Sky and ground, one ray per pixel, into the canvas background image (W, H), row 0 at the bottom.
+                  cars: ti.template(), n_cars: ti.i32, zbuf: ti.template(), acc: ti.template(),
+                  rows: ti.template(), splat: ti.template()):
+    """Sky, ground and (``splat``) the splatted resting rocks, one ray per pixel, into the canvas background
+    image (W, H), row 0 at the bottom.
 
     Ground: the plane z = ground_z, a checker of ``tile`` metre squares whose parity is that of the *world*
     tile (``wrap`` = origin mod 2 tiles), box-filtered over the pixel's footprint (no moire: far tiles blend
     to the mean colour), lit like GGUI lights a mesh facing up (``light`` = ambient + sun * cos), darkened
-    under the vehicles (soft contact shadows), hazed towards ``horizon`` with distance. Sky: ``sky`` above,
-    lightening to ``horizon`` just above the horizon. Everything GGUI draws afterwards lies above the plane,
-    so painting the ground behind the 3D scene is exact. Parallel over rows: the camera has no roll (its
-    right vector is horizontal), so a row's rays share their height and distance to the plane.
+    under the vehicles (soft contact shadows), then the rocks blended in (:func:`_composite`), then hazed
+    towards ``horizon`` with distance. Sky: ``sky`` above, lightening to ``horizon`` at the horizon.
+    Everything GGUI draws afterwards lies above the plane, so painting the ground behind the 3D scene is
+    exact; resting rocks lie on it (a rock just in front of a tire's contact patch is the only thing that can
+    come out behind instead of in front). Parallel over rows: the camera has no roll (its right vector is
+    horizontal), so a row's rays share their height and distance to the plane.
     """
     W, H = img.shape
     h = eye[2] - ground_z
@@ -199,6 +324,9 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
         v = ((j + 0.5) / H * 2.0 - 1.0) * tan_y
         dr = fwd + up * v  # ray through the row's centre line; the pixel's ray is dr + right * u
         dz = dr[2]  # right is horizontal (no roll), so the whole row shares dz and the plane distance t
+        rocks = False
+        if ti.static(splat):
+            rocks = rows[0] <= j <= rows[1]
         if dz < 0.0 and h > 0.0:
             t = h / -dz
             # pixel footprint on the plane: d(hit)/d(column) = t * du (du horizontal),
@@ -237,18 +365,26 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
                     if ox < c[6] and oy < c[6]:
                         dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
                         g *= 0.5 + 0.5 * _smooth01(dd / c[6])
+                if ti.static(splat):
+                    if rocks:
+                        g = _composite(g, zbuf, acc, i, j)
                 x = t * ti.sqrt(r2 + u * u) / haze_dist  # distance / haze distance (right is a unit normal to dr)
                 fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
-                col = ti.min(ti.max(g + (horizon - g) * fog, 0.0), 1.0) * 255.0 + 0.5
-                img[i, j] = ti.Vector([ti.cast(col[0], ti.u8), ti.cast(col[1], ti.u8), ti.cast(col[2], ti.u8),
-                                       ti.u8(255)])
+                img[i, j] = _to_rgba8(g + (horizon - g) * fog)
         else:  # sky: one colour per row (elevation of the row's centre)
             elev = dz / ti.sqrt(dr.norm_sqr())
-            col = ti.min(ti.max(horizon + (sky - horizon) * _smooth01(elev * (1.0 / 0.12)), 0.0), 1.0)
-            col = col * 255.0 + 0.5
-            px = ti.Vector([ti.cast(col[0], ti.u8), ti.cast(col[1], ti.u8), ti.cast(col[2], ti.u8), ti.u8(255)])
-            for i in range(W):
-                img[i, j] = px
+            col = horizon + (sky - horizon) * _smooth01(elev * (1.0 / 0.12))
+            px = _to_rgba8(col)
+            if ti.static(splat):
+                if rocks:  # only when the camera is lower than the rocks
+                    for i in range(W):
+                        img[i, j] = _to_rgba8(_composite(col, zbuf, acc, i, j))
+                else:
+                    for i in range(W):
+                        img[i, j] = px
+            else:
+                for i in range(W):
+                    img[i, j] = px
 
 
 @ti.kernel
@@ -415,8 +551,8 @@ class Renderer:
     (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
     """
 
-    def __init__(self, sim, resolution=None, fps=None, *, lod_pixels: float = DEFAULT_LOD_PIXELS,
-                 window_every: int = WINDOW_EVERY):
+    def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",
+                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY):
         self.sim = sim
         sc = sim.scene
         rs = sc.render
@@ -429,6 +565,9 @@ class Renderer:
         self.horizon = tuple(float(c + (1.0 - c) * 0.45) for c in self.background)
         self.draw_distance = float(rs.draw_distance)
         self.tile = float(rs.ground_tile)
+        if rocks not in ROCK_MODES:
+            raise ValueError(f"rocks must be one of {', '.join(ROCK_MODES)}, got {rocks!r}")
+        self.rocks = rocks
         self.lod_pixels = float(lod_pixels)
         self.window_every = int(window_every)
         self.flags = SimpleNamespace(bed_edge=bool(rs.bed_edge), tire_rays=bool(rs.tire_rays),
@@ -464,6 +603,13 @@ class Renderer:
         # sky and ground: the canvas background image; contact shadows of the vehicles
         self._sky = ti.Vector.field(4, ti.u8)
         ti.root.dense(ti.j, h).dense(ti.i, w).place(self._sky)  # rows contiguous: written row by row
+        # software buffers of the splatted rocks (1 x 1 placeholders in "particles" mode)
+        bw, bh = (w, h) if rocks == "splat" else (1, 1)
+        self._zbuf = ti.field(ti.i64)
+        self._acc = ti.Vector.field(4, ti.i32)
+        ti.root.dense(ti.j, bh).dense(ti.i, bw).place(self._zbuf, self._acc)
+        self._rows = ti.field(ti.i32, shape=2)
+        _clear_buffers(self._zbuf, self._acc)
         self._cars = ti.Vector.field(7, ti.f32, shape=MAX_CARS)
         self._out = np.empty((h, w, 3), np.uint8)
 
@@ -538,6 +684,15 @@ class Renderer:
         up = np.cross(right, fwd)
         return eye, target, fwd.astype(np.float32), right.astype(np.float32), up.astype(np.float32), heading
 
+    @staticmethod
+    def sun_direction(heading: float) -> np.ndarray:
+        """Unit vector towards the sun: fixed in the camera's heading frame (behind, left, high), so the lit
+        side of every rock faces the camera whatever the direction of travel."""
+        c, s = math.cos(heading), math.sin(heading)
+        sd = np.array(SUN_DIR_CAMERA, np.float64)
+        sd = np.array([c * sd[0] - s * sd[1], s * sd[0] + c * sd[1], sd[2]])
+        return sd / np.linalg.norm(sd)
+
     def _bucket(self, need: int):
         cap = MIN_BUCKET
         while cap < need:
@@ -548,26 +703,31 @@ class Renderer:
                                   ti.Vector.field(3, ti.f32, cap))
         return cap, self._buckets[cap]
 
-    def cull(self, eye, fwd, right, up) -> int:
-        """Compact the visible rocks into a bucket; return how many (also ``self.last_count``)."""
+    def cull(self, eye, fwd, right, up, sun) -> int:
+        """Cull the rocks; splat the resting ones ("splat" mode) and compact those GGUI draws into a bucket.
+        Return how many GGUI draws (also ``self.last_count``)."""
         sim, n = self.sim, self.n_rocks
         self._drawn = None
         if n == 0:
             self.last_count = 0
             return 0
         w, h = self.resolution
-        args = (_vec(eye), _vec(fwd), _vec(right), _vec(up), self.tan_x, self.tan_y,
-                math.sqrt(1 + self.tan_x ** 2), math.sqrt(1 + self.tan_y ** 2), 0.05, self.draw_distance,
-                self.px_per_rad, self.lod_pixels, h / w)  # h / w: GGUI 1.7.4 draws particles w/h too large
+        args = (self._zbuf, self._acc, self._rows, _vec(eye), _vec(fwd), _vec(right), _vec(up), self.tan_x,
+                self.tan_y, math.sqrt(1 + self.tan_x ** 2), math.sqrt(1 + self.tan_y ** 2), 0.05,
+                self.draw_distance, self.px_per_rad, self.lod_pixels,
+                h / w,  # GGUI 1.7.4 draws particles w/h times too large
+                _vec(sun), ti.Vector(AMBIENT), ti.Vector(SUN_COLOR), self.rocks == "splat")
         need = max(int(self.last_count * 1.25), 1)
         while True:
             cap, (bp, br, bc) = self._bucket(need)
-            _cull_rocks(sim.world.pos, sim.world.radius, sim.world.rock_id, sim.world.phase, n, bp, br, bc,
+            _rocks_pass(sim.world.pos, sim.world.radius, sim.world.rock_id, sim.world.phase, n, bp, br, bc,
                         self._count, cap, *args)
             count = int(self._count[None])
             if count <= cap:
                 break
             need = count
+            if self.rocks == "splat":  # the splats are in the buffers already: clear them before re-running
+                _clear_buffers(self._zbuf, self._acc)
         self.last_count = count
         self._drawn = (bp, br, bc, count)
         return count
@@ -581,15 +741,12 @@ class Renderer:
         sim = self.sim
         origin = np.asarray(sim.origin, np.float64)
         eye, target, fwd, right, up, heading = self.view()
+        sd = self.sun_direction(heading)
         t1 = time.perf_counter()
-        self.cull(eye, fwd, right, up)
+        self.cull(eye, fwd, right, up, sd)
         t2 = time.perf_counter()
 
         poses = sim.vehicle_poses()
-        c, s = math.cos(heading), math.sin(heading)
-        sd = np.array(SUN_DIR_CAMERA, np.float64)
-        sd = np.array([c * sd[0] - s * sd[1], s * sd[0] + c * sd[1], sd[2]])
-        sd /= np.linalg.norm(sd)
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
         self._canvas.set_background_color(self.background)
         self._canvas.set_image(self._sky)
@@ -638,7 +795,8 @@ class Renderer:
         _paint_ground(self._sky, _vec(eye), _vec(fwd), _vec(right), _vec(up), self.tan_x, self.tan_y,
                       self.ground_z - float(origin[2]), ti.Vector(wrap), self.tile, ti.Vector(GROUND_A),
                       ti.Vector(GROUND_B), ti.Vector(light), ti.Vector(self.background), ti.Vector(self.horizon),
-                      HAZE * self.draw_distance, self._cars, k)
+                      HAZE * self.draw_distance, self._cars, k, self._zbuf, self._acc, self._rows,
+                      self.rocks == "splat")
 
     def _draw_vehicles(self, scene, origin, poses) -> None:
         vs, ns = self._v_local

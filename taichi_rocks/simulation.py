@@ -53,6 +53,20 @@ def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, 
 
 
 @ti.kernel
+def hash_and_tires(w: ti.template(), step: ti.i32, swept: ti.template(), center: ti.template(),
+                   ground: ti.template()) -> ti.i32:
+    """Passes after the rock pass, in one launch: scan, scatter, ray cells, tire pass, and clearing the
+    counts for the next step's rock pass. Returns the rocks launched."""
+    hashgrid.scan_counts(w)
+    hashgrid.scatter_all(w, center)
+    if ti.static(not swept):
+        tires.trace_all(w)
+    launched = tires.launch_all(w, step, swept, center, ground)
+    hashgrid.clear_all(w)
+    return launched
+
+
+@ti.kernel
 def shift_origin(w: ti.template(), dx: ti.f64, dy: ti.f64):
     d = ti.Vector([ti.cast(dx, w.real), ti.cast(dy, w.real), 0.0])
     for i in range(w.ipar[IPar.N_ROCKS]):
@@ -228,7 +242,7 @@ class Simulation:
         self._lead = np.array([math.cos(poses[self.follow].heading), math.sin(poses[self.follow].heading)])
         self.last_launches = 0
         if splash:
-            self._build_hash(initial=True)
+            self._initial_sort()
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -280,19 +294,32 @@ class Simulation:
                 mask[x0:x1 + 1, y0:y1 + 1] = 1
         w.tile_mask.from_numpy(mask)
 
-    def _build_hash(self, initial: bool = False) -> None:
-        """Scan and scatter (the counts come from the rock pass, or are made here at the start)."""
+    def _initial_sort(self) -> None:
+        """Sort the rocks in memory by slot once at the start (scope "all"), and clear the counts."""
         w, p = self.w, self.plan
-        if initial:
-            hashgrid.clear_counts(w)
+        hashgrid.clear_counts(w)
+        if p.reorder_every:
             g = self._grid_origin()
             hashgrid.count_all(w, p.center, float(g[0]), float(g[1]))
-        total = hashgrid.inclusive_scan(w)
-        if total > w.entry_capacity:  # cannot happen: the capacity is an upper bound; never lose a rock
-            raise RuntimeError(f"hash table needs {total} entries, capacity {w.entry_capacity}")
-        hashgrid.scatter(w, p.center)
-        if p.reorder_every and (initial or self.step_count % p.reorder_every == 0):
+            hashgrid.inclusive_scan(w)
+            hashgrid.scatter(w, p.center)
             self._reorder()
+            hashgrid.clear_counts(w)
+
+    def _hash_and_tires(self) -> int:
+        """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs
+        by construction (World), so the scatter cannot lose a rock."""
+        w, p = self.w, self.plan
+        if p.reorder_every and self.step_count % p.reorder_every == 0:
+            hashgrid.inclusive_scan(w)
+            hashgrid.scatter(w, p.center)
+            self._reorder()
+            if not p.swept:
+                tires.trace_rays(w)
+            launched = tires.tire_pass(w, self.step_count, p.swept, p.center, p.ground)
+            hashgrid.clear_counts(w)
+            return launched
+        return hash_and_tires(w, self.step_count, p.swept, p.center, p.ground)
 
     def _reorder(self) -> None:
         """Re-sort the rocks in memory by slot (entries is then the identity)."""
@@ -341,18 +368,13 @@ class Simulation:
         self._tires_prev = tires_now
         self._poses = poses
         if self.n_rocks and (p.flight or p.recycle or p.splash):
-            if p.splash:
-                hashgrid.clear_counts(w)
             lc = self.bed_center[:2] - self.origin[:2]
             g = self._grid_origin()
             rock_pass(w, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
                       float(self._lead[0]), float(self._lead[1]), float(g[0]), float(g[1]), self.step_count,
                       p.flight, p.recycle, p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
         if p.splash:
-            self._build_hash()
-            if not p.swept:
-                tires.trace_rays(w)
-            self.last_launches = tires.tire_pass(w, self.step_count, p.swept, p.center, p.ground)
+            self.last_launches = self._hash_and_tires()
 
     # ------------------------------------------------------------------------------------------------
     def state(self) -> dict:

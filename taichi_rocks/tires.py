@@ -90,6 +90,11 @@ def ray_vec(w: ti.template(), t, k):
 
 @ti.kernel
 def trace_rays(w: ti.template()):
+    trace_all(w)
+
+
+@ti.func
+def trace_all(w: ti.template()):
     """DDA cells of every ray of every substep (ray index = tire * substeps + s)."""
     for t, s in ti.ndrange(w.n_tires, w.substeps):
         f = ti.cast(s + 1, w.real) / w.substeps
@@ -126,6 +131,11 @@ def slot_range(w: ti.template(), c):
 @ti.kernel
 def tire_pass(w: ti.template(), step: ti.i32, swept: ti.template(), center: ti.template(),
               ground: ti.template()) -> ti.i32:
+    return launch_all(w, step, swept, center, ground)
+
+
+@ti.func
+def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template(), ground: ti.template()):
     """Find and launch the rocks under every tire ray. Serial over tires: the first tire wins a rock,
     whatever the thread count (a handful of rays; the cost is in the cells, not the loop)."""
     launched = 0
