@@ -19,7 +19,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 
 import taichi as ti
 
-from .world import IPar, P1, P2, P3, Par
+from .world import A0, ACTIVE, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -54,6 +54,29 @@ def near_a_tire(w: ti.template(), p, grid_origin):
     if 0 <= tx < w.tiles[0] and 0 <= ty < w.tiles[1]:
         near = w.tile_mask[tx, ty] != 0
     return near
+
+
+@ti.func
+def mark_tire_tiles(w: ti.template(), grid_origin):
+    """Scope "tires": clear the tile mask, then mark the tiles of every active tire's query region (the XY
+    box of its ray at the previous and the current step, grown by the query's reach)."""
+    for tx, ty in w.tile_mask:
+        w.tile_mask[tx, ty] = 0
+    margin = w.par[Par.MARGIN]
+    ti.loop_config(serialize=True)
+    for t in range(w.n_tires):
+        if w.ray[t, ACTIVE] != 0.0:
+            lo = ti.Vector([w.ray[t, A0], w.ray[t, A0 + 1]])
+            hi = lo
+            for k in ti.static(range(1, 4)):
+                q = ti.Vector([w.ray[t, A0 + 3 * k], w.ray[t, A0 + 3 * k + 1]])
+                lo = ti.min(lo, q)
+                hi = ti.max(hi, q)
+            t_lo = ti.cast(ti.floor((lo - margin - grid_origin) / w.tile_size), ti.i32)
+            t_hi = ti.cast(ti.floor((hi + margin - grid_origin) / w.tile_size), ti.i32)
+            for a in range(ti.max(t_lo[0], 0), ti.min(t_hi[0], w.tiles[0] - 1) + 1):
+                for b in range(ti.max(t_lo[1], 0), ti.min(t_hi[1], w.tiles[1] - 1) + 1):
+                    w.tile_mask[a, b] = 1
 
 
 @ti.func
@@ -97,6 +120,8 @@ def clear_counts(w: ti.template()):
 def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
     """Count pass alone (the simulation fuses it into the rock pass; kept for tests and profiling)."""
     g = ti.Vector([ti.cast(gx, w.real), ti.cast(gy, w.real)])
+    if ti.static(w.masked):
+        mark_tire_tiles(w, g)
     for i in range(w.ipar[IPar.N_ROCKS]):
         count_rock(w, i, center, g)
 

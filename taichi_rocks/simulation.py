@@ -26,7 +26,7 @@ from .plan import Plan
 from .runtime import init_taichi
 from .scene import load_scene, scene_with
 from .vehicles import Fleet
-from .world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
+from .world import ACTIVE, RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
@@ -43,6 +43,8 @@ def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, 
     move = ti.Vector([ti.cast(mx, w.real), ti.cast(my, w.real)])
     lead = ti.Vector([ti.cast(lx, w.real), ti.cast(ly, w.real)])
     grid = ti.Vector([ti.cast(gx, w.real), ti.cast(gy, w.real)])
+    if ti.static(count and w.masked):
+        hashgrid.mark_tire_tiles(w, grid)
     for i in range(w.ipar[IPar.N_ROCKS]):
         if ti.static(flight):
             fly(w, i, h, integrator, gravity, drag, ground)
@@ -202,6 +204,7 @@ class Simulation:
         par[Par.QUAD_DRAG] = 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density)
         par[Par.R_MAX] = r_max
         par[Par.TIE_EPS] = 1e-5
+        par[Par.MARGIN] = self._margin
         ipar = np.zeros(IPar.COUNT, dtype=np.int64)
         ipar[IPar.TABLE] = table
         ipar[IPar.SEED] = scene.seed & 0x7FFFFFFF
@@ -252,14 +255,19 @@ class Simulation:
     def vehicle_poses(self):
         return self._poses
 
-    def _upload_rays(self, prev, cur) -> None:
+    def _upload_rays(self, prev, cur, dt: float = 0.0) -> None:
         w = self.w
         if w.n_tires == 0:
             return
         data = np.zeros((w.n_tires, RAY_FIELDS))
         o = self.origin
-        data[:, 0:3] = prev.center - o
-        data[:, 3:6] = prev.bottom - o
+        # a tire that moved much farther than its speed allows (a path that jumps, e.g. a looping arc) did
+        # not sweep the ground in between: its previous ray is taken to be the current one
+        moved = np.linalg.norm(cur.center - prev.center, axis=1)
+        speed = np.maximum(np.linalg.norm(cur.velocity, axis=1), np.linalg.norm(prev.velocity, axis=1))
+        jumped = moved > 2.0 * speed * dt + 0.05
+        data[:, 0:3] = np.where(jumped[:, None], cur.center, prev.center) - o
+        data[:, 3:6] = np.where(jumped[:, None], cur.bottom, prev.bottom) - o
         data[:, 6:9] = cur.center - o
         data[:, 9:12] = cur.bottom - o
         data[:, 12:15] = cur.velocity
@@ -272,27 +280,11 @@ class Simulation:
             park = self.bed_center - o + np.array([0.0, 0.0, 1000.0])
             data[far, 0:12] = np.tile(park, 4)
             data[far, 17] = 0.0
+        data[:, ACTIVE] = ~far
         w.ray.from_numpy(data.astype(w.np_real()))
-        if w.masked:
-            self._upload_mask(data[~far, :12].reshape(-1, 4, 3))
 
     def _grid_origin(self) -> np.ndarray:
         return self.bed_center[:2] - self.origin[:2] - self._grid_half
-
-    def _upload_mask(self, rays: np.ndarray) -> None:
-        """Mark the tiles that a tire's query can reach this step: the XY box of its ray at the previous
-        and the current step, grown by the query's reach (dilation cells and the largest rock)."""
-        w = self.w
-        mask = np.zeros(w.tiles, np.int32)
-        if len(rays):
-            g = self._grid_origin()
-            lo = np.floor((rays[:, :, :2].min(axis=1) - self._margin - g) / self.tile).astype(np.int64)
-            hi = np.floor((rays[:, :, :2].max(axis=1) + self._margin - g) / self.tile).astype(np.int64)
-            lo = np.clip(lo, 0, np.array(w.tiles) - 1)
-            hi = np.clip(hi, 0, np.array(w.tiles) - 1)
-            for (x0, y0), (x1, y1) in zip(lo, hi):
-                mask[x0:x1 + 1, y0:y1 + 1] = 1
-        w.tile_mask.from_numpy(mask)
 
     def _initial_sort(self) -> None:
         """Sort the rocks in memory by slot once at the start (scope "all"), and clear the counts."""
@@ -364,7 +356,7 @@ class Simulation:
             self.origin[:2] = new
         tires_now = self.fleet.rear_tires(poses)
         if p.splash:
-            self._upload_rays(self._tires_prev, tires_now)
+            self._upload_rays(self._tires_prev, tires_now, dt)
         self._tires_prev = tires_now
         self._poses = poses
         if self.n_rocks and (p.flight or p.recycle or p.splash):
@@ -382,7 +374,7 @@ class Simulation:
         w, n = self.w, self.n_rocks
         ids = w.rock_id.to_numpy()[:n]
         pos = np.empty((n, 3))
-        vel = np.empty((n, 3), np.float32)
+        vel = np.empty((n, 3), self.w.np_real())
         radius = np.empty(n)
         phase = np.empty(n, np.int8)
         pos[ids] = w.pos.to_numpy()[:n].astype(np.float64) + self.origin
@@ -450,7 +442,9 @@ class Simulation:
         if not hasattr(self, "_health_out"):
             self._health_out = ti.field(ti.i32, shape=6)
         lc = self.bed_center[:2] - self.origin[:2]
-        slack = 1e-3 + 1e-6 * self.scene.bed.radius
+        # 1 mm, or a few float spacings at the bed's distance from the kernel origin ("world" origin, f32)
+        eps = float(np.finfo(self.w.np_real()).eps)
+        slack = 1e-3 + 8.0 * eps * (float(np.max(np.abs(lc))) + self.scene.bed.radius)
         health(self.w, float(lc[0]), float(lc[1]), slack, self.plan.recycle, self.plan.ground != "none",
                self._health_out)
         out = self._health_out.to_numpy()

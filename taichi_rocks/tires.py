@@ -23,10 +23,8 @@ import taichi as ti
 
 from .hashgrid import cell_of, hash_cell, segment_cells
 from .randomness import uniform01
-from .world import FLYING, SLIDING, IPar, Par
+from .world import A0, A1, B0, B1, FLYING, FWD, SLIDING, SPIN, VEL, IPar, Par
 
-# layout of World.ray[t, :] (RAY_FIELDS = 18 numbers per tire)
-A0, B0, A1, B1, VEL, FWD, SPIN = 0, 3, 6, 9, 12, 15, 17
 
 
 @ti.func

@@ -19,7 +19,11 @@ RESTING, FLYING, SLIDING = 0, 1, 2
 P1, P2, P3 = 73856093, 19349663, 83492791
 
 
-RAY_FIELDS = 18  # see tires.py
+# Layout of World.ray[t, :], one row per splashing rear tire: the ray (tire centre a, bottom b) at the
+# previous step and now, the wheel's velocity, its heading, its tread speed omega * R, and 1 if the tire is
+# near the bed (0: parked far away, its rays degenerate and high above the bed).
+A0, B0, A1, B1, VEL, FWD, SPIN, ACTIVE = 0, 3, 6, 9, 12, 15, 17, 18
+RAY_FIELDS = 19
 
 
 class Par:
@@ -39,7 +43,8 @@ class Par:
     QUAD_DRAG = 11  # 3 rho_air C_d / (8 rho): quadratic drag acceleration is -QUAD_DRAG / r * |v| v
     R_MAX = 12
     TIE_EPS = 13
-    COUNT = 14
+    MARGIN = 14  # reach of a tire's query beyond its ray in XY (scope "tires" mask)
+    COUNT = 15
 
 
 class IPar:

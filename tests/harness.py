@@ -89,6 +89,7 @@ class Probe:
         data[:, 6:9], data[:, 9:12] = cur[:, 0], cur[:, 1]
         data[:, 15] = 1.0
         data[:, 17] = spin
+        data[:, 18] = 1.0  # active
         w.ray.from_numpy(data.astype(w.np_real()))
 
     def hits(self, step=1, prev=None):

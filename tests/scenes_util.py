@@ -43,3 +43,48 @@ def uniformity_pvalue(xy, center, radius):
 
     counts = equal_area_bins(xy, center, radius)
     return chisquare(counts).pvalue
+
+
+def reload_probe(probe, pos, radius, rays, cell=None):
+    """Reuse a compiled ``harness.Probe`` (Taichi compiles per World) for other rocks, rays and cell size.
+
+    The probe must have been built with at least as many rocks and rays, hash entries (aabb: larger radii,
+    smaller cells) and ray cells (longer rays, smaller cells) as needed. Missing rocks and rays are padded
+    with dummies far away (10 km up), which nothing can hit. Returns the probe; ``hits()`` then works as
+    usual (indices < len(pos))."""
+    from taichi_rocks import hashgrid
+    from taichi_rocks.world import IPar, Par, dilation_cells
+
+    w = probe.w
+    cap = w.pos.shape[0]
+    pos = np.asarray(pos, np.float64).reshape(-1, 3)
+    radius = np.asarray(radius, np.float64).reshape(-1)
+    rays = np.asarray(rays, np.float64).reshape(-1, 2, 3)
+    n, m = len(pos), len(rays)
+    assert n <= cap and m <= w.n_tires, (n, cap, m, w.n_tires)
+    cell = float(probe.cell if cell is None else cell)
+    far = np.array([1.0e4, 1.0e4, 1.0e4])
+    r_dummy = float(radius.min()) if n else cell
+    pos = np.concatenate([pos, far + np.arange(cap - n)[:, None] * np.array([4.0 * cell, 0.0, 0.0])])
+    radius = np.concatenate([radius, np.full(cap - n, r_dummy)])
+    rays = np.concatenate([rays, np.tile(far - 100.0, (w.n_tires - m, 2, 1))])
+    length = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1)))
+    assert hashgrid.ray_capacity(length, cell) <= w.ray_capacity, "probe built for shorter rays / larger cells"
+    r_max = float(radius.max())
+    par = w.par.to_numpy()
+    par[Par.CELL], par[Par.R_MAX] = cell, r_max
+    w.par.from_numpy(par)
+    ipar = w.ipar.to_numpy()
+    ipar[IPar.DILATE] = dilation_cells(r_max, cell) if probe.center else 0
+    w.ipar.from_numpy(ipar)
+    npr = w.np_real()
+    w.pos.from_numpy(pos.astype(npr))
+    w.radius.from_numpy(radius.astype(npr))
+    w.hit_step.from_numpy(np.full(cap, -1, np.int32))
+    probe.n, probe.cell, probe.rays = cap, cell, rays
+    hashgrid.clear_counts(w)
+    hashgrid.count_all(w, probe.center, 0.0, 0.0)
+    probe.total = hashgrid.inclusive_scan(w)
+    assert probe.total <= w.entry_capacity, "probe built for fewer hash entries"
+    hashgrid.scatter(w, probe.center)
+    return probe
