@@ -1,43 +1,57 @@
 """Offscreen rendering of a :class:`~taichi_rocks.simulation.Simulation` with Taichi GGUI.
 
 GGUI draws through Vulkan; on a machine without a GPU, Mesa's software driver (lavapipe) does the work.
-Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window and read back:
+Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window and read back.
+A frame is made of two layers:
 
-* rocks: ``scene.particles`` from compact f32 fields filled by :func:`_cull_rocks`, a kernel that keeps the
-  rocks inside the view frustum and the draw distance (atomic-counter compaction) and thins far resting rocks
-  to a constant screen-space density (:data:`DEFAULT_LOD_PIXELS`);
-* ground: a checker of ``render.ground_tile`` metre tiles anchored to *world* coordinates (it scrolls as the
-  vehicles drive), filled by :func:`_fill_ground` around the camera, fading to its mean colour with distance
-  (no moire at the horizon), plus a plain skirt out to 1.5 draw distances;
-* vehicles: a body box, a cabin and four tire cylinders each, in the vehicle's colour;
-* debug overlays (``render.bed_edge``, ``render.tire_rays``, ``render.hash_cells``) as lines.
+1. the background image (W x H, filled by Taichi kernels, merged under GGUI's output in the read-back):
+   sky, ground and the *resting* rocks. :func:`_rocks_pass` culls every rock to the view frustum and the
+   draw distance and splats the resting/sliding ones (:func:`_splat_rock`: shaded spheres, depth-tested by an
+   atomic min; sub-pixel rocks blended by coverage); :func:`_paint_ground` then traces one ray per pixel to
+   the ground plane: a checker of ``render.ground_tile`` metre tiles anchored to *world* coordinates (it
+   scrolls as the vehicles drive; box-filtered, so no moire at the horizon), soft contact shadows under the
+   vehicles, the splatted rocks, haze. Everything GGUI draws lies above the ground plane, so drawing the
+   ground and what lies on it *behind* the 3D scene is exact (up to a rock touching a tire's contact patch).
+2. the GGUI 3D scene: vehicles (body, cabin or cargo box, bumpers, lights, four tire cylinders each, one
+   ``scene.mesh``), the *flying* rocks as ``scene.particles`` from compact f32 fields (atomic-counter
+   compaction in the same pass, ``index_count`` = the count, power-of-two buckets), debug overlays
+   (``render.bed_edge``, ``render.tire_rays``, ``render.hash_cells``) as ``scene.lines``.
+
+Why: lavapipe shades GGUI particles at ~2 us per particle plus ~0.2 us per covered pixel, so the ~40-60k
+visible rocks of a 200k-rock bed cost 150-200 ms a frame at 720p as particles, and a full-screen ground mesh
+~45 ms; the two-layer frame costs ~100 ms in total. ``rocks="particles"`` keeps every rock a GGUI particle
+(far resting rocks thinned by a hash of rock_id to ``lod_pixels``), for comparison.
 
 Coordinate convention (the one place it is decided): we draw in the simulation's *local* frame
 (world = ``sim.origin`` + local, Z up) without any axis swap, and set the GGUI camera's ``up`` to +Z
 (:data:`GL_UP`). :func:`to_gl` is therefore the identity on the axes and only subtracts the floating origin;
 every host-side world position goes through it, so GGUI's f32 stays precise far from (0, 0, 0).
 
-Two GGUI 1.7.4 quirks are handled here:
+GGUI 1.7.4 quirks handled here:
 
-* particles come out ``width / height`` times too large (the particle vertex shader scales the sprite's x
-  and y by the vertical fov and then y again by the aspect ratio): radii are divided by the aspect ratio;
-* ``mesh_instance`` lights the *untransformed* mesh (the vertex shader forwards the instance's model-space
-  position and normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one:
-  vehicles are drawn as one ``scene.mesh`` whose vertices and normals are transformed on the host each frame.
-
-Other facts (``/work/shared/TAICHI-NOTES.md``): never ``window.show()`` on a hidden window (segfault), the image
-comes back (W, H, 4) float and y-flipped, capture exactly once per frame, and a 3D scene leaks ~0.3 MB per
-captured frame on lavapipe: the window is recreated every ``window_every`` frames (camera state carries over).
+* particles come out ``width / height`` times too large (Particles_vk.vert scales the sprite by the vertical
+  fov, then its y again by the aspect ratio): radii are multiplied by height / width;
+* ``mesh_instance`` lights the *untransformed* mesh (Mesh_vk.vert forwards the model-space position and
+  normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one: vehicles are one
+  ``scene.mesh`` whose vertices and normals are transformed on the host each frame;
+* (``/work/shared/TAICHI-NOTES.md``) never ``window.show()`` on a hidden window (segfault); the image comes
+  back (W, H, 4) float and y-flipped (:func:`_to_u8`); capture exactly once per frame; a 3D scene leaks
+  ~0.3 MB per captured frame on lavapipe: the window is recreated every ``window_every`` frames (the camera
+  state lives in :class:`CameraRig` and carries over).
 """
 
 import math
+import os
+import sys
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
 
-__all__ = ["Renderer", "CameraRig", "to_gl", "GL_UP", "VULKAN_HINT", "DEFAULT_LOD_PIXELS", "rock_color"]
+__all__ = ["render_scene", "Renderer", "CameraRig", "to_gl", "GL_UP", "VULKAN_HINT", "DEFAULT_LOD_PIXELS", "ROCK_MODES",
+           "rock_color", "check_resolution", "vehicle_mesh", "vehicle_kind"]
 
 GL_UP = (0.0, 0.0, 1.0)  # GGUI camera up: the simulation's +Z (no axis swap anywhere)
 VULKAN_HINT = ("GGUI needs Vulkan: install Mesa's software driver with "
@@ -56,12 +70,17 @@ HAZE = 2.5  # draw distances: e-folding distance of the ground's haze
 TIRE_COLOR = (0.09, 0.09, 0.10)
 HUB_COLOR = (0.62, 0.62, 0.64)
 GLASS_COLOR = (0.16, 0.20, 0.26)
+TAIL_LIGHT_COLOR = (1.0, 0.55, 0.35)
+BUMPER_COLOR = (0.13, 0.13, 0.14)
 BED_EDGE_COLOR = (1.0, 0.85, 0.1)
 RAY_COLOR = (1.0, 0.1, 0.1)
 CELL_COLOR = (0.1, 0.9, 1.0)
 MAX_RAYS = 256
 MAX_CELLS = 4096
 MIN_BUCKET = 4096
+KEY = (3, 251, 5)  # GGUI's clear colour, 8-bit: where the read-back has it, the background image shows
+COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
+OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
 
 
 def to_gl(p_world, origin) -> np.ndarray:
@@ -156,7 +175,7 @@ def _splat_rock(zbuf, acc, rows, X, Y, pr, z, r, base, fwd, right, up, sun, amb,
     Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)).
     """
     W, H = zbuf.shape
-    if pr < 1.0:
+    if pr < OPAQUE_PX:
         lam = (2.0 / 3.0) * ti.max(-fwd.dot(sun), 0.0)  # mean of n . l over the visible disc
         c = ti.min(ti.max(base * (amb + sunc * lam), 0.0), 1.0)
         area = 3.14159265 * pr * pr
@@ -172,31 +191,35 @@ def _splat_rock(zbuf, acc, rows, X, Y, pr, z, r, base, fwd, right, up, sun, amb,
             if 0 <= ii < W and 0 <= jj < H:
                 wx = ax if di == 1 else 1.0 - ax
                 wy = ay if dj == 1 else 1.0 - ay
-                q = wx * wy * area * 4096.0
+                q = wx * wy * area * COVERAGE_ONE  # <= pi * COVERAGE_ONE per rock
                 if q >= 1.0:
-                    acc[ii, jj] += ti.Vector([ti.cast(c[0] * q + 0.5, ti.i32), ti.cast(c[1] * q + 0.5, ti.i32),
-                                              ti.cast(c[2] * q + 0.5, ti.i32), ti.cast(q + 0.5, ti.i32)])
+                    # r, g, b premultiplied, 21 bits each, in one i64: one atomic instead of three
+                    rgb = ti.cast(c[0] * q + 0.5, ti.i64) | (ti.cast(c[1] * q + 0.5, ti.i64) << 21) | \
+                        (ti.cast(c[2] * q + 0.5, ti.i64) << 42)
+                    acc[ii, jj][0] += rgb
+                    acc[ii, jj][1] += ti.cast(q + 0.5, ti.i64)
         ti.atomic_min(rows[0], ti.max(j0, 0))
         ti.atomic_max(rows[1], ti.min(j0 + 1, H - 1))
     else:
-        i_lo = ti.max(ti.cast(ti.floor(X - pr), ti.i32), 0)
-        i_hi = ti.min(ti.cast(ti.floor(X + pr), ti.i32), W - 1)
         j_lo = ti.max(ti.cast(ti.floor(Y - pr), ti.i32), 0)
         j_hi = ti.min(ti.cast(ti.floor(Y + pr), ti.i32), H - 1)
         inv = 1.0 / pr
         for jj in range(j_lo, j_hi + 1):
             dy = (jj + 0.5 - Y) * inv
-            for ii in range(i_lo, i_hi + 1):
-                dx = (ii + 0.5 - X) * inv
-                d2 = dx * dx + dy * dy
-                if d2 < 1.0:
-                    nz = ti.sqrt(1.0 - d2)
+            half = 1.0 - dy * dy
+            if half > 0.0:
+                span = pr * ti.sqrt(half)  # the disc's half width on this row, pixels
+                i_lo = ti.max(ti.cast(ti.ceil(X - span - 0.5), ti.i32), 0)
+                i_hi = ti.min(ti.cast(ti.floor(X + span - 0.5), ti.i32), W - 1)
+                for ii in range(i_lo, i_hi + 1):
+                    dx = (ii + 0.5 - X) * inv
+                    nz = ti.sqrt(ti.max(half - dx * dx, 0.0))
                     nrm = right * dx + up * dy - fwd * nz
-                    c = ti.min(ti.max(base * (amb + sunc * ti.max(nrm.dot(sun), 0.0)), 0.0), 1.0) * 255.0 + 0.5
+                    col = ti.min(ti.max(base * (amb + sunc * ti.max(nrm.dot(sun), 0.0)), 0.0), 1.0) * 255.0 + 0.5
                     depth = ti.max(z - r * nz, 1e-4)
-                    key = (ti.cast(ti.bit_cast(depth, ti.i32), ti.i64) << 24) | \
-                        ti.cast((ti.cast(c[0], ti.i32) << 16) | (ti.cast(c[1], ti.i32) << 8) | ti.cast(c[2], ti.i32),
-                                ti.i64)
+                    key = (ti.cast(ti.bit_cast(depth, ti.i32), ti.i64) << 24) | ti.cast(
+                        (ti.cast(col[0], ti.i32) << 16) | (ti.cast(col[1], ti.i32) << 8) | ti.cast(col[2], ti.i32),
+                        ti.i64)
                     ti.atomic_min(zbuf[ii, jj], key)
         if j_lo <= j_hi:
             ti.atomic_min(rows[0], j_lo)
@@ -267,21 +290,23 @@ def _rocks_pass(pos: ti.template(), radius: ti.template(), rock_id: ti.template(
 def _clear_buffers(zbuf: ti.template(), acc: ti.template()):
     for i, j in zbuf:
         zbuf[i, j] = _empty_key()
-        acc[i, j] = ti.Vector([0, 0, 0, 0])
+        acc[i, j] = ti.Vector([0, 0], ti.i64)
 
 
 @ti.func
 def _composite(col, zbuf, acc, i, j):
     """Blend the splatted rocks of pixel (i, j) over ``col`` and reset the pixel's buffers."""
     a = acc[i, j]
-    if a[3] > 0:
-        w = a[3] * (1.0 / 4096.0)
-        rgb = ti.Vector([a[0], a[1], a[2]]) * (1.0 / 4096.0)
+    if a[1] > 0:
+        w = ti.cast(a[1], ti.f32) * (1.0 / COVERAGE_ONE)
+        m = ti.cast(0x1FFFFF, ti.i64)
+        rgb = ti.Vector([ti.cast(a[0] & m, ti.f32), ti.cast((a[0] >> 21) & m, ti.f32),
+                         ti.cast((a[0] >> 42) & m, ti.f32)]) * (1.0 / COVERAGE_ONE)
         if w >= 1.0:
             col = rgb / w
         else:
             col = col * (1.0 - w) + rgb
-        acc[i, j] = ti.Vector([0, 0, 0, 0])
+        acc[i, j] = ti.Vector([0, 0], ti.i64)
     key = zbuf[i, j]
     if key != _empty_key():
         rgb = ti.cast(key & 0xFFFFFF, ti.i32)
@@ -304,8 +329,8 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
                   sky: ti.types.vector(3, ti.f32), horizon: ti.types.vector(3, ti.f32), haze_dist: ti.f32,
                   cars: ti.template(), n_cars: ti.i32, zbuf: ti.template(), acc: ti.template(),
                   rows: ti.template(), splat: ti.template()):
-    """Sky, ground and (``splat``) the splatted resting rocks, one ray per pixel, into the canvas background
-    image (W, H), row 0 at the bottom.
+    """Sky, ground and (``splat``) the splatted resting rocks, one ray per pixel, into the background image
+    (W, H), row 0 at the bottom.
 
     Ground: the plane z = ground_z, a checker of ``tile`` metre squares whose parity is that of the *world*
     tile (``wrap`` = origin mod 2 tiles), box-filtered over the pixel's footprint (no moire: far tiles blend
@@ -339,35 +364,47 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
             r2 = dr.norm_sqr()
             for i in range(W):
                 u = ((i + 0.5) / W * 2.0 - 1.0) * tan_x
-                hx = bx0 + t * u * right[0]
-                hy = by0 + t * u * right[1]
-                fx = ti.abs(gu[0]) + ti.abs(gv0[0] + gv1[0] * u)
-                fy = ti.abs(gu[1]) + ti.abs(gv0[1] + gv1[1] * u)
-                qx = (hx + wrap[0]) * inv_tile
-                qy = (hy + wrap[1]) * inv_tile
-                wx = fx * inv_tile + 1e-4
-                wy = fy * inv_tile + 1e-4
-                # box-filtered square waves (difference of the integrated triangle wave), in [-1, 1]
-                sa = (qx - 0.5 * wx) * 0.5
-                sb = (qx + 0.5 * wx) * 0.5
-                ta = (qy - 0.5 * wy) * 0.5
-                tb = (qy + 0.5 * wy) * 0.5
-                sx = 2.0 * (ti.abs(sa - ti.floor(sa) - 0.5) - ti.abs(sb - ti.floor(sb) - 0.5)) / wx
-                sy = 2.0 * (ti.abs(ta - ti.floor(ta) - 0.5) - ti.abs(tb - ti.floor(tb) - 0.5)) / wy
-                chk = 0.5 - 0.5 * sx * sy
-                g = (ca + (cb - ca) * chk) * light
-                for k in range(n_cars):
-                    c = cars[k]  # x, y, cos, sin, half length, half width, shadow softness (local, m)
-                    rx = hx - c[0]
-                    ry = hy - c[1]
-                    ox = ti.abs(rx * c[2] + ry * c[3]) - c[4]
-                    oy = ti.abs(-rx * c[3] + ry * c[2]) - c[5]
-                    if ox < c[6] and oy < c[6]:
-                        dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
-                        g *= 0.5 + 0.5 * _smooth01(dd / c[6])
+                g = ti.Vector([0.0, 0.0, 0.0])
+                covered = False
                 if ti.static(splat):
                     if rocks:
-                        g = _composite(g, zbuf, acc, i, j)
+                        key = zbuf[i, j]
+                        if key != _empty_key():  # an opaque rock: no ground to compute under it
+                            covered = True
+                            zbuf[i, j] = _empty_key()
+                            acc[i, j] = ti.Vector([0, 0], ti.i64)
+                            rgb = ti.cast(key & 0xFFFFFF, ti.i32)
+                            g = ti.Vector([(rgb >> 16) & 255, (rgb >> 8) & 255, rgb & 255]) * (1.0 / 255.0)
+                if not covered:
+                    hx = bx0 + t * u * right[0]
+                    hy = by0 + t * u * right[1]
+                    fx = ti.abs(gu[0]) + ti.abs(gv0[0] + gv1[0] * u)
+                    fy = ti.abs(gu[1]) + ti.abs(gv0[1] + gv1[1] * u)
+                    qx = (hx + wrap[0]) * inv_tile
+                    qy = (hy + wrap[1]) * inv_tile
+                    wx = fx * inv_tile + 1e-4
+                    wy = fy * inv_tile + 1e-4
+                    # box-filtered square waves (difference of the integrated triangle wave), in [-1, 1]
+                    sa = (qx - 0.5 * wx) * 0.5
+                    sb = (qx + 0.5 * wx) * 0.5
+                    ta = (qy - 0.5 * wy) * 0.5
+                    tb = (qy + 0.5 * wy) * 0.5
+                    sx = 2.0 * (ti.abs(sa - ti.floor(sa) - 0.5) - ti.abs(sb - ti.floor(sb) - 0.5)) / wx
+                    sy = 2.0 * (ti.abs(ta - ti.floor(ta) - 0.5) - ti.abs(tb - ti.floor(tb) - 0.5)) / wy
+                    chk = 0.5 - 0.5 * sx * sy
+                    g = (ca + (cb - ca) * chk) * light
+                    for k in range(n_cars):
+                        c = cars[k]  # x, y, cos, sin, half length, half width, shadow softness (local, m)
+                        rx = hx - c[0]
+                        ry = hy - c[1]
+                        ox = ti.abs(rx * c[2] + ry * c[3]) - c[4]
+                        oy = ti.abs(-rx * c[3] + ry * c[2]) - c[5]
+                        if ox < c[6] and oy < c[6]:
+                            dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
+                            g *= 0.5 + 0.5 * _smooth01(dd / c[6])
+                    if ti.static(splat):
+                        if rocks:
+                            g = _composite(g, zbuf, acc, i, j)
                 x = t * ti.sqrt(r2 + u * u) / haze_dist  # distance / haze distance (right is a unit normal to dr)
                 fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
                 img[i, j] = _to_rgba8(g + (horizon - g) * fog)
@@ -388,18 +425,35 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
 
 
 @ti.kernel
-def _to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3)):
-    """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), in 32 x 32
-    tiles so that both the reads and the transposed writes stay in cache."""
+def _to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3),
+           back: ti.template()):
+    """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), with the
+    background image ``back`` (W, H) wherever GGUI left its clear colour :data:`KEY` (nothing drawn there).
+
+    Merging here instead of ``canvas.set_image`` saves lavapipe a full-screen textured quad and GGUI a
+    staging copy (~25 ms of CPU a frame at 720p). GGUI draws without antialiasing, so a pixel is either
+    cleared (exactly the key, k/255 floats) or drawn. Works in 32 x 32 tiles so that both the reads and the
+    transposed writes stay in cache.
+    """
     H = out.shape[0]
     W = out.shape[1]
     for by, bx in ti.ndrange((H + 31) // 32, (W + 31) // 32):
-        for dx, dy in ti.ndrange(32, 32):
-            x = bx * 32 + dx
-            yy = by * 32 + dy  # row of the read-back (0 = bottom)
+        for ex, ey in ti.ndrange(32, 32):
+            x = bx * 32 + ex
+            yy = by * 32 + ey  # row of the read-back (0 = bottom)
             if x < W and yy < H:
-                for c in ti.static(range(3)):
-                    out[H - 1 - yy, x, c] = ti.cast(ti.min(ti.max(raw[x, yy, c], 0.0), 1.0) * 255.0 + 0.5, ti.u8)
+                r = ti.cast(raw[x, yy, 0] * 255.0 + 0.5, ti.i32)
+                g = ti.cast(raw[x, yy, 1] * 255.0 + 0.5, ti.i32)
+                b = ti.cast(raw[x, yy, 2] * 255.0 + 0.5, ti.i32)
+                if r == KEY[0] and g == KEY[1] and b == KEY[2]:
+                    px = back[x, yy]
+                    out[H - 1 - yy, x, 0] = px[0]
+                    out[H - 1 - yy, x, 1] = px[1]
+                    out[H - 1 - yy, x, 2] = px[2]
+                else:
+                    out[H - 1 - yy, x, 0] = ti.cast(ti.min(ti.max(r, 0), 255), ti.u8)
+                    out[H - 1 - yy, x, 1] = ti.cast(ti.min(ti.max(g, 0), 255), ti.u8)
+                    out[H - 1 - yy, x, 2] = ti.cast(ti.min(ti.max(b, 0), 255), ti.u8)
 
 
 # ------------------------------------------------------------------------------------------------ geometry
@@ -471,24 +525,75 @@ def _merge(parts):
     return np.concatenate(vs), np.concatenate(ns), np.concatenate(cs), np.concatenate(ids)
 
 
+def vehicle_kind(spec) -> str:
+    """"truck", "van" or "car", from the proportions (the scene format has no vehicle type)."""
+    L, H = float(spec.length), float(spec.height)
+    if H >= 2.6 or L >= 6.5:
+        return "truck"
+    if H >= 1.75:
+        return "van"
+    return "car"
+
+
 def vehicle_mesh(spec, ground_z: float = 0.0):
     """Body-frame mesh of one vehicle (x forward, y left, z up; origin at the body centre on the ground).
 
-    Returns (vertices, normals, colours, indices). Body: a lower box of the full length x width and a cabin
-    (glass sides, roof in the body colour); tires at (+-wheelbase/2, +-track/2), centre height tire_radius.
+    Returns (vertices, normals, colours, indices). Tires (dark tread, light hubs) at (+-wheelbase/2,
+    +-track/2), centre height tire_radius. The body (length x width, from 0.8 tire radius up to that plus
+    ``height``) is shaped by :func:`vehicle_kind`: a car has a lower body and a glazed cabin with a roof in the
+    body colour, a van a tall body glazed at the front, a truck a cab at the front and a cargo box behind.
     """
     col = np.clip(np.asarray(spec.color, np.float64), 0, 1)
+    glass = np.array(GLASS_COLOR)
+    dark = col * 0.8
     L, W, H = float(spec.length), float(spec.width), float(spec.height)
     R, TW = float(spec.tire_radius), float(spec.tire_width)
-    bottom = ground_z + 0.55 * R
-    lower_h = 0.55 * H
-    lower = _box((0.0, 0.0, bottom + lower_h / 2), (L, W, lower_h), {k: col for k in ("+x", "-x", "+y", "-y", "+z", "-z")})
-    cab_h = H - lower_h
-    cab_l = 0.55 * L
-    glass = {k: np.array(GLASS_COLOR) for k in ("+x", "-x", "+y", "-y", "-z")}
-    glass["+z"] = col * 0.92
-    cabin = _box((-0.08 * L, 0.0, bottom + lower_h + cab_h / 2), (cab_l, 0.9 * W, cab_h), glass)
-    parts = [lower, cabin]
+    z0 = ground_z + 0.8 * R
+    same = lambda c: {k: c for k in ("+x", "-x", "+y", "-y", "+z", "-z")}
+    kind = vehicle_kind(spec)
+    parts = []
+    if kind == "car":
+        lower_h = 0.5 * H
+        parts.append(_box((0.0, 0.0, z0 + lower_h / 2), (L, W, lower_h), same(col)))
+        cab = {k: glass for k in ("+x", "-x", "+y", "-y", "-z")}
+        cab["+z"] = col * 0.92
+        cab_h = H - lower_h
+        parts.append(_box((-0.06 * L, 0.0, z0 + lower_h + cab_h / 2), (0.52 * L, 0.88 * W, cab_h), cab))
+    elif kind == "van":
+        lower_h = 0.55 * H
+        parts.append(_box((0.0, 0.0, z0 + lower_h / 2), (L, W, lower_h), same(col)))
+        up_h = H - lower_h
+        front_l = 0.3 * L
+        wind = same(col * 0.95)
+        wind.update({"+x": glass, "+y": glass, "-y": glass})
+        parts.append(_box((L / 2 - front_l / 2 - 0.04 * L, 0.0, z0 + lower_h + up_h / 2), (front_l, 0.97 * W, up_h),
+                          wind))
+        rear = same(col * 0.95)
+        rear["-x"] = glass  # rear window
+        parts.append(_box((-0.04 * L - front_l / 2, 0.0, z0 + lower_h + up_h / 2), (L - front_l - 0.08 * L, 0.97 * W,
+                                                                                     up_h), rear))
+    else:  # truck: chassis, cab at the front, cargo box behind
+        chassis_h = 0.22 * H
+        parts.append(_box((0.0, 0.0, z0 + chassis_h / 2), (L, 0.9 * W, chassis_h), same(np.array(TIRE_COLOR) * 2)))
+        cab_l = min(2.2, 0.3 * L)
+        cab_h = 0.78 * H - chassis_h
+        cab = same(col)
+        cab["+x"] = glass
+        parts.append(_box((L / 2 - cab_l / 2, 0.0, z0 + chassis_h + cab_h / 2), (cab_l, W, cab_h), cab))
+        box_l = L - cab_l - 0.15
+        box_h = H - chassis_h
+        cargo = same(np.clip(col * 1.08 + 0.04, 0, 1))
+        cargo["-x"] = dark
+        parts.append(_box((-L / 2 + box_l / 2, 0.0, z0 + chassis_h + box_h / 2), (box_l, W, box_h), cargo))
+    # bumpers (dark) and tail lights on the rear face
+    bump_h = min(0.18, 0.12 * H)
+    for sx in (1.0, -1.0):
+        parts.append(_box((sx * (L / 2 + 0.02), 0.0, z0 + bump_h / 2), (0.08, 1.02 * W, bump_h),
+                          same(np.array(BUMPER_COLOR))))
+    lz = z0 + bump_h + 0.06 * H
+    for side in (1.0, -1.0):
+        parts.append(_box((-L / 2 - 0.015, side * 0.38 * W, lz), (0.03, 0.16 * W, 0.07 * H),
+                          same(np.array(TAIL_LIGHT_COLOR))))
     for sx in (0.5, -0.5):
         for sy in (0.5, -0.5):
             parts.append(_tire((sx * float(spec.wheelbase), sy * float(spec.track), ground_z + R), R, TW))
@@ -544,11 +649,14 @@ MAX_CARS = 32  # vehicles casting a contact shadow
 class Renderer:
     """Draws ``sim`` into a hidden GGUI window; :meth:`render_frame` returns the image (H, W, 3) uint8.
 
-    ``lod_pixels``: resting rocks whose projected radius is below this many pixels are thinned (a fraction
-    q^2 kept, chosen by a hash of rock_id, drawn 1/q larger, q = projected radius / lod_pixels), which keeps
-    the far bed's look at a fraction of the cost; 0 disables it. ``window_every``: frames between window
-    re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock culling kernel) and ``draw``
-    (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
+    ``resolution`` (even sides) and ``fps`` default to the scene's [render] table. ``rocks``: "splat" (resting
+    rocks splatted into the background image by a Taichi kernel, flying rocks GGUI particles; the default)
+    or "particles" (every visible rock a GGUI particle). ``lod_pixels`` ("particles" only): resting rocks whose
+    projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of
+    rock_id, drawn 1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames
+    between window re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass:
+    culling, splatting, compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and
+    the read-back). ``last_count``: rocks GGUI drew in the last frame.
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",
@@ -588,7 +696,7 @@ class Renderer:
         self.last_count = 0
         self.timings = {"cull": 0.0, "draw": 0.0}
 
-        self._camera = ti.ui.Camera()
+        self._camera = _ggui(ti.ui.Camera)
         self._camera.up(*GL_UP)
         self._camera.fov(self.fov)
         self._camera.z_near(0.05)
@@ -600,13 +708,13 @@ class Renderer:
         self._count = ti.field(ti.i32, shape=())
         self._drawn = None
 
-        # sky and ground: the canvas background image; contact shadows of the vehicles
+        # sky and ground: the background image; contact shadows of the vehicles
         self._sky = ti.Vector.field(4, ti.u8)
         ti.root.dense(ti.j, h).dense(ti.i, w).place(self._sky)  # rows contiguous: written row by row
         # software buffers of the splatted rocks (1 x 1 placeholders in "particles" mode)
         bw, bh = (w, h) if rocks == "splat" else (1, 1)
         self._zbuf = ti.field(ti.i64)
-        self._acc = ti.Vector.field(4, ti.i32)
+        self._acc = ti.Vector.field(2, ti.i64)  # packed premultiplied rgb, weight (COVERAGE_ONE = 1 pixel)
         ti.root.dense(ti.j, bh).dense(ti.i, bw).place(self._zbuf, self._acc)
         self._rows = ti.field(ti.i32, shape=2)
         _clear_buffers(self._zbuf, self._acc)
@@ -639,14 +747,10 @@ class Renderer:
 
     # -------------------------------------------------------------------------------------------- window
     def _open_window(self) -> None:
-        try:
-            self._window = ti.ui.Window("taichi-rocks", self.resolution, show_window=False, vsync=False)
-        except Exception as e:  # Taichi: RuntimeError("Vulkan must be available for GGUI") and kin
-            if "vulkan" in str(e).lower() or "ggui" in str(e).lower():
-                raise RuntimeError(VULKAN_HINT) from e
-            raise
+        self._window = _ggui(ti.ui.Window, "taichi-rocks", self.resolution, show_window=False, vsync=False)
         self._canvas = self._window.get_canvas()
         self._scene = self._window.get_scene()
+        _trim_heap()
 
     def _close_window(self) -> None:
         if self._window is not None:
@@ -668,8 +772,8 @@ class Renderer:
 
     # -------------------------------------------------------------------------------------------- frame
     def view(self):
-        """Update the chase camera from the simulation; return the view in local f32 coordinates:
-        (eye, target, forward, right, up, heading)."""
+        """Advance the chase camera to ``sim.time``; return the view in local f32 coordinates:
+        (eye, target, forward, right, up, heading). Calling it twice at the same time changes nothing."""
         sim = self.sim
         pose = sim.vehicle_poses()[self.follow]
         eye_w, target_w, heading = self.rig.update(pose.position, pose.heading, sim.time)
@@ -748,8 +852,7 @@ class Renderer:
 
         poses = sim.vehicle_poses()
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
-        self._canvas.set_background_color(self.background)
-        self._canvas.set_image(self._sky)
+        self._canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by _sky in _to_u8
 
         scene = self._scene
         cam = self._camera
@@ -766,7 +869,7 @@ class Renderer:
         self._draw_overlays(scene, origin)
         self._canvas.scene(scene)
         raw = self._window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
-        _to_u8(raw, self._out)
+        _to_u8(raw, self._out, self._sky)
         self.frames_drawn += 1
         if self.window_every > 0 and self.frames_drawn % self.window_every == 0:
             self._close_window()
@@ -812,7 +915,9 @@ class Renderer:
             start += nv
         self._v_verts.from_numpy(out_v.astype(np.float32))
         self._v_norms.from_numpy(out_n.astype(np.float32))
-        scene.mesh(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols)
+        # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows
+        scene.mesh(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols,
+                   show_wireframe=self.flags.tire_rays or self.flags.hash_cells)
 
     def _draw_overlays(self, scene, origin) -> None:
         sim = self.sim
@@ -846,6 +951,35 @@ class Renderer:
                 scene.lines(self._cell_lines, 1.5, color=CELL_COLOR, vertex_count=24 * len(cells))
 
 
+_LIBC = []
+
+
+def _trim_heap() -> None:
+    """Give freed heap memory back to the OS (glibc ``malloc_trim``). A destroyed GGUI window frees its
+    Vulkan memory, but into a fragmented heap (a float read-back buffer per frame, lavapipe's JIT): without
+    this, RSS still climbs by ~50 MB steps every few window re-creations; with it, ~5 MB per 100 frames."""
+    if not _LIBC:
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL("libc.so.6")
+            _LIBC.append(libc.malloc_trim)
+        except (OSError, AttributeError):  # not glibc
+            _LIBC.append(None)
+    if _LIBC[0] is not None:
+        _LIBC[0](0)
+
+
+def _ggui(make, *args, **kwargs):
+    """Create a GGUI object; a missing Vulkan driver becomes one RuntimeError line saying what to install."""
+    try:
+        return make(*args, **kwargs)
+    except Exception as e:  # RuntimeError("Vulkan must be available for GGUI"), GGUINotAvailableException
+        if "vulkan" in str(e).lower() or "ggui" in str(e).lower():
+            raise RuntimeError(VULKAN_HINT) from None
+        raise
+
+
 def _vec(a):
     return ti.Vector([float(x) for x in a])
 
@@ -860,3 +994,142 @@ def check_resolution(res) -> tuple[int, int]:
         raise ValueError(f"resolution must be two even integers >= 16 (H.264 in yuv420p needs even sides), "
                          f"got {w}x{h}")
     return w, h
+
+
+# ------------------------------------------------------------------------------------------------ render_scene
+def _existing_outputs(paths: dict) -> list:
+    """Files of a previous render that this one would replace."""
+    found = []
+    video = paths["video"]
+    if video is not None and video.exists():
+        found.append(video)
+    frames = paths["frames"]
+    if frames.is_dir():
+        found += sorted(frames.glob("frame_*.png"))
+    return found
+
+
+def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=None, fmt="mp4", arch="cpu",
+                 overwrite=False, progress=True, profile=False, *, resume=False, rocks="splat",
+                 window_every=WINDOW_EVERY, on_frame=None) -> dict:
+    """Simulate a scene and render it offscreen to PNG frames plus an MP4 or GIF (``fmt="png"``: frames only).
+
+    ``scene_or_path``: a scene file (TOML) or a validated :class:`~taichi_rocks.scene.Scene`. Frame k shows the
+    simulation at t = k / fps; ``frames`` defaults to round(duration * fps). ``resolution`` and ``fps`` override
+    the scene's [render] table. Outputs go to ``out_dir`` (default ``renders/<scene name>/``): ``frames/``
+    and ``<scene name>.<fmt>``; existing outputs raise FileExistsError unless ``overwrite`` (which removes the
+    old frames and video first). An odd resolution raises ValueError; a machine without Vulkan raises
+    RuntimeError naming the packages to install. ``rocks``: "splat" (resting rocks drawn by a Taichi kernel
+    behind the GGUI scene, flying ones as GGUI particles; fast) or "particles" (every rock a GGUI particle).
+    ``resume``: keep the frames a previous (interrupted) render finished, frame_00000.png ... without a gap,
+    advance the simulation and the camera through them without drawing, re-encode them into the video and
+    render the rest (the result equals an uninterrupted render: the simulation is deterministic); the frames
+    must have the requested resolution. ``progress``: a tqdm bar on stderr; None shows it only on a terminal.
+    ``on_frame(k, image)``, if given, sees every frame drawn (tests).
+
+    Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from", "resolution", "video_fps",
+    "seconds", "frames_per_second" (frames drawn / seconds of the frame loop; also "fps_measured")} and with ``profile`` a "profile" dict of seconds: "simulation", "culling" (rock
+    culling and splatting), "drawing" (camera, sky and ground, GGUI drawing and the read-back), "encoding"
+    (time the render loop waited on the frame writer, including the final flush) and "encoding_busy" (the
+    writer thread's own time, which overlaps the others), "other" (the rest of the frame loop), "setup"
+    (before the first frame: scene, simulation and window set-up) and "first_frame" (the first frame alone,
+    mostly kernel compilation; included in the others)."""
+    from tqdm import tqdm
+
+    from .runtime import init_taichi
+    from .scene import load_scene
+    from .simulation import Simulation
+    from .video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
+
+    t_start = time.perf_counter()
+    if resolution is not None:
+        resolution = check_resolution(resolution)
+    if fps is not None and not (isinstance(fps, (int, float)) and fps > 0):
+        raise ValueError(f"fps must be a number > 0, got {fps!r}")
+    if frames is not None and (not isinstance(frames, int) or isinstance(frames, bool) or frames < 1):
+        raise ValueError(f"frames must be an int >= 1, got {frames!r}")
+    if rocks not in ROCK_MODES:
+        raise ValueError(f"rocks must be one of {', '.join(ROCK_MODES)}, got {rocks!r}")
+    scene = load_scene(scene_or_path) if isinstance(scene_or_path, (str, os.PathLike)) else scene_or_path
+    out_dir = Path(out_dir) if out_dir is not None else Path("renders") / scene.name
+    paths = output_paths(out_dir, scene.name, fmt)  # ValueError on an unknown format
+    video_fps = float(fps if fps is not None else scene.render.fps)
+    n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))
+    old = _existing_outputs(paths)
+    start = 0
+    if resume:
+        start = min(finished_frames(paths["frames"]), n_frames)
+        size = existing_size(paths["frames"]) if start else None
+        want = resolution or tuple(int(x) for x in scene.render.resolution)
+        if size is not None and tuple(size) != tuple(want):
+            raise ValueError(f"cannot resume: {paths['frames']} holds {size[0]}x{size[1]} frames, "
+                             f"this render is {want[0]}x{want[1]}")
+        keep = {paths["frames"] / frame_name(i) for i in range(start)}
+        old = [f for f in old if f not in keep]
+    elif old and not overwrite:
+        what = paths["video"] if paths["video"] in old else paths["frames"]
+        raise FileExistsError(f"{what} already exists (pass overwrite=True or --overwrite to replace it)")
+
+    init_taichi(arch)
+    sim = Simulation(scene, arch=arch)
+    renderer = Renderer(sim, resolution=resolution, fps=video_fps, rocks=rocks, window_every=window_every)
+    for f in old:  # only now: a failure above leaves the previous render untouched
+        f.unlink()
+    writer = FrameWriter(out_dir, scene.name, video_fps, fmt, start=start)
+    t_sim = 0.0
+    t_first = 0.0
+    ok = False
+    t0 = time.perf_counter()
+    try:
+        for k in range(start):  # resuming: replay the simulation and the camera, draw nothing
+            sim.advance_to(k / video_fps)
+            renderer.view()
+        t_replay = time.perf_counter() - t0
+    except BaseException:
+        renderer.close()
+        writer.close(ok=False)
+        raise
+    bar = tqdm(total=n_frames, initial=start, unit="frame", desc=scene.name, file=sys.stderr,
+               disable=None if progress is None else not progress, dynamic_ncols=True)
+    t_loop = time.perf_counter()
+    try:
+        for k in range(start, n_frames):
+            t0 = time.perf_counter()
+            sim.advance_to(k / video_fps)
+            t_sim += time.perf_counter() - t0
+            img = renderer.render_frame()
+            if on_frame is not None:
+                on_frame(k, img)
+            writer.write(img)
+            bar.update(1)
+            if k == start:
+                t_first = time.perf_counter() - t_loop
+        ok = True
+    finally:
+        bar.close()
+        renderer.close()
+        video = writer.close(ok=ok)
+    seconds = time.perf_counter() - t_start
+    loop = time.perf_counter() - t_loop
+    out = {
+        "scene": scene.name,
+        "out_dir": str(out_dir),
+        "frames_dir": str(paths["frames"]),
+        "video": str(video) if video is not None else None,
+        "frames": n_frames,
+        "resumed_from": start,
+        "resolution": tuple(renderer.resolution),
+        "video_fps": video_fps,
+        "seconds": seconds,
+        "frames_per_second": (n_frames - start) / loop if loop > 0 else 0.0,
+    }
+    out["fps_measured"] = out["frames_per_second"]
+    if profile:
+        prof = {"simulation": t_sim, "culling": renderer.timings["cull"], "drawing": renderer.timings["draw"],
+                "encoding": writer.timings["encode"], "encoding_busy": writer.timings["encode_busy"]}
+        prof["other"] = max(0.0, loop - t_sim - prof["culling"] - prof["drawing"] - prof["encoding"])
+        prof["setup"] = t_loop - t_start - t_replay
+        prof["resume_replay"] = t_replay  # simulating the frames kept from an interrupted render
+        prof["first_frame"] = t_first  # included above; mostly kernel compilation (cached on later runs)
+        out["profile"] = prof
+    return out

@@ -2,7 +2,9 @@
 
 * PNG frames ``out_dir/frames/frame_00000.png``: each written under a temporary name in the same folder and
   renamed (``os.replace``) when complete, so a frame on disk is never half written.
-* MP4 ``out_dir/<name>.mp4``: H.264 in yuv420p through imageio-ffmpeg, streamed while rendering into
+* MP4 ``out_dir/<name>.mp4``: H.264 in yuv420p (x264 preset superfast, CRF 23: on 720p frames of a rock bed,
+  34 ms of CPU a frame and ~19 Mbit/s, against 52 ms and ~17 Mbit/s for veryfast, 17 ms and ~27 Mbit/s for
+  ultrafast) through imageio-ffmpeg, streamed while rendering into
   ``out_dir/.<name>.partial.mp4`` and renamed when closed successfully. ``macro_block_size=2`` keeps the
   frame size exact (the default 16 would silently resize 1280x720 -> 1280x720 but 1920x1080 -> 1920x1088);
   odd sides cannot be encoded in yuv420p and are refused up front.
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FrameWriter", "FORMATS", "frame_name", "output_paths"]
+__all__ = ["FrameWriter", "FORMATS", "frame_name", "output_paths", "finished_frames", "existing_size"]
 
 FORMATS = ("mp4", "gif", "png")
 PNG_COMPRESS_LEVEL = 1  # zlib level 1: ~2x faster than the default 6 for ~15% larger files
@@ -36,6 +38,27 @@ def output_paths(out_dir, name: str, fmt: str) -> dict:
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     out_dir = Path(out_dir)
     return {"frames": out_dir / "frames", "video": None if fmt == "png" else out_dir / f"{name}.{fmt}"}
+
+
+def finished_frames(frames_dir) -> int:
+    """How many frames frame_00000.png, frame_00001.png, ... exist without a gap (each was written atomically,
+    so each is complete)."""
+    n = 0
+    frames_dir = Path(frames_dir)
+    while (frames_dir / frame_name(n)).is_file():
+        n += 1
+    return n
+
+
+def existing_size(frames_dir):
+    """(W, H) of frame_00000.png, or None."""
+    import imageio.v3 as iio
+
+    path = Path(frames_dir) / frame_name(0)
+    if not path.is_file():
+        return None
+    h, w = iio.improps(path).shape[:2]
+    return (w, h)
 
 
 def _write_png(path: Path, img: np.ndarray) -> None:
@@ -66,11 +89,13 @@ class FrameWriter:
     queue is full. Errors of the worker are raised by the next :meth:`write` or by :meth:`close`.
     ``timings["encode"]``: seconds the caller spent blocked in write/close; ``timings["encode_busy"]``: seconds
     of actual encoding work (PNG + video), wherever it ran.
+    ``start``: resume after frames 0 .. start-1, which are already on disk (they are re-encoded into the
+    video first; the next :meth:`write` is frame ``start``).
     Use as a context manager, or call :meth:`close` with ``ok=True`` when every frame was written.
     """
 
-    def __init__(self, out_dir, name: str, fps: float, fmt: str = "mp4", *, background: bool = True,
-                 queue_size: int = 3, ffmpeg_preset: str = "veryfast", crf: int = 20):
+    def __init__(self, out_dir, name: str, fps: float, fmt: str = "mp4", *, start: int = 0, background: bool = True,
+                 queue_size: int = 3, ffmpeg_preset: str = "superfast", crf: int = 23):
         paths = output_paths(out_dir, name, fmt)
         if not fps > 0:
             raise ValueError(f"fps must be > 0, got {fps!r}")
@@ -80,8 +105,9 @@ class FrameWriter:
         self.fmt = fmt
         self.frames_dir = paths["frames"]
         self.video_path = paths["video"]
-        self.frames_written = 0  # frames accepted by write()
-        self.size = None  # (W, H) of the first frame
+        self.start = int(start)  # resuming: frames 0 .. start-1 are on disk already and start the video
+        self.frames_written = self.start  # frames on disk or accepted by write()
+        self.size = existing_size(paths["frames"]) if self.start else None  # (W, H) of the first frame
         self.closed = False
         self.timings = {"encode": 0.0, "encode_busy": 0.0}
         self.frames_dir.mkdir(parents=True, exist_ok=True)
@@ -115,8 +141,16 @@ class FrameWriter:
         if self.fmt == "mp4" and not self._drop_video:
             if self._writer is None:
                 self._open_mp4()
+                self._replay()
             self._writer.append_data(img)
         self.timings["encode_busy"] += time.perf_counter() - t0
+
+    def _replay(self) -> None:
+        """Resuming: the frames already on disk start the new video."""
+        import imageio.v3 as iio
+
+        for i in range(self.start):
+            self._writer.append_data(iio.imread(self.frames_dir / frame_name(i)))
 
     def _work(self) -> None:
         while True:
@@ -166,7 +200,8 @@ class FrameWriter:
 
     def close(self, ok: bool = True):
         """Finish the video (ok) or drop it (not ok: partial video removed; the PNGs of every frame given to
-        :meth:`write` are kept). Returns the video path (None for "png", or when not ok). Idempotent."""
+        :meth:`write` are kept, so a later run can resume). Returns the video path (None for "png", or when not
+        ok). Idempotent."""
         if self.closed:
             return self.video_path if ok else None
         self.closed = True
@@ -177,6 +212,9 @@ class FrameWriter:
                     self._drop_video = True  # the frames still queued are finished renders: keep their PNGs
                 self._queue.put(None)
                 self._thread.join()
+            if ok and self._error is None and self.fmt == "mp4" and self._writer is None and self.start > 0:
+                self._open_mp4()  # resumed with nothing left to draw: the video is the frames on disk
+                self._replay()
             if self._writer is not None:
                 writer, self._writer = self._writer, None
                 writer.close()
