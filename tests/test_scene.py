@@ -182,3 +182,15 @@ def test_memory_estimate():
     assert estimate_memory(scene_with(scene, {"sim.hash.insert": "aabb"})) > 5 * base
     assert estimate_memory(scene_with(scene, {"bed.rocks": 0})) == 0
     assert math.isclose(float(summarise(scene).split("about ")[-1].split()[0]), base / 1e6, abs_tol=0.05)
+
+
+def test_accuracy_presets_fill_unset_keys_only():
+    from taichi_rocks.scene import PRESETS, parse_scene
+
+    car = [{"name": "a", "path": {"points": [[0.0, 0.0], [1.0, 0.0]], "speed": 1.0}}]
+    for name, preset in PRESETS.items():
+        sim = parse_scene({"sim": {"accuracy": name}, "vehicle": car}).sim
+        assert {k: getattr(sim, k) for k in preset} == preset
+    sim = parse_scene({"sim": {"accuracy": "draft", "dt": 0.01}, "vehicle": car}).sim
+    assert sim.dt == 0.01 and sim.integrator == PRESETS["draft"]["integrator"]
+    assert parse_scene({"vehicle": car}).sim.integrator == "symplectic_euler"  # "custom" keeps the defaults
