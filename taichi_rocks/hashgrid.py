@@ -48,8 +48,9 @@ def aabb_cells(p, r, cell):
 @ti.func
 def near_a_tire(w: ti.template(), p, grid_origin):
     """Scope "tires": is the rock on a tile of the mask (tiles around every tire's query region)?"""
-    tx = ti.cast(ti.floor((p[0] - grid_origin[0]) / w.tile_size), ti.i32)
-    ty = ti.cast(ti.floor((p[1] - grid_origin[1]) / w.tile_size), ti.i32)
+    inv = 1.0 / w.tile_size  # a compile-time constant: a multiply, not a division, per rock
+    tx = ti.cast(ti.floor((p[0] - grid_origin[0]) * inv), ti.i32)
+    ty = ti.cast(ti.floor((p[1] - grid_origin[1]) * inv), ti.i32)
     near = False
     if 0 <= tx < w.tiles[0] and 0 <= ty < w.tiles[1]:
         near = w.tile_mask[tx, ty] != 0
@@ -72,8 +73,9 @@ def mark_tire_tiles(w: ti.template(), grid_origin):
                 q = ti.Vector([w.ray[t, A0 + 3 * k], w.ray[t, A0 + 3 * k + 1]])
                 lo = ti.min(lo, q)
                 hi = ti.max(hi, q)
-            t_lo = ti.cast(ti.floor((lo - margin - grid_origin) / w.tile_size), ti.i32)
-            t_hi = ti.cast(ti.floor((hi + margin - grid_origin) / w.tile_size), ti.i32)
+            # one more tile on each side: the per-rock lookup rounds differently (it multiplies)
+            t_lo = ti.cast(ti.floor((lo - margin - grid_origin) / w.tile_size), ti.i32) - 1
+            t_hi = ti.cast(ti.floor((hi + margin - grid_origin) / w.tile_size), ti.i32) + 1
             for a in range(ti.max(t_lo[0], 0), ti.min(t_hi[0], w.tiles[0] - 1) + 1):
                 for b in range(ti.max(t_lo[1], 0), ti.min(t_hi[1], w.tiles[1] - 1) + 1):
                     w.tile_mask[a, b] = 1

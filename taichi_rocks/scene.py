@@ -164,8 +164,8 @@ class Hash(_Table):
 # recall of the true tire contacts at 60 m/s of at least 0.9 / 0.99 / 0.999, and a launch-time error bound
 # v_launch * dt of 0.6 m / 6 cm / 6 mm. Keys written in the file override the preset's.
 PRESETS = {
-    "draft": {"dt": 0.02, "integrator": "heun", "detection": "swept", "precision": "f64"},
-    "balanced": {"dt": 0.002, "integrator": "heun", "detection": "swept", "precision": "f64"},
+    "draft": {"dt": 0.02, "integrator": "heun", "detection": "swept", "precision": "f32"},
+    "balanced": {"dt": 0.002, "integrator": "heun", "detection": "swept", "precision": "f32"},
     "reference": {"dt": 0.0002, "integrator": "heun", "detection": "swept", "precision": "f64"},
 }
 

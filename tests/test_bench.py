@@ -1,0 +1,133 @@
+"""The benchmark on its tiny configuration: files, sections, identical hits across hash settings, sane ratios.
+
+No timing is asserted (the machine may be busy); only that every number that should be a positive finite ratio
+is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.usefixtures("taichi_cpu")
+
+
+@pytest.fixture(scope="module")
+def bench_run(tmp_path_factory, taichi_cpu):
+    from taichi_rocks.bench import run_bench
+
+    out = tmp_path_factory.mktemp("bench")
+    res = run_bench(out_dir=out, quick=True, tiny=True, progress=False)
+    return out, res
+
+
+def _positive_finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+
+
+def test_files_written(bench_run):
+    out, res = bench_run
+    assert (out / "report.md").is_file() and (out / "results.json").is_file()
+    assert res["report"] == str(out / "report.md")
+    pngs = sorted(p.name for p in out.glob("*.png"))
+    assert pngs == sorted(res["plots"]) and len(pngs) == 6
+    for p in out.glob("*.png"):
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
+    report = (out / "report.md").read_text()
+    for name in pngs:
+        assert f"]({name})" in report
+    for heading in ("## Targets", "## Proposed presets", "## 1a.", "## 1b.", "## 1c.", "## 1d.", "## 2."):
+        assert heading in report
+
+
+def test_every_section_present(bench_run):
+    out, _ = bench_run
+    data = json.loads((out / "results.json").read_text())
+    for key in ("machine", "config", "warp", "accuracy", "speed", "targets", "build_s", "elapsed_s"):
+        assert key in data, key
+    for key in ("integrator_dt", "detection", "precision", "hash_settings", "presets", "preset_costs",
+                "flight_cost"):
+        assert key in data["accuracy"], key
+    for key in ("grid", "effects", "overheads"):
+        assert key in data["speed"], key
+    m = data["machine"]
+    assert m["cpu_model"] and m["logical_cores"] >= 1 and m["taichi"] == "1.7.4" and m["numpy"]
+    assert data["errors"] == []
+    # accuracy rows cover every integrator and case, with finite errors
+    rows = data["accuracy"]["integrator_dt"]["rows"]
+    assert {(r["integrator"], r["case"]) for r in rows} == {
+        (i, c) for i in ("symplectic_euler", "heun", "rk4") for c in ("gravity", "linear", "quadratic")}
+    assert all(math.isfinite(r["max_error_m"]) and r["max_error_m"] >= 0 for r in rows)
+    # the closed forms are right: Heun and RK4 are exact for gravity (f32 rounding only), symplectic Euler is
+    # off by g dt t / 2 at t = 2 s (about 0.196 m at dt = 0.02)
+    grav = {(r["integrator"], r["dt"]): r["max_error_m"] for r in rows if r["case"] == "gravity"}
+    assert grav[("heun", 0.02)] < 1e-3 and grav[("rk4", 0.02)] < 1e-3
+    assert grav[("symplectic_euler", 0.02)] == pytest.approx(9.81 * 0.02 * 2.0 / 2.0, rel=0.05)
+
+
+def test_identical_hits_across_hash_settings(bench_run):
+    _, res = bench_run
+    hs = res["accuracy"]["hash_settings"]
+    rows = [r for r in hs["settings"] if "error" not in r]
+    assert len(rows) >= 2
+    assert hs["identical"] is True and hs["verdict"] == "PASS"
+    assert all(r["identical"] for r in rows)
+    assert rows[0]["launched"] > 0  # the comparison is not vacuous
+
+
+def test_detection_and_precision_sane(bench_run):
+    _, res = bench_run
+    det = res["accuracy"]["detection"]["modes"]
+    for mode, d in det.items():
+        assert d["false_positives"] == 0, mode
+        for row in d["per_speed"]:
+            assert row["contacts"] > 0 and 0.0 <= row["recall"] <= 1.0
+    assert min(r["recall"] for r in det["swept"]["per_speed"]) == 1.0
+    # a single ray misses contacts at speed; the swept test does not
+    assert det["ray"]["per_speed"][-1]["recall"] < det["swept"]["per_speed"][-1]["recall"]
+    prec = res["accuracy"]["precision"]["configs"]
+    assert prec["f64 floating"]["max_error_m"][0] == 0.0  # it is the reference
+    assert prec["f32 world"]["max_error_m"][-1] > 100 * prec["f32 floating"]["max_error_m"][-1]
+
+
+def test_ratios_positive_finite(bench_run):
+    _, res = bench_run
+    for e in res["speed"]["grid"]:
+        for key in ("step_ms", ):
+            assert _positive_finite(e[key])
+        for key in ("floor_ms", "numpy_ms", "kdtree_ms"):
+            assert _positive_finite(e["peers"][key]), key
+        for key, value in e["ratios"].items():
+            if key == "step_over_warp" and not res["warp"]["available"]:
+                assert value is None
+                continue
+            assert _positive_finite(value), (key, value)
+        check = e["peers"]["check"]
+        assert check["kdtree_equals_numpy"] and check["taichi_launched_subset_of_geometric_hits"]
+        assert check["geometric_hits_not_launched_are_flying"]
+    for t in res["targets"]:
+        if t["value"] is not None:
+            assert _positive_finite(t["value"]), t
+    for p in res["accuracy"]["presets"]:
+        if "integrator" in p:
+            assert _positive_finite(p["ms_per_simulated_s"]) and _positive_finite(p["step_ms"])
+
+
+def test_closed_forms():
+    from taichi_rocks.bench import exact_gravity, exact_linear, exact_quadratic_vertical
+
+    t = np.linspace(0.0, 2.0, 201)
+    x0, v0 = np.array([0.0, 0.0, 1.0]), np.array([3.0, 1.0, 15.0])
+    # linear drag tends to the parabola as tau grows
+    np.testing.assert_allclose(exact_linear(x0, v0, 1e4, t), exact_gravity(x0, v0, t), atol=2e-3)
+    # and its velocity decays: far from the launch it falls at the terminal speed g tau
+    z = exact_linear(x0, v0, 0.5, np.array([20.0, 21.0]))[:, 2]
+    assert z[0] - z[1] == pytest.approx(9.81 * 0.5, rel=1e-6)
+    # quadratic drag, vertical: continuous at the apex, slower than without drag, v(0) = w0
+    z = exact_quadratic_vertical(1.0, 20.0, 40.0, t)
+    assert np.all(np.abs(np.diff(z)) < 0.25)
+    assert np.all(z <= exact_gravity(x0, np.array([0.0, 0.0, 20.0]), t)[:, 2] + 1e-12)
+    h = 1e-6
+    dz = (exact_quadratic_vertical(1.0, 20.0, 40.0, [h])[0] - 1.0) / h
+    assert dz == pytest.approx(20.0, rel=1e-4)
