@@ -743,13 +743,20 @@ class Renderer:
             self._cell_lines = ti.Vector.field(3, ti.f32, 24 * MAX_CELLS)
 
         self._window = self._canvas = self._scene = None
-        self._open_window()
+        self._open_window()  # now, so that a machine without Vulkan fails before any frame is simulated
 
     # -------------------------------------------------------------------------------------------- window
     def _open_window(self) -> None:
+        """Open this renderer's hidden window. GGUI keeps one window at a time safely (destroying a window
+        after others were created and destroyed since segfaults), so any other renderer's window is closed
+        first; that renderer reopens one on its next frame."""
+        other = _LIVE[0]
+        if other is not None and other is not self:
+            other._close_window()
         self._window = _ggui(ti.ui.Window, "taichi-rocks", self.resolution, show_window=False, vsync=False)
         self._canvas = self._window.get_canvas()
         self._scene = self._window.get_scene()
+        _LIVE[0] = self
         _trim_heap()
 
     def _close_window(self) -> None:
@@ -759,6 +766,8 @@ class Renderer:
             except Exception:  # already gone
                 pass
         self._window = self._canvas = self._scene = None
+        if _LIVE[0] is self:
+            _LIVE[0] = None
 
     def close(self) -> None:
         """Release the window (the fields stay until Taichi is reset)."""
@@ -854,6 +863,8 @@ class Renderer:
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
         self._canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by _sky in _to_u8
 
+        if self._window is None:  # closed (or another renderer took over GGUI): reopen
+            self._open_window()
         scene = self._scene
         cam = self._camera
         cam.position(*(float(x) for x in eye))
@@ -952,6 +963,7 @@ class Renderer:
 
 
 _LIBC = []
+_LIVE = [None]  # the Renderer whose GGUI window is open (one at a time)
 
 
 def _trim_heap() -> None:
