@@ -1,6 +1,5 @@
 """Small direct drivers of the kernels for tests: a World from explicit rocks and rays."""
 
-from __future__ import annotations
 
 import numpy as np
 import taichi as ti
@@ -108,3 +107,29 @@ class Probe:
         start = self.w.cell_start.to_numpy()
         entries = self.w.entries.to_numpy()
         return {s: set(entries[start[s]:start[s + 1]].tolist()) for s in range(self.table) if start[s + 1] > start[s]}
+
+
+def segment_sphere_kernel(dtype, n=4096):
+    """A compiled kernel running tires.segment_hits_sphere on batches, in the given precision."""
+    f = ti.Vector.field(3, dtype, shape=(n, 3))
+    rr = ti.field(dtype, shape=n)
+    out = ti.field(ti.i32, shape=n)
+    np_dtype = np.float64 if dtype == ti.f64 else np.float32
+
+    @ti.kernel
+    def run(m: ti.i32):
+        for i in range(m):
+            out[i] = 1 if tires.segment_hits_sphere(f[i, 0], f[i, 1], f[i, 2], rr[i]) else 0
+
+    def call(a, b, c, r):
+        m = len(c)
+        buf = np.zeros((n, 3, 3), np_dtype)
+        buf[:m, 0], buf[:m, 1], buf[:m, 2] = a, b, c
+        f.from_numpy(buf)
+        rbuf = np.zeros(n, np_dtype)
+        rbuf[:m] = r
+        rr.from_numpy(rbuf)
+        run(m)
+        return out.to_numpy()[:m].astype(bool)
+
+    return call

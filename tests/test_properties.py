@@ -13,7 +13,7 @@ import taichi as ti
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from harness import Probe, np_cell, np_hash, np_segment_sphere
+from harness import Probe, np_cell, np_hash, np_segment_sphere, segment_sphere_kernel
 from scenes_util import reload_probe
 from taichi_rocks import hashgrid, tires
 from test_hashgrid import brute_cells, cell_kernels  # noqa: F401  (cell_kernels: module fixture)
@@ -177,28 +177,7 @@ def test_dda_cells_match_brute_force(dda_probe, data):
 # ------------------------------------------------------------------------------------------ segment-sphere
 @pytest.fixture(scope="module")
 def seg_kernel32(taichi_cpu):
-    n = 512
-    f = ti.Vector.field(3, ti.f32, shape=(n, 3))
-    rr = ti.field(ti.f32, shape=n)
-    out = ti.field(ti.i32, shape=n)
-
-    @ti.kernel
-    def run(m: ti.i32):
-        for i in range(m):
-            out[i] = 1 if tires.segment_hits_sphere(f[i, 0], f[i, 1], f[i, 2], rr[i]) else 0
-
-    def call(a, b, c, r):
-        m = len(c)
-        buf = np.zeros((n, 3, 3), np.float32)
-        buf[:m, 0], buf[:m, 1], buf[:m, 2] = a, b, c
-        f.from_numpy(buf)
-        rbuf = np.zeros(n, np.float32)
-        rbuf[:m] = r
-        rr.from_numpy(rbuf)
-        run(m)
-        return out.to_numpy()[:m].astype(bool)
-
-    return call
+    return segment_sphere_kernel(ti.f32, n=512)
 
 
 def segment_distance(a, b, c):

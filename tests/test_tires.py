@@ -4,37 +4,14 @@ import numpy as np
 import pytest
 import taichi as ti
 
-from harness import Probe, np_segment_sphere
+from harness import Probe, np_segment_sphere, segment_sphere_kernel
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
 
 @pytest.fixture(scope="module")
 def seg_kernel(taichi_cpu):
-    from taichi_rocks import tires
-
-    n = 4096
-    f = ti.Vector.field(3, ti.f64, shape=(n, 3))
-    rr = ti.field(ti.f64, shape=n)
-    out = ti.field(ti.i32, shape=n)
-
-    @ti.kernel
-    def run(m: ti.i32):
-        for i in range(m):
-            out[i] = 1 if tires.segment_hits_sphere(f[i, 0], f[i, 1], f[i, 2], rr[i]) else 0
-
-    def call(a, b, c, r):
-        m = len(c)
-        buf = np.zeros((n, 3, 3))
-        buf[:m, 0], buf[:m, 1], buf[:m, 2] = a, b, c
-        f.from_numpy(buf)
-        rbuf = np.zeros(n)
-        rbuf[:m] = r
-        rr.from_numpy(rbuf)
-        run(m)
-        return out.to_numpy()[:m].astype(bool)
-
-    return call
+    return segment_sphere_kernel(ti.f64)
 
 
 def test_segment_sphere_cases(seg_kernel):
