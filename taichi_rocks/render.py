@@ -563,36 +563,39 @@ def vehicle_mesh(spec, ground_z: float = 0.0):
         lower_h = 0.55 * H
         parts.append(_box((0.0, 0.0, z0 + lower_h / 2), (L, W, lower_h), same(col)))
         up_h = H - lower_h
-        front_l = 0.3 * L
+        xf1 = L / 2 - 0.04 * L  # the upper body: glazed front part [xf0, xf1], closed rear part [-L/2, xf0]
+        xf0 = xf1 - 0.3 * L
         wind = same(col * 0.95)
         wind.update({"+x": glass, "+y": glass, "-y": glass})
-        parts.append(_box((L / 2 - front_l / 2 - 0.04 * L, 0.0, z0 + lower_h + up_h / 2), (front_l, 0.97 * W, up_h),
-                          wind))
+        parts.append(_box(((xf0 + xf1) / 2, 0.0, z0 + lower_h + up_h / 2), (xf1 - xf0, 0.97 * W, up_h), wind))
         rear = same(col * 0.95)
         rear["-x"] = glass  # rear window
-        parts.append(_box((-0.04 * L - front_l / 2, 0.0, z0 + lower_h + up_h / 2), (L - front_l - 0.08 * L, 0.97 * W,
-                                                                                     up_h), rear))
+        parts.append(_box(((xf0 - L / 2) / 2, 0.0, z0 + lower_h + up_h / 2), (xf0 + L / 2, 0.97 * W, up_h), rear))
     else:  # truck: chassis, cab at the front, cargo box behind
         chassis_h = 0.22 * H
         parts.append(_box((0.0, 0.0, z0 + chassis_h / 2), (L, 0.9 * W, chassis_h), same(np.array(TIRE_COLOR) * 2)))
         cab_l = min(2.2, 0.3 * L)
         cab_h = 0.78 * H - chassis_h
+        low_h = 0.5 * cab_h
+        parts.append(_box((L / 2 - cab_l / 2, 0.0, z0 + chassis_h + low_h / 2), (cab_l, W, low_h), same(col)))
         cab = same(col)
-        cab["+x"] = glass
-        parts.append(_box((L / 2 - cab_l / 2, 0.0, z0 + chassis_h + cab_h / 2), (cab_l, W, cab_h), cab))
+        cab.update({"+x": glass, "+y": glass, "-y": glass})  # windscreen and side windows
+        up_h = cab_h - low_h
+        parts.append(_box((L / 2 - cab_l / 2, 0.0, z0 + chassis_h + low_h + up_h / 2), (cab_l, W, up_h), cab))
         box_l = L - cab_l - 0.15
         box_h = H - chassis_h
         cargo = same(np.clip(col * 1.08 + 0.04, 0, 1))
         cargo["-x"] = dark
         parts.append(_box((-L / 2 + box_l / 2, 0.0, z0 + chassis_h + box_h / 2), (box_l, W, box_h), cargo))
-    # bumpers (dark) and tail lights on the rear face
+    # bumpers (dark) and tail lights, standing proud of the body: no two visible faces share a plane (lavapipe
+    # resolves z-fighting differently from frame to frame, which would make renders irreproducible)
     bump_h = min(0.18, 0.12 * H)
     for sx in (1.0, -1.0):
-        parts.append(_box((sx * (L / 2 + 0.02), 0.0, z0 + bump_h / 2), (0.08, 1.02 * W, bump_h),
+        parts.append(_box((sx * (L / 2 + 0.02), 0.0, z0 - 0.01 + bump_h / 2), (0.08, 1.02 * W, bump_h),
                           same(np.array(BUMPER_COLOR))))
     lz = z0 + bump_h + 0.06 * H
     for side in (1.0, -1.0):
-        parts.append(_box((-L / 2 - 0.015, side * 0.38 * W, lz), (0.03, 0.16 * W, 0.07 * H),
+        parts.append(_box((-L / 2 - 0.02, side * 0.38 * W, lz), (0.03, 0.16 * W, 0.07 * H),
                           same(np.array(TAIL_LIGHT_COLOR))))
     for sx in (0.5, -0.5):
         for sy in (0.5, -0.5):

@@ -15,17 +15,19 @@
 
 import os
 import queue
+import struct
 import sys
 import threading
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FrameWriter", "FORMATS", "frame_name", "output_paths", "finished_frames", "existing_size"]
+__all__ = ["FrameWriter", "FORMATS", "frame_name", "output_paths", "finished_frames", "existing_size", "png_bytes"]
 
 FORMATS = ("mp4", "gif", "png")
-PNG_COMPRESS_LEVEL = 1  # zlib level 1: ~2x faster than the default 6 for ~15% larger files
+PNG_COMPRESS_LEVEL = 1  # zlib level 1: ~2x faster than 6 for files a few % larger (rock beds are noisy)
 
 
 def frame_name(index: int) -> str:
@@ -61,12 +63,36 @@ def existing_size(frames_dir):
     return (w, h)
 
 
-def _write_png(path: Path, img: np.ndarray) -> None:
-    import imageio.v3 as iio
+def png_bytes(img: np.ndarray, level: int = PNG_COMPRESS_LEVEL) -> bytes:
+    """Encode an (H, W, 3|4) uint8 image as PNG: the "sub" filter on every row (NumPy) and one zlib call.
 
+    Pillow compresses in 64 KB blocks and takes the GIL back for each; in a writer thread next to a render
+    loop whose Taichi kernels hold the GIL for milliseconds at a time, that starved the writer (20 frames took
+    71 s instead of 19 s in a test). NumPy and zlib release the GIL for the whole frame. Same size as
+    Pillow's level-1 files (~850 kB for a 720p frame of a rock bed), ~4x faster.
+    """
+    img = np.ascontiguousarray(img, dtype=np.uint8)
+    h, w, c = img.shape
+    rows = img.reshape(h, w * c)
+    filtered = np.empty((h, 1 + w * c), np.uint8)
+    filtered[:, 0] = 1  # filter type "sub": each byte minus the same channel of the pixel on its left
+    filtered[:, 1:c + 1] = rows[:, :c]
+    np.subtract(rows[:, c:], rows[:, :-c], out=filtered[:, c + 1:])
+    data = zlib.compress(filtered, level)
+
+    def chunk(tag: bytes, payload: bytes) -> bytes:
+        return struct.pack(">I", len(payload)) + tag + payload + struct.pack(">I", zlib.crc32(tag + payload))
+
+    header = struct.pack(">IIBBBBB", w, h, 8, {3: 2, 4: 6}[c], 0, 0, 0)  # 8 bits, RGB or RGBA
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", data) + chunk(b"IEND", b"")
+
+
+def _write_png(path: Path, img: np.ndarray) -> None:
+    """Write a PNG atomically: a temporary name in the same folder, renamed when complete."""
     tmp = path.with_name(f".{path.name}.partial")
     try:
-        iio.imwrite(tmp, img, extension=".png", compress_level=PNG_COMPRESS_LEVEL)
+        with open(tmp, "wb") as f:
+            f.write(png_bytes(img))
         os.replace(tmp, path)
     except BaseException:
         _unlink(tmp)

@@ -144,6 +144,9 @@ def test_a_rock_in_view_is_drawn_where_it_projects(shared, minimal_scene, phase)
     finally:
         sim.world.pos[i], sim.world.radius[i], sim.world.phase[i] = old
     diff = np.abs(after.astype(int) - before.astype(int)).sum(axis=2) > 30
+    import imageio.v3 as iio
+    iio.imwrite(f"/tmp/rx/dbg_{phase}_before.png", before); iio.imwrite(f"/tmp/rx/dbg_{phase}_after.png", after)
+    print("DBG", phase, sim.time, r.last_count, r.frames_drawn, sim.origin, r._window is not None)
     px, py, k = _project(r, target)
     rad = 0.2 * k
     assert px < W / 2  # left of the camera -> left half of the image (no mirroring)
@@ -262,6 +265,17 @@ def test_missing_vulkan_message(render_mod):
         render_mod._ggui(no_vulkan)
     msg = str(e.value)
     assert "\n" not in msg and "apt-get install -y mesa-vulkan-drivers libvulkan1" in msg
+
+
+def test_png_encoder_round_trips():
+    import imageio.v3 as iio
+
+    from taichi_rocks.video import png_bytes
+
+    rng = np.random.default_rng(0)
+    for shape in [(1, 1, 3), (5, 7, 4), (H, W, 3)]:
+        img = rng.integers(0, 256, shape, dtype=np.uint8)
+        np.testing.assert_array_equal(iio.imread(png_bytes(img), extension=".png"), img)
 
 
 def test_failed_render_keeps_frames_and_drops_partial_video(tmp_path):
