@@ -78,6 +78,7 @@ CELL_COLOR = (0.1, 0.9, 1.0)
 MAX_RAYS = 256
 MAX_CELLS = 4096
 MIN_BUCKET = 4096
+GLITCH_DROP = 0.3  # a frame whose GGUI pixels fall below this fraction of the last frame's is drawn again
 KEY = (3, 251, 5)  # GGUI's clear colour, 8-bit: where the read-back has it, the background image shows
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
@@ -426,18 +427,20 @@ def _paint_ground(img: ti.template(), eye: ti.types.vector(3, ti.f32), fwd: ti.t
 
 @ti.kernel
 def _to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3),
-           back: ti.template()):
+           back: ti.template(), drawn: ti.template()):
     """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), with the
     background image ``back`` (W, H) wherever GGUI left its clear colour :data:`KEY` (nothing drawn there).
 
     Merging here instead of ``canvas.set_image`` saves lavapipe a full-screen textured quad and GGUI a
     staging copy (~25 ms of CPU a frame at 720p). GGUI draws without antialiasing, so a pixel is either
     cleared (exactly the key, k/255 floats) or drawn. Works in 32 x 32 tiles so that both the reads and the
-    transposed writes stay in cache.
+    transposed writes stay in cache. ``drawn`` counts the pixels GGUI drew.
     """
     H = out.shape[0]
     W = out.shape[1]
+    drawn[None] = 0
     for by, bx in ti.ndrange((H + 31) // 32, (W + 31) // 32):
+        n = 0
         for ex, ey in ti.ndrange(32, 32):
             x = bx * 32 + ex
             yy = by * 32 + ey  # row of the read-back (0 = bottom)
@@ -451,9 +454,11 @@ def _to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dt
                     out[H - 1 - yy, x, 1] = px[1]
                     out[H - 1 - yy, x, 2] = px[2]
                 else:
+                    n += 1
                     out[H - 1 - yy, x, 0] = ti.cast(ti.min(ti.max(r, 0), 255), ti.u8)
                     out[H - 1 - yy, x, 1] = ti.cast(ti.min(ti.max(g, 0), 255), ti.u8)
                     out[H - 1 - yy, x, 2] = ti.cast(ti.min(ti.max(b, 0), 255), ti.u8)
+        drawn[None] += n
 
 
 # ------------------------------------------------------------------------------------------------ geometry
@@ -723,6 +728,9 @@ class Renderer:
         _clear_buffers(self._zbuf, self._acc)
         self._cars = ti.Vector.field(7, ti.f32, shape=MAX_CARS)
         self._out = np.empty((h, w, 3), np.uint8)
+        self._drawn_px = ti.field(ti.i32, shape=())
+        self._prev_drawn = 0
+        self.redraws = 0  # frames whose 3D layer had to be drawn twice (see render_frame)
 
         # vehicles: one merged mesh, transformed on the host each frame
         meshes = [vehicle_mesh(v, 0.0) for v in sc.vehicles]
@@ -866,6 +874,25 @@ class Renderer:
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
         self._canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by _sky in _to_u8
 
+        drawn = self._draw_ggui(eye, target, sd, origin, poses)
+        if drawn < GLITCH_DROP * self._prev_drawn:
+            # GGUI 1.7.4 on lavapipe now and then loses a whole renderable (seen: the vehicles' mesh) in one
+            # frame; a collapse of the pixels GGUI drew is that, not the scene: draw the 3D layer once more
+            self.redraws += 1
+            drawn = max(drawn, self._draw_ggui(eye, target, sd, origin, poses))
+        self._prev_drawn = drawn
+        self.frames_drawn += 1
+        if self.window_every > 0 and self.frames_drawn % self.window_every == 0:
+            self._close_window()
+            self._open_window()
+        t3 = time.perf_counter()
+        self.timings["cull"] += t2 - t1
+        self.timings["draw"] += (t1 - t0) + (t3 - t2)
+        return self._out
+
+    def _draw_ggui(self, eye, target, sd, origin, poses) -> int:
+        """Declare the 3D layer, draw it, read it back over the background into ``self._out``; return how many
+        pixels GGUI drew."""
         if self._window is None:  # closed (or another renderer took over GGUI): reopen
             self._open_window()
         scene = self._scene
@@ -883,15 +910,8 @@ class Renderer:
         self._draw_overlays(scene, origin)
         self._canvas.scene(scene)
         raw = self._window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
-        _to_u8(raw, self._out, self._sky)
-        self.frames_drawn += 1
-        if self.window_every > 0 and self.frames_drawn % self.window_every == 0:
-            self._close_window()
-            self._open_window()
-        t3 = time.perf_counter()
-        self.timings["cull"] += t2 - t1
-        self.timings["draw"] += (t1 - t0) + (t3 - t2)
-        return self._out
+        _to_u8(raw, self._out, self._sky, self._drawn_px)
+        return int(self._drawn_px[None])
 
     # -------------------------------------------------------------------------------------------- parts
     def _paint_sky_and_ground(self, eye, fwd, right, up, origin, poses, sun_dir) -> None:
@@ -1043,7 +1063,8 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     ``on_frame(k, image)``, if given, sees every frame drawn (tests).
 
     Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from", "resolution", "video_fps",
-    "seconds", "frames_per_second" (frames drawn / seconds of the frame loop; also "fps_measured")} and with ``profile`` a "profile" dict of seconds: "simulation", "culling" (rock
+    "seconds", "frames_per_second" (frames drawn / seconds of the frame loop; also "fps_measured"), "redraws"}
+    and with ``profile`` a "profile" dict of seconds: "simulation", "culling" (rock
     culling and splatting), "drawing" (camera, sky and ground, GGUI drawing and the read-back), "encoding"
     (time the render loop waited on the frame writer, including the final flush) and "encoding_busy" (the
     writer thread's own time, which overlaps the others), "other" (the rest of the frame loop), "setup"
@@ -1137,6 +1158,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
         "video_fps": video_fps,
         "seconds": seconds,
         "frames_per_second": (n_frames - start) / loop if loop > 0 else 0.0,
+        "redraws": renderer.redraws,  # frames whose GGUI layer had to be drawn twice (GGUI glitch guard)
     }
     out["fps_measured"] = out["frames_per_second"]
     if profile:
