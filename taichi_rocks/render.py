@@ -50,6 +50,8 @@ from types import SimpleNamespace
 import numpy as np
 import taichi as ti
 
+from .randomness import mix32
+
 __all__ = ["render_scene", "Renderer", "CameraRig", "to_gl", "GL_UP", "VULKAN_HINT", "DEFAULT_LOD_PIXELS", "ROCK_MODES",
            "rock_color", "check_resolution", "vehicle_mesh", "vehicle_kind"]
 
@@ -95,14 +97,8 @@ def to_gl(p_world, origin) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------ kernels
 @ti.func
 def _hash_u32(x):
-    """lowbias32 integer hash (Chris Wellons), on u32."""
-    x = ti.cast(x, ti.u32)
-    x ^= x >> ti.u32(16)
-    x *= ti.u32(0x7FEB352D)
-    x ^= x >> ti.u32(15)
-    x *= ti.u32(0x846CA68B)
-    x ^= x >> ti.u32(16)
-    return x
+    """lowbias32 integer hash (the engine's randomness.mix32), on u32."""
+    return mix32(ti.cast(x, ti.u32))
 
 
 @ti.func
