@@ -206,7 +206,6 @@ class Simulation:
         par[Par.TIE_EPS] = 1e-5
         par[Par.MARGIN] = self._margin
         ipar = np.zeros(IPar.COUNT, dtype=np.int64)
-        ipar[IPar.TABLE] = table
         ipar[IPar.SEED] = scene.seed & 0x7FFFFFFF
         ipar[IPar.DILATE] = dilation_cells(r_max, self.cell_size) if center else 0
         ipar[IPar.N_ROCKS] = n

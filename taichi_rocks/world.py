@@ -50,11 +50,10 @@ class Par:
 class IPar:
     """Indices of the static integer parameters in ``World.ipar``."""
 
-    TABLE = 0
-    SEED = 1
-    DILATE = 2
-    N_ROCKS = 3
-    COUNT = 4
+    SEED = 0
+    DILATE = 1
+    N_ROCKS = 2
+    COUNT = 3
 
 
 def next_prime(n: int) -> int:
@@ -76,11 +75,6 @@ def next_prime(n: int) -> int:
     while not is_prime(n):
         n += 1
     return n
-
-
-def cells_per_axis_max(radius: np.ndarray, cell: float) -> np.ndarray:
-    """Upper bound of the cells one axis of a rock's AABB [x - r, x + r] can touch (+1 for rounding)."""
-    return np.floor(2.0 * radius / cell).astype(np.int64) + 3
 
 
 @ti.data_oriented

@@ -61,7 +61,6 @@ class Probe:
         par[Par.ANGLE_MIN] = par[Par.ANGLE_MAX] = np.radians(30)
         par[Par.GRAVITY] = 9.81
         ipar = np.zeros(IPar.COUNT, np.int64)
-        ipar[IPar.TABLE] = self.table
         ipar[IPar.DILATE] = dilation_cells(r_max, cell) if self.center else 0
         ipar[IPar.N_ROCKS] = n
         w.set_params(par, ipar)
