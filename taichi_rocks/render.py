@@ -750,6 +750,10 @@ class Renderer:
             self._cell_lines = ti.Vector.field(3, ti.f32, 24 * MAX_CELLS)
 
         self._window = self._canvas = self._scene = None
+        # GGUI's Dear ImGui layer saves its window settings to ./imgui.ini every few seconds: remove that file
+        # on close if it was not there before
+        self._imgui_ini = Path.cwd() / "imgui.ini"
+        self._imgui_ini_existed = self._imgui_ini.exists()
         self._open_window()  # now, so that a machine without Vulkan fails before any frame is simulated
 
     # -------------------------------------------------------------------------------------------- window
@@ -777,8 +781,13 @@ class Renderer:
             _LIVE[0] = None
 
     def close(self) -> None:
-        """Release the window (the fields stay until Taichi is reset)."""
+        """Release the window (the fields stay until Taichi is reset) and the imgui.ini GGUI left behind."""
         self._close_window()
+        if not self._imgui_ini_existed:
+            try:
+                self._imgui_ini.unlink()
+            except OSError:
+                pass
 
     def __enter__(self):
         return self
