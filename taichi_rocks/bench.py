@@ -1443,6 +1443,14 @@ COLORS = {"symplectic_euler": "tab:blue", "heun": "tab:orange", "rk4": "tab:gree
 PRESET_MARK = {"draft": ("*", "tab:red"), "balanced": ("P", "tab:purple"), "reference": ("X", "black")}
 
 
+def _save(plt, fig, out: Path, name: str) -> str:
+    """Lay out, write and close a figure; return its file name."""
+    fig.tight_layout()
+    fig.savefig(out / name)
+    plt.close(fig)
+    return name
+
+
 def plot_integrators(res, out: Path) -> str:
     plt = _plt()
     acc = res["accuracy"]["integrator_dt"]
@@ -1492,11 +1500,7 @@ def plot_integrators(res, out: Path) -> str:
     n = res["accuracy"]["flight_cost"]["n_rocks"]
     fig.suptitle("Integrator x dt: accuracy against cost, lower left is better (cost: flight pass with all "
                  f"{n:,} rocks flying / dt; solid f32, dashed f64; errors below 1e-12 m drawn at 1e-12)")
-    fig.tight_layout()
-    path = out / "accuracy_integrators.png"
-    fig.savefig(path)
-    plt.close(fig)
-    return path.name
+    return _save(plt, fig, out, "accuracy_integrators.png")
 
 
 def plot_detection(res, out: Path) -> str:
@@ -1537,11 +1541,7 @@ def plot_detection(res, out: Path) -> str:
     a2.set_ylabel("worst miss rate, 1 - recall (1e-4 = none missed)")
     a2.set_title("Miss rate against cost (lower left is better)")
     a2.legend(fontsize=6.5, loc="center right")
-    fig.tight_layout()
-    path = out / "accuracy_detection.png"
-    fig.savefig(path)
-    plt.close(fig)
-    return path.name
+    return _save(plt, fig, out, "accuracy_detection.png")
 
 
 def plot_precision(res, out: Path) -> str:
@@ -1580,11 +1580,7 @@ def plot_precision(res, out: Path) -> str:
     a2.set_ylabel(f"error at {max(d) / 1e3:g} km (m)")
     a2.set_title("Precision: error against cost")
     a2.legend(fontsize=7)
-    fig.tight_layout()
-    path = out / "accuracy_precision.png"
-    fig.savefig(path)
-    plt.close(fig)
-    return path.name
+    return _save(plt, fig, out, "accuracy_precision.png")
 
 
 def plot_hash(res, out: Path) -> str:
@@ -1626,11 +1622,7 @@ def plot_hash(res, out: Path) -> str:
     a2.set_xlabel("share of the passes' time, each kernel called on its own (%; sum in ms at the right)")
     a2.set_title(f"Per pass (N={hs['n']:,} rocks, T={hs['t']} tires)")
     a2.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.09, 0.5))
-    fig.tight_layout()
-    path = out / "hash_settings.png"
-    fig.savefig(path)
-    plt.close(fig)
-    return path.name
+    return _save(plt, fig, out, "hash_settings.png")
 
 
 def plot_peers(res, out: Path) -> str:
@@ -1665,11 +1657,7 @@ def plot_peers(res, out: Path) -> str:
     a2.set_ylabel("ms per step")
     a2.set_title("Scaling in N")
     a2.legend(fontsize=7)
-    fig.tight_layout()
-    path = out / "speed_peers.png"
-    fig.savefig(path)
-    plt.close(fig)
-    return path.name
+    return _save(plt, fig, out, "speed_peers.png")
 
 
 def plot_passes(res, out: Path) -> str:
@@ -1712,11 +1700,7 @@ def plot_passes(res, out: Path) -> str:
     a2.set_xlabel("ms per step (interleaved A/B medians)")
     n, t = res["config"]["main"]
     a2.set_title(f"Effects switched off one at a time (N={n:,}, T={t})")
-    fig.tight_layout()
-    path = out / "speed_passes_effects.png"
-    fig.savefig(path)
-    plt.close(fig)
-    return path.name
+    return _save(plt, fig, out, "speed_passes_effects.png")
 
 
 # ================================================================================================ report
