@@ -51,6 +51,8 @@ class Path:
     (time of one traversal = loop period; None if the vehicle never gets to the end)."""
 
     duration: float | None = None
+    #: from this time on the pose never changes again (inf: it may always move)
+    still_after: float = math.inf
 
     def pose(self, t: float) -> Pose:
         raise NotImplementedError
@@ -106,6 +108,12 @@ class _ProfiledPath(Path):
     @property
     def duration(self) -> float | None:  # type: ignore[override]
         return self._timing.duration
+
+    @property
+    def still_after(self) -> float:  # type: ignore[override]
+        """At the end of a path that does not loop (or where it parks) the vehicle stops for good."""
+        tm = self._timing
+        return math.inf if tm.period is not None else tm.t_end
 
     def pose(self, t: float) -> Pose:
         t = float(t)

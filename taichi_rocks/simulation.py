@@ -20,13 +20,13 @@ import numpy as np
 import taichi as ti
 
 from . import hashgrid, tires
-from .bed import recycle_to_leading_edge
+from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from .plan import Plan
 from .runtime import init_taichi
 from .scene import load_scene, scene_with
 from .vehicles import Fleet
-from .world import ACTIVE, RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
+from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, World, dilation_cells, next_prime
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
@@ -52,6 +52,33 @@ def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, 
             recycle_to_leading_edge(w, i, centre, move, lead, step)
         if ti.static(count):
             hashgrid.count_rock(w, i, center, grid)
+
+
+@ti.kernel
+def coast_pass(w: ti.template(), n: ti.i32, dt: ti.f64, cx: ti.f64, cy: ti.f64, lx: ti.f64, ly: ti.f64,
+          step0: ti.i32, flight: ti.template(), recycle: ti.template(), integrator: ti.template(),
+          gravity: ti.template(), drag: ti.template(), ground: ti.template()):
+    """``n`` steps of pass 1 in one launch, for when nothing outside a rock can change it: every vehicle that
+    matters stands still for good, so the bed does not move and no tire can launch (a still tread throws
+    nothing). Rocks are then independent: each thread takes its rock through the n steps doing exactly what
+    ``rock_pass`` does (same functions, same step numbers for the random streams), and stops early once the
+    rock rests inside the bed, where nothing can move it again. Bit-identical to n calls of ``step()``."""
+    h = ti.cast(dt, w.real)
+    centre = ti.Vector([ti.cast(cx, w.real), ti.cast(cy, w.real)])
+    move = ti.Vector([ti.cast(0.0, w.real), ti.cast(0.0, w.real)])
+    lead = ti.Vector([ti.cast(lx, w.real), ti.cast(ly, w.real)])
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        for s in range(n):
+            if ti.static(flight):
+                fly(w, i, h, integrator, gravity, drag, ground)
+            if ti.static(recycle):
+                recycle_to_leading_edge(w, i, centre, move, lead, step0 + s + 1)
+            if w.phase[i] == RESTING:
+                settled = True
+                if ti.static(recycle):
+                    settled = not outside_bed(w.pos[i], centre, w.par[Par.BED_RADIUS], w.par[Par.GROUND_Z])
+                if settled:
+                    break
 
 
 @ti.kernel
@@ -245,6 +272,11 @@ class Simulation:
         self.last_launches = 0
         if splash:
             self._initial_sort()
+        # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
+        self.coast = True
+        self.steps_coasted = 0
+        self._still_after = self.fleet.still_after(
+            sorted({self.follow, *(self.fleet.splashing if splash else ())}))
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -323,17 +355,51 @@ class Simulation:
         identity_entries(w)
 
     def step(self, n: int = 1) -> None:
-        for _ in range(int(n)):
+        n = int(n)
+        while n > 0:
+            if self._can_coast():
+                self._coast(n)
+                return
             self._step()
+            n -= 1
 
     def advance_to(self, t: float) -> None:
         """Step to exactly time ``t``: whole steps of dt, then one shorter step if dt does not divide the
         interval (so frame f is the state at f / fps for any fps)."""
         tol = 1e-9 * max(1.0, abs(t))
         while self.time + self.dt <= t + tol:
+            if self._can_coast():
+                k, clock = 0, self.time
+                while clock + self.dt <= t + tol:  # the same whole steps as the loop, same rounding
+                    clock += self.dt
+                    k += 1
+                self._coast(k)
+                break
             self._step()
         if t - self.time > tol:
             self._step(t - self.time)
+
+    def _can_coast(self) -> bool:
+        """True when the coming steps can run as one ``coast`` launch: every vehicle that matters (the one
+        the bed follows, the splashing ones) has stopped for good, so the bed stands and no tire launches."""
+        p = self.plan
+        return bool(self.coast and self.n_rocks and (p.flight or p.recycle) and self.time >= self._still_after)
+
+    def _coast(self, n: int) -> None:
+        w, p = self.w, self.plan
+        step0 = self.step_count
+        for _ in range(n):  # the clock advances exactly as n calls of _step() advance it
+            self.time += self.dt
+        self.step_count += n
+        self.steps_coasted += n
+        lc = self.bed_center[:2] - self.origin[:2]
+        for s in range(0, n, 1 << 30):
+            coast_pass(w, min(n - s, 1 << 30), self.dt, float(lc[0]), float(lc[1]), float(self._lead[0]),
+                  float(self._lead[1]), step0 + s, p.flight, p.recycle, p.integrator, p.gravity, p.drag,
+                  p.ground)
+        self._poses = self.fleet.poses(self.time)
+        self._tires_prev = self.fleet.rear_tires(self._poses)
+        self.last_launches = 0
 
     def _step(self, dt=None) -> None:
         w, p = self.w, self.plan

@@ -7,6 +7,7 @@ steers the body centre). Its tread speed is omega R = (v_wheel . heading) * (1 +
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +52,10 @@ class Fleet:
             kind, kwargs = _path_kwargs(v.path)
             self.paths.append(path_from_spec(kind, **kwargs))
         self.splashing = [i for i, v in enumerate(self.specs) if v.splash]
+
+    def still_after(self, indices) -> float:
+        """Time from which the vehicles ``indices`` never move again (0 for none; inf if one always may)."""
+        return max((float(getattr(self.paths[i], "still_after", math.inf)) for i in indices), default=0.0)
 
     def poses(self, t: float) -> list[VehiclePose]:
         out = []

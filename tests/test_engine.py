@@ -124,6 +124,7 @@ def test_convoy_like_launches_rise_and_go_backwards():
 def test_parked_vehicle_launches_nothing():
     sim = Simulation(scene(rocks=8000, radius=8.0, vehicles=[{"name": "car", "path": {
         "points": [[0.0, 0.0], [10.0, 0.0]], "speed": 0.0}}]))
+    sim.coast = False  # through the tire pass, which sees the still tires on the rocks
     sim.step(100)
     st = sim.state()
     assert sim.launches_total == 0 and np.all(st["phase"] == RESTING)
@@ -264,3 +265,52 @@ def test_checkpoint_restore_continues_bit_identically():
     assert sa["launches_total"] > 5 and sa["launches_total"] == sb["launches_total"]
     for k in ("positions", "velocities", "phase", "bed_center"):
         np.testing.assert_array_equal(sa[k], sb[k])
+
+
+# ------------------------------------------------------------------------------------------ coasting
+def test_coasting_is_bit_identical_to_stepping():
+    """Once every vehicle that matters has stopped for good, steps run as one `coast_pass` launch. A car
+    brakes to a stop at t = 2 s; rocks thrown just before fly, bounce, slide, leave the bed and are recycled
+    while it coasts. Every state, at whole and fractional step times, equals plain stepping bit for bit."""
+    sc = scene(rocks=3000, radius=3.0, world={"restitution": 0.4}, sim={"dt": 0.01, "detection": "swept",
+                                                                          "integrator": "rk4"},
+               effects={"drag": "quadratic"},
+               vehicles=[{"name": "car", "path": {"points": [[-2.0, 0.0], [2.0, 0.0]], "speed": [4.0, 0.0]}}])
+    sims = [Simulation(sc), Simulation(sc)]
+    sims[1].coast = False
+    assert sims[0]._still_after == pytest.approx(2.0)
+    rng = np.random.default_rng(5)
+    throw = rng.choice(3000, 1000, replace=False)
+    vel = np.column_stack([rng.uniform(-6.0, 6.0, (1000, 2)), rng.uniform(0.5, 5.0, 1000)])
+    centres = []
+    for t in (1.9, 1.95, 2.0, 2.0137, 2.5, 4.0):
+        for sim in sims:
+            sim.advance_to(t)
+            if t == 1.9:  # throw a third of the rocks, the same in both
+                mem = np.empty(sim.n_rocks, np.int64)
+                mem[sim.world.rock_id.to_numpy()[: sim.n_rocks]] = np.arange(sim.n_rocks)
+                v = sim.world.vel.to_numpy()
+                ph = sim.world.phase.to_numpy()
+                v[mem[throw]] = vel
+                ph[mem[throw]] = FLYING
+                sim.world.vel.from_numpy(v)
+                sim.world.phase.from_numpy(ph)
+        a, b = (s.state() for s in sims)
+        assert a["step"] == b["step"] and a["time"] == b["time"]
+        for k in ("positions", "velocities", "phase", "bed_center", "launches_total"):
+            np.testing.assert_array_equal(a[k], b[k], err_msg=f"{k} at t = {t}")
+        centres.append(a["positions"])
+    for sim in sims:
+        sim.step(777)
+    a, b = (s.state() for s in sims)
+    for k in ("positions", "velocities", "phase"):
+        np.testing.assert_array_equal(a[k], b[k])
+    assert sims[0].steps_coasted > 900 and sims[1].steps_coasted == 0
+    assert a["launches_total"] > 0  # the car launched rocks before it stopped
+    thrown = a["positions"][throw]
+    r = np.hypot(*(centres[2][throw, :2] - a["bed_center"][:2]).T)
+    assert np.sum(r > 3.0 - 1e-9) == 0  # all inside the bed at t = 2.0 ...
+    # ... and rocks left the bed while coasting and were recycled: they sit far from where they flew
+    far = np.hypot(*(thrown[:, :2] - centres[3][throw, :2]).T) > 1.0
+    assert far.sum() > 20, far.sum()
+    assert np.all(a["phase"] == RESTING)
