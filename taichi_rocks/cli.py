@@ -81,6 +81,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--format", choices=("mp4", "gif", "png"), default="mp4")
     r.add_argument("--profile", action="store_true", help="report time shares per stage")
     r.add_argument("--resume", action="store_true", help="continue an interrupted render")
+    r.add_argument("--checkpoint-every", type=_positive_int, default=30, metavar="N",
+                   help="save the simulation state every N frames, for --resume (default: 30)")
 
     b = sub.add_parser("bench", help="measure accuracy against cost and speed against peers")
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
@@ -154,7 +156,7 @@ def cmd_render(args) -> int:
     from .render import render_scene
     kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
-                  profile=args.profile)
+                  profile=args.profile, checkpoint_every=args.checkpoint_every)
     if args.seed is not None:
         from .scene import scene_with
 
@@ -162,8 +164,15 @@ def cmd_render(args) -> int:
     if args.resume:
         kwargs["resume"] = True
     info = render_scene(scene, **kwargs)
+    if info.get("replayed_from") is not None:
+        how = (f"restored the state saved after frame {info['replayed_from'] - 1}" if info["replayed_from"]
+               else "simulated from the start")
+        print(f"resumed at frame {info['resumed_from']} ({how})")
     where = info.get("video") or info.get("frames_dir")
-    print(f"wrote {where}: {info.get('frames')} frames at {info.get('fps_measured', 0):.2f} frames/s")
+    if info.get("resumed_from", 0) >= info.get("frames", 0):
+        print(f"wrote {where}: all {info.get('frames')} frames were already rendered")
+    else:
+        print(f"wrote {where}: {info.get('frames')} frames at {info.get('fps_measured', 0):.2f} frames/s")
     if args.profile and info.get("profile"):
         for k, v in info["profile"].items():
             print(f"  {k:<12} {v:8.2f} s")

@@ -18,14 +18,52 @@ from pathlib import Path
 import numpy as np
 
 
+def _temp_prefix(final: Path) -> str:
+    """Temporaries of ``final`` are hidden, next to it, and carry the writer's process id:
+    ``.NAME.PID.XXXXXXXX.part`` (files) and ``.NAME.PID.XXXXXXXX`` (work folders)."""
+    return f".{final.name}.{os.getpid()}."
+
+
 def atomic_path(final: Path) -> Path:
     """A temporary file name next to ``final`` (same folder, so the rename is atomic)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
+    final = Path(final)
+    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(final), suffix=".part", dir=final.parent)
     os.close(fd)
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; the final file gets the usual permissions
     return Path(tmp)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def remove_stale_temporaries(final: Path) -> list[Path]:
+    """Remove the temporaries that writers of ``final`` left behind when they were killed (kill -9, power
+    loss): those whose process no longer exists. Temporaries of a running writer are left alone. Returns
+    what was removed."""
+    final = Path(final)
+    removed = []
+    if not final.parent.is_dir():
+        return removed
+    for path in final.parent.glob(f".{final.name}.*"):
+        rest = path.name[len(final.name) + 2:]
+        pid = rest.split(".", 1)[0]
+        if not pid.isdigit() or _alive(int(pid)):
+            continue
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+        removed.append(path)
+    return removed
 
 
 def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True) -> dict:
@@ -36,7 +74,8 @@ def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool =
     """
     out = Path(out)
     n, v = sim.n_rocks, len(sim.fleet.names)
-    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    remove_stale_temporaries(out)
+    work = Path(tempfile.mkdtemp(prefix=_temp_prefix(out), dir=out.parent))
     try:
         shapes = {
             "time": ((frames,), np.float64),

@@ -1051,7 +1051,7 @@ def _existing_outputs(paths: dict) -> list:
 
 def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=None, fmt="mp4", arch="cpu",
                  overwrite=False, progress=True, profile=False, *, resume=False, rocks="splat",
-                 window_every=WINDOW_EVERY, on_frame=None) -> dict:
+                 window_every=WINDOW_EVERY, on_frame=None, checkpoint_every=None) -> dict:
     """Simulate a scene and render it offscreen to PNG frames plus an MP4 or GIF (``fmt="png"``: frames only).
 
     ``scene_or_path``: a scene file (TOML) or a validated :class:`~taichi_rocks.scene.Scene`. Frame k shows the
@@ -1062,12 +1062,15 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     RuntimeError naming the packages to install. ``rocks``: "splat" (resting rocks drawn by a Taichi kernel
     behind the GGUI scene, flying ones as GGUI particles; fast) or "particles" (every rock a GGUI particle).
     ``resume``: keep the frames a previous (interrupted) render finished, frame_00000.png ... without a gap,
-    advance the simulation and the camera through them without drawing, re-encode them into the video and
-    render the rest (the result equals an uninterrupted render: the simulation is deterministic); the frames
-    must have the requested resolution. ``progress``: a tqdm bar on stderr; None shows it only on a terminal.
+    restore the newest simulation state it saved before the first missing frame (every ``checkpoint_every``
+    frames, default 30, in ``out_dir/.resume/``; see resume.py), advance the simulation and the camera from
+    there to the first missing frame without drawing, re-encode the kept frames into the video and render the
+    rest (the result equals an uninterrupted render: the simulation is deterministic); the frames must have
+    the requested resolution, and the scene, fps and rock mode must be the interrupted render's. ``progress``: a tqdm bar on stderr; None shows it only on a terminal.
     ``on_frame(k, image)``, if given, sees every frame drawn (tests).
 
-    Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from", "resolution", "video_fps",
+    Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from" (first frame drawn),
+    "replayed_from" (first frame simulated without drawing, after a restored state), "resolution", "video_fps",
     "seconds", "frames_per_second" (frames drawn / seconds of the frame loop; also "fps_measured"), "redraws"}
     and with ``profile`` a "profile" dict of seconds: "simulation", "culling" (rock
     culling and splatting), "drawing" (camera, sky and ground, GGUI drawing and the read-back), "encoding"
@@ -1077,6 +1080,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     mostly kernel compilation; included in the others)."""
     from tqdm import tqdm
 
+    from .resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
     from .runtime import init_taichi
     from .scene import load_scene
     from .simulation import Simulation
@@ -1114,15 +1118,29 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     init_taichi(arch)
     sim = Simulation(scene, arch=arch)
     renderer = Renderer(sim, resolution=resolution, fps=video_fps, rocks=rocks, window_every=window_every)
+    every = CHECKPOINT_EVERY if checkpoint_every is None else int(checkpoint_every)
+    checkpoints = RenderCheckpoints(out_dir, fingerprint(scene, video_fps, renderer.resolution, rocks), every)
+    if resume:
+        try:
+            checkpoints.check_same_render()
+        except ValueError:
+            renderer.close()
+            raise
     for f in old:  # only now: a failure above leaves the previous render untouched
         f.unlink()
+    checkpoints.start(resume)
     writer = FrameWriter(out_dir, scene.name, video_fps, fmt, start=start)
     t_sim = 0.0
     t_first = 0.0
     ok = False
     t0 = time.perf_counter()
+    replay_from = 0
     try:
-        for k in range(start):  # resuming: replay the simulation and the camera, draw nothing
+        if start:  # resuming: restore the newest saved state, replay simulation and camera, draw nothing
+            saved = checkpoints.latest_before(start)
+            if saved is not None:
+                replay_from = checkpoints.restore(saved, sim, renderer.rig) + 1
+        for k in range(replay_from, start):
             sim.advance_to(k / video_fps)
             renderer.view()
         t_replay = time.perf_counter() - t0
@@ -1142,6 +1160,8 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
             if on_frame is not None:
                 on_frame(k, img)
             writer.write(img)
+            if checkpoints.due(k, n_frames):
+                checkpoints.save(k, sim, renderer.rig)
             bar.update(1)
             if k == start:
                 t_first = time.perf_counter() - t_loop
@@ -1150,6 +1170,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
         bar.close()
         renderer.close()
         video = writer.close(ok=ok)
+    checkpoints.finish()  # complete: nothing to resume
     seconds = time.perf_counter() - t_start
     loop = time.perf_counter() - t_loop
     out = {
@@ -1159,6 +1180,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
         "video": str(video) if video is not None else None,
         "frames": n_frames,
         "resumed_from": start,
+        "replayed_from": replay_from if start else None,
         "resolution": tuple(renderer.resolution),
         "video_fps": video_fps,
         "seconds": seconds,

@@ -137,6 +137,8 @@ class FrameWriter:
         self.closed = False
         self.timings = {"encode": 0.0, "encode_busy": 0.0}
         self.frames_dir.mkdir(parents=True, exist_ok=True)
+        for stale in self.frames_dir.glob(".frame_*.png.partial"):  # left by a killed render (kill -9)
+            _unlink(stale)
         self._tmp_video = None
         self._writer = None
         self._ffmpeg_params = ["-preset", str(ffmpeg_preset), "-crf", str(int(crf))]

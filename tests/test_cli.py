@@ -4,22 +4,14 @@ reproducible across processes."""
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from cli_util import ROOT, cli, start_cli, wait_for
+
 BAD = sorted((ROOT / "tests" / "bad_scenes").glob("*.toml"))
-
-
-def cli(*args, cwd=None, timeout=300):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "taichi_rocks", *map(str, args)], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout)
 
 
 def test_check_good_scenes():
@@ -92,18 +84,37 @@ def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(tmp_path):
 
 def test_interrupted_simulate_leaves_no_file(tmp_path):
     out = tmp_path / "big.npz"
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-m", "taichi_rocks", "simulate", str(ROOT / "scenes" / "minimal.toml"),
-                          "--out", str(out), "--frames", "100000"], env=env, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 120
-    while time.time() < deadline and not any(tmp_path.iterdir()):
-        time.sleep(0.2)  # wait until it is writing its temporaries
+    p = start_cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", out, "--frames", "100000")
+    wait_for(lambda: any(tmp_path.iterdir()), p, poll=0.2)  # it is writing its temporaries
     time.sleep(1.0)
     p.send_signal(signal.SIGINT)
     err = p.communicate(timeout=60)[1]
     assert p.returncode == 130, err
     assert "interrupted" in err and "Traceback" not in err
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_killed_simulate_leaves_no_final_file_and_the_next_run_cleans_up(tmp_path):
+    """kill -9 while the .npz is being assembled (its temporary exists, ~110 MB): nothing appears under the
+    final name; the next run removes the dead writer's temporaries and writes a complete file."""
+    out = tmp_path / "k.npz"
+    p = start_cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", out, "--frames", "1500", "--fps", "250")
+    wait_for(lambda: any(q.name.endswith(".part") for q in tmp_path.iterdir()), p, poll=0.002)
+    p.kill()
+    p.communicate(timeout=60)
+    assert p.returncode == -signal.SIGKILL
+    left = sorted(q.name for q in tmp_path.iterdir())
+    if out.exists():  # the kill came after the rename (not seen here): then the file must be whole
+        assert np.load(out)["positions"].shape == (1500, 2000, 3)
+    else:
+        assert left and all(name.startswith(f".k.npz.{p.pid}.") for name in left), left
+    # a writer that is still running keeps its temporaries: only dead ones are removed
+    live = tmp_path / f".k.npz.{os.getpid()}.abcd1234.part"
+    live.write_bytes(b"x")
+    r = cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", out, "--frames", "3", "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert sorted(q.name for q in tmp_path.iterdir()) == sorted(["k.npz", live.name])
+    assert np.load(out)["positions"].shape == (3, 2000, 3)
 
 
 def test_gpu_falls_back_to_cpu_with_one_warning(tmp_path):

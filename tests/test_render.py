@@ -226,7 +226,12 @@ def test_png_only_and_no_overwrite(render_mod, minimal_scene, tmp_path):
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["frame_00000.png"]  # stale frame gone
 
 
-def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene, mp4_render, tmp_path):
+@pytest.mark.parametrize("every, drop_last, replayed_from", [(1, False, 2), (1, True, 1), (30, False, 0)])
+def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene, mp4_render, tmp_path, every,
+                                                       drop_last, replayed_from):
+    """Interrupted at frame 2: resuming restores the newest saved state before the first missing frame
+    (every frame: after frame 1; the newest frame lost, as when PNGs were still queued: after frame 0; none
+    saved: from t = 0) and gives the uninterrupted render's frames."""
     import imageio.v3 as iio
 
     _, reference, _ = mp4_render
@@ -237,15 +242,23 @@ def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene
 
     with pytest.raises(KeyboardInterrupt):
         render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), progress=False,
-                                on_frame=stop)
-    assert sorted(os.listdir(tmp_path)) == ["frames"]  # no partial video
+                                on_frame=stop, checkpoint_every=every)
+    assert sorted(os.listdir(tmp_path)) == [".resume", "frames"]  # no video, no partial video
     assert sorted(os.listdir(tmp_path / "frames")) == ["frame_00000.png", "frame_00001.png"]
+    assert len(list((tmp_path / ".resume").glob("frame_*.npz"))) == (2 if every == 1 else 0)
+    if drop_last:
+        (tmp_path / "frames" / "frame_00001.png").unlink()
+    with pytest.raises(ValueError, match="cannot resume"):  # another frame rate: not this render's frames
+        render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), fps=25,
+                                progress=False, resume=True)
     res = render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), progress=False,
-                                  resume=True)
-    assert res["resumed_from"] == 2 and res["frames"] == 4
+                                  resume=True, checkpoint_every=every)
+    assert res["resumed_from"] == (1 if drop_last else 2) and res["frames"] == 4
+    assert res["replayed_from"] == replayed_from
     for k in range(4):
         np.testing.assert_array_equal(iio.imread(tmp_path / "frames" / f"frame_{k:05d}.png"), reference[k])
     assert len(list(iio.imiter(res["video"]))) == 4
+    assert sorted(os.listdir(tmp_path)) == ["frames", "minimal.mp4"]  # finished: nothing left to resume
 
 
 def test_bad_arguments(render_mod, minimal_scene, tmp_path):
@@ -309,3 +322,80 @@ def test_camera_snaps_then_smooths_independently_of_frame_rate(render_mod):
     rig.update(np.zeros(3), math.pi - 0.1, 0.0)
     _, _, h = rig.update(np.zeros(3), -math.pi + 0.1, 10.0)
     assert abs(math.remainder(h - (-math.pi + 0.1), 2 * math.pi)) < 1e-6
+
+
+# -------------------------------------------------------------------------------------------------- interrupted CLI renders
+CLI_FRAMES = 40
+
+
+def render_cli_args(scenes_dir, out, *extra):
+    return ("render", scenes_dir / "minimal.toml", "--out", out, "--frames", CLI_FRAMES, "--resolution", f"{W}x{H}",
+            "--checkpoint-every", 5, *extra)
+
+
+@pytest.fixture(scope="module")
+def cli_reference(scenes_dir, tmp_path_factory):
+    """An uninterrupted render through the command line: its frames and its video's bytes."""
+    import imageio.v3 as iio
+    from cli_util import cli
+
+    out = tmp_path_factory.mktemp("cli_reference")
+    r = cli(*render_cli_args(scenes_dir, out))
+    assert r.returncode == 0, r.stderr
+    frames = [iio.imread(out / "frames" / f"frame_{k:05d}.png") for k in range(CLI_FRAMES)]
+    return frames, (out / "minimal.mp4").read_bytes()
+
+
+def assert_same_render(out, reference):
+    import imageio.v3 as iio
+
+    frames, video = reference
+    names = sorted(os.listdir(out / "frames"))
+    assert names == [f"frame_{k:05d}.png" for k in range(CLI_FRAMES)]  # and no temporaries
+    for k in range(CLI_FRAMES):
+        np.testing.assert_array_equal(iio.imread(out / "frames" / names[k]), frames[k], err_msg=names[k])
+    assert (out / "minimal.mp4").read_bytes() == video  # the same H.264 stream, byte for byte
+    assert sorted(os.listdir(out)) == ["frames", "minimal.mp4"]  # no partial video, no saved states
+
+
+@pytest.mark.parametrize("how", ["sigint", "kill -9"])
+def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, cli_reference, tmp_path, how):
+    """Ctrl-C: exit 130, a one-line message naming --resume, finished frames kept, no video. kill -9: no time
+    to clean up, yet every frame under its final name is complete and there is no video under its final name.
+    Either way `render --resume` restores a saved state and ends with the frames and the video of an
+    uninterrupted render, and removes what the killed process left behind."""
+    import signal
+
+    import imageio.v3 as iio
+    from cli_util import cli, start_cli, wait_for
+    from taichi_rocks.video import finished_frames
+
+    frames_dir = tmp_path / "frames"
+    p = start_cli(*render_cli_args(scenes_dir, tmp_path))
+    wait_for(lambda: finished_frames(frames_dir) >= 12, p, poll=0.002)
+    if how == "sigint":
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+        assert p.returncode == 130, err
+        assert "Traceback" not in err
+        last = err.strip().splitlines()[-1]
+        assert "interrupted" in last and "--resume" in last, err
+    else:
+        p.kill()
+        p.communicate(timeout=60)
+        assert p.returncode == -signal.SIGKILL
+        assert (tmp_path / ".minimal.partial.mp4").exists()  # left behind: the resume must clear it
+    n = finished_frames(frames_dir)
+    assert 12 <= n < CLI_FRAMES, n
+    assert not (tmp_path / "minimal.mp4").exists()
+    for path in frames_dir.glob("frame_*.png"):  # whatever is under a final name is a whole frame
+        assert iio.imread(path).shape == (H, W, 3), path
+    saved = sorted((tmp_path / ".resume").glob("frame_*.npz"))
+    assert saved, "no simulation state was saved"
+    r = cli(*render_cli_args(scenes_dir, tmp_path, "--resume"))
+    assert r.returncode == 0, r.stderr
+    first = int(saved[0].stem.split("_")[1])
+    assert f"resumed at frame {n} (restored the state saved after frame " in r.stdout, r.stdout
+    restored = int(r.stdout.split("saved after frame ")[1].split(")")[0])
+    assert first <= restored < n and (restored + 1) % 5 == 0
+    assert_same_render(tmp_path, cli_reference)

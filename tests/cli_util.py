@@ -1,0 +1,38 @@
+"""Running the command line in a subprocess, as a user would."""
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _env():
+    return dict(os.environ, PYTHONPATH=str(ROOT))
+
+
+def cli(*args, cwd=None, timeout=300):
+    """Run ``taichi-rocks ARGS`` to completion; a CompletedProcess with text stdout/stderr."""
+    return subprocess.run([sys.executable, "-m", "taichi_rocks", *map(str, args)], cwd=cwd, env=_env(),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def start_cli(*args):
+    """Start ``taichi-rocks ARGS`` in the background (stdout and stderr piped, text)."""
+    return subprocess.Popen([sys.executable, "-m", "taichi_rocks", *map(str, args)], env=_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_for(condition, proc, timeout=180.0, poll=0.01):
+    """Poll ``condition()`` until true; fail if ``proc`` ends first or time runs out."""
+    deadline = time.time() + timeout
+    while not condition():
+        if proc.poll() is not None:
+            out, err = proc.communicate()
+            raise AssertionError(f"process ended (status {proc.returncode}) before the condition held:\n{err}")
+        if time.time() > deadline:
+            proc.kill()
+            raise AssertionError("timed out waiting")
+        time.sleep(poll)
