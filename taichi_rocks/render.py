@@ -81,6 +81,8 @@ MAX_RAYS = 256
 MAX_CELLS = 4096
 MIN_BUCKET = 4096
 GLITCH_DROP = 0.3  # a frame whose GGUI pixels fall below this fraction of the last frame's is drawn again
+GLITCH_RETRIES = 3  # at most this many extra draws of one frame
+LOST_COVERAGE = 0.15  # a vehicle in view drawing less than this share of its screen box was lost
 KEY = (3, 251, 5)  # GGUI's clear colour, 8-bit: where the read-back has it, the background image shows
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
@@ -726,13 +728,15 @@ class Renderer:
         self._out = np.empty((h, w, 3), np.uint8)
         self._drawn_px = ti.field(ti.i32, shape=())
         self._prev_drawn = 0
-        self.redraws = 0  # frames whose 3D layer had to be drawn twice (see render_frame)
+        self.redraws = 0  # extra draws of the 3D layer (see render_frame)
 
         # vehicles: one merged mesh, transformed on the host each frame
         meshes = [vehicle_mesh(v, 0.0) for v in sc.vehicles]
         self._v_sizes = [len(m[0]) for m in meshes]
         vs, ns, cs, ids = _merge(meshes)
         self._v_local = (vs, ns)
+        self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
+        self._raw = None
         self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
         self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols = ti.Vector.field(3, ti.f32, len(vs))
@@ -877,14 +881,16 @@ class Renderer:
 
         poses = sim.vehicle_poses()
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
-        self._canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by _sky in _to_u8
 
         drawn = self._draw_ggui(eye, target, sd, origin, poses)
-        if drawn < GLITCH_DROP * self._prev_drawn:
+        for _ in range(GLITCH_RETRIES):
             # GGUI 1.7.4 on lavapipe now and then loses a whole renderable (seen: the vehicles' mesh) in one
-            # frame; a collapse of the pixels GGUI drew is that, not the scene: draw the 3D layer once more
+            # frame: a collapse of the pixels GGUI drew, or a vehicle in view with no pixel drawn in its screen
+            # box, is that, not the scene: draw the 3D layer again
+            if drawn >= GLITCH_DROP * self._prev_drawn and not self._vehicle_lost(eye, fwd, right, up):
+                break
             self.redraws += 1
-            drawn = max(drawn, self._draw_ggui(eye, target, sd, origin, poses))
+            drawn = self._draw_ggui(eye, target, sd, origin, poses)
         self._prev_drawn = drawn
         self.frames_drawn += 1
         if self.window_every > 0 and self.frames_drawn % self.window_every == 0:
@@ -900,6 +906,7 @@ class Renderer:
         pixels GGUI drew."""
         if self._window is None:  # closed (or another renderer took over GGUI): reopen
             self._open_window()
+        self._canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by _sky in _to_u8
         scene = self._scene
         cam = self._camera
         cam.position(*(float(x) for x in eye))
@@ -916,7 +923,35 @@ class Renderer:
         self._canvas.scene(scene)
         raw = self._window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
         _to_u8(raw, self._out, self._sky, self._drawn_px)
+        self._raw = raw
         return int(self._drawn_px[None])
+
+    def _vehicle_lost(self, eye, fwd, right, up) -> bool:
+        """True if a vehicle in full view (in front of the camera, its screen box at least 3 x 3 pixels and
+        inside the image) has almost no pixel drawn by GGUI inside its screen box: its mesh was lost. (A
+        vehicle covers most of its box; flying rocks in front of it only a few pixels: below
+        LOST_COVERAGE of the box counts as lost.)"""
+        if self._v_frame is None or self.flags.tire_rays or self.flags.hash_cells:  # wireframes: see-through
+            return False
+        W, H = self.resolution
+        key = np.array(KEY, np.float32) / 255.0
+        start = 0
+        for nv in self._v_sizes:
+            d = self._v_frame[start:start + nv].astype(np.float64) - eye
+            start += nv
+            z = d @ fwd
+            if z.min() < 0.5 or z.min() > self.draw_distance:
+                continue
+            sx = (d @ right / (z * self.tan_x) + 1.0) * 0.5 * W
+            sy = (d @ up / (z * self.tan_y) + 1.0) * 0.5 * H  # rows of the read-back: 0 = bottom
+            x0, x1, y0, y1 = (int(math.floor(v)) for v in (sx.min(), sx.max(), sy.min(), sy.max()))
+            if x0 < 0 or y0 < 0 or x1 >= W or y1 >= H or x1 - x0 < 3 or y1 - y0 < 3:
+                continue
+            box = self._raw[x0 + 1:x1, y0 + 1:y1, :3]
+            drawn = np.any(np.abs(box - key) >= 0.5 / 255.0, axis=2)
+            if drawn.mean() < LOST_COVERAGE:
+                return True
+        return False
 
     # -------------------------------------------------------------------------------------------- parts
     def _paint_sky_and_ground(self, eye, fwd, right, up, origin, poses, sun_dir) -> None:
@@ -952,6 +987,7 @@ class Renderer:
             out_v[sl] = vs[sl] @ rot.T + (np.asarray(p.position, np.float64) - origin)
             out_n[sl] = ns[sl] @ rot.T
             start += nv
+        self._v_frame = out_v
         self._v_verts.from_numpy(out_v.astype(np.float32))
         self._v_norms.from_numpy(out_n.astype(np.float32))
         # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows

@@ -26,18 +26,23 @@ from .plan import Plan
 from .runtime import init_taichi
 from .scene import load_scene, scene_with
 from .vehicles import Fleet
-from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, World, dilation_cells, next_prime
+from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
 
 
 @ti.kernel
-def rock_pass(w: ti.template(), dt: ti.f64, cx: ti.f64, cy: ti.f64, mx: ti.f64, my: ti.f64, lx: ti.f64,
-              ly: ti.f64, gx: ti.f64, gy: ti.f64, step: ti.i32, flight: ti.template(), recycle: ti.template(), count: ti.template(),
-              center: ti.template(), integrator: ti.template(), gravity: ti.template(), drag: ti.template(),
-              ground: ti.template()):
-    """Pass 1 fused: flight, recycling, counting for the hash — one read of each rock per step."""
+def rock_pass(w: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2), dt: ti.f64, cx: ti.f64, cy: ti.f64,
+              mx: ti.f64, my: ti.f64, lx: ti.f64, ly: ti.f64, gx: ti.f64, gy: ti.f64, step: ti.i32,
+              flight: ti.template(), recycle: ti.template(), count: ti.template(), center: ti.template(),
+              integrator: ti.template(), gravity: ti.template(), drag: ti.template(), ground: ti.template()):
+    """Pass 1 fused: flight, recycling, counting for the hash — one read of each rock per step. With
+    ``count`` it first takes the step's tire rays (``rays``, layout of World.ray, float64) into ``w.ray``:
+    passed as an argument, they cost no launch of their own."""
+    if ti.static(count):
+        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
+            w.ray[t, k] = ti.cast(rays[t, k], w.real)
     h = ti.cast(dt, w.real)
     centre = ti.Vector([ti.cast(cx, w.real), ti.cast(cy, w.real)])
     move = ti.Vector([ti.cast(mx, w.real), ti.cast(my, w.real)])
@@ -210,7 +215,7 @@ class Simulation:
             ts = sim.hash.table_size
             table = next_prime(max(expected, 1024 if tiles else 1)) if ts == "auto" else int(ts)
         self.table_size = table
-        self.w = w = World(n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
+        self.w = w = acquire(self, n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
                            substeps=plan.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
                            reorder=self.plan.reorder_every > 0, tiles=tiles, tile_size=self.tile)
         self.world = w
@@ -274,6 +279,7 @@ class Simulation:
             self._initial_sort()
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
+        self._no_rays = np.zeros((1, RAY_FIELDS))
         self.steps_coasted = 0
         self._still_after = self.fleet.still_after(
             sorted({self.follow, *(self.fleet.splashing if splash else ())}))
@@ -287,10 +293,15 @@ class Simulation:
         return self._poses
 
     def _upload_rays(self, prev, cur, dt: float = 0.0) -> None:
+        if self.w.n_tires:
+            self.w.ray.from_numpy(self._ray_data(prev, cur, dt).astype(self.w.np_real()))
+
+    def _ray_data(self, prev, cur, dt: float = 0.0) -> np.ndarray:
+        """The rays of every splashing rear tire, float64 (T, RAY_FIELDS) in the World.ray layout."""
         w = self.w
+        data = np.zeros((max(w.n_tires, 1), RAY_FIELDS))
         if w.n_tires == 0:
-            return
-        data = np.zeros((w.n_tires, RAY_FIELDS))
+            return data
         o = self.origin
         # a tire that moved much farther than its speed allows (a path that jumps, e.g. a looping arc) did
         # not sweep the ground in between: its previous ray is taken to be the current one
@@ -312,7 +323,7 @@ class Simulation:
             data[far, 0:12] = np.tile(park, 4)
             data[far, 17] = 0.0
         data[:, ACTIVE] = ~far
-        w.ray.from_numpy(data.astype(w.np_real()))
+        return data
 
     def _grid_origin(self) -> np.ndarray:
         return self.bed_center[:2] - self.origin[:2] - self._grid_half
@@ -420,14 +431,13 @@ class Simulation:
                 shift_origin(w, float(shift[0]), float(shift[1]))
             self.origin[:2] = new
         tires_now = self.fleet.rear_tires(poses)
-        if p.splash:
-            self._upload_rays(self._tires_prev, tires_now, dt)
+        rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
         self._tires_prev = tires_now
         self._poses = poses
         if self.n_rocks and (p.flight or p.recycle or p.splash):
             lc = self.bed_center[:2] - self.origin[:2]
             g = self._grid_origin()
-            rock_pass(w, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
+            rock_pass(w, rays, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
                       float(self._lead[0]), float(self._lead[1]), float(g[0]), float(g[1]), self.step_count,
                       p.flight, p.recycle, p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
         if p.splash:
@@ -504,15 +514,13 @@ class Simulation:
         non-finite, outside the bed (with recycling) or below the ground (with ground contact)."""
         if not self.n_rocks:
             return
-        if not hasattr(self, "_health_out"):
-            self._health_out = ti.field(ti.i32, shape=6)
         lc = self.bed_center[:2] - self.origin[:2]
         # 1 mm, or a few float spacings at the bed's distance from the kernel origin ("world" origin, f32)
         eps = float(np.finfo(self.w.np_real()).eps)
         slack = 1e-3 + 8.0 * eps * (float(np.max(np.abs(lc))) + self.scene.bed.radius)
         health(self.w, float(lc[0]), float(lc[1]), slack, self.plan.recycle, self.plan.ground != "none",
-               self._health_out)
-        out = self._health_out.to_numpy()
+               self.w.health_out)
+        out = self.w.health_out.to_numpy()
         if not out[:3].any():
             return
         kind = int(np.flatnonzero(out[:3])[0])

@@ -7,9 +7,11 @@ asks for that pass: no hash table without splashing tires, no ray buffers withou
 
 
 import math
+import weakref
 
 import numpy as np
 import taichi as ti
+from taichi.lang.field import Field
 
 # Rock phases.
 RESTING, FLYING, SLIDING = 0, 1, 2
@@ -131,6 +133,12 @@ class World:
             self.tmp_vec = ti.Vector.field(3, real, shape=cap)
             self.tmp_real = ti.field(real, shape=cap)
             self.tmp_int = ti.field(ti.i32, shape=cap)
+        self.health_out = ti.field(ti.i32, shape=6)  # the runtime guard's counts (Simulation.check_health)
+        self.owner = None  # weak reference to the Simulation using these fields (see acquire)
+
+    def fields(self) -> list:
+        """Every Taichi field of this World."""
+        return [v for v in vars(self).values() if isinstance(v, Field)]
 
     def set_params(self, par: np.ndarray, ipar: np.ndarray) -> None:
         self.par.from_numpy(par.astype(np.float64 if self.real == ti.f64 else np.float32))
@@ -138,6 +146,36 @@ class World:
 
     def np_real(self):
         return np.float64 if self.real == ti.f64 else np.float32
+
+
+@ti.kernel
+def _zero_fields(w: ti.template()):
+    for f in ti.static(w.fields()):
+        for I in ti.grouped(f):
+            f[I] = f[I] * 0
+
+
+_POOL: dict = {}
+
+
+def acquire(owner, n: int, real, **layout) -> World:
+    """A World for ``owner`` (a Simulation): one of the same layout that its previous owner released (was
+    garbage-collected), with every field zeroed, or else a new one.
+
+    Taichi never frees fields, and every new World compiles every kernel again (its fields are template
+    arguments: ~2-4 s on a 2-core CPU). Re-using released Worlds keeps memory bounded and makes the second
+    and later Simulations of a layout start at once: notebooks re-running a cell, parameter sweeps, tests.
+    Two live Simulations never share a World."""
+    key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
+    for w in _POOL.get(key, ()):
+        if w.owner is None or w.owner() is None:
+            _zero_fields(w)
+            w.owner = weakref.ref(owner)
+            return w
+    w = World(n, real, **layout)
+    w.owner = weakref.ref(owner)
+    _POOL.setdefault(key, []).append(w)
+    return w
 
 
 def dilation_cells(r_max: float, cell: float) -> int:
