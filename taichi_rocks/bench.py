@@ -995,7 +995,7 @@ def _empty_kernel():
 
 
 def launch_overheads(built: Built, rec, cfg: Config) -> dict:
-    """Fixed cost of a kernel call on this machine: an empty kernel, and rock_pass (its 19 arguments) over
+    """Fixed cost of a kernel call on this machine: an empty kernel, and rock_pass (its 20 arguments) over
     zero rocks; plus the host part of a step (vehicle poses, rays, mask)."""
     sim = built.sim
     w = sim.world
@@ -1902,7 +1902,7 @@ def write_report(res: dict, out: Path, plots: list) -> Path:
     ov = res["speed"].get("overheads", {})
     if ov:
         L.append(f"Fixed costs: an empty Taichi kernel call {_fmt(ov.get('empty_kernel_ms'))} ms; `rock_pass` over "
-                 f"zero rocks with every pass off {_fmt(ov.get('rock_pass_zero_rocks_ms'))} ms (the cost of passing its 19 "
+                 f"zero rocks with every pass off {_fmt(ov.get('rock_pass_zero_rocks_ms'))} ms (the cost of passing its 20 "
                  "arguments); "
                  f"vehicle poses + rear-tire rays on the host {_fmt(ov.get('vehicle_poses_and_rays_ms'))} ms "
                  f"(main scene).\n")

@@ -1164,7 +1164,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
             raise
     for f in old:  # only now: a failure above leaves the previous render untouched
         f.unlink()
-    checkpoints.start(resume)
+    checkpoints.start(resume, start)
     writer = FrameWriter(out_dir, scene.name, video_fps, fmt, start=start)
     t_sim = 0.0
     t_first = 0.0

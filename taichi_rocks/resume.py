@@ -57,8 +57,9 @@ class RenderCheckpoints:
         self.every = int(every)
 
     # ------------------------------------------------------------------------------------------------
-    def start(self, resume: bool) -> None:
-        """A new render forgets older states; a resumed one first checks they are its own."""
+    def start(self, resume: bool, first_missing: int = 0) -> None:
+        """A new render forgets older states; a resumed one first checks they are its own and drops those of
+        frames it will draw again (at or after ``first_missing``)."""
         if not resume:
             shutil.rmtree(self.dir, ignore_errors=True)
         else:
@@ -67,6 +68,9 @@ class RenderCheckpoints:
                 for ext in (".npz.", ".json."):
                     if ext in tmp.name:
                         remove_stale_temporaries(self.dir / (tmp.name[1:].split(ext)[0] + ext[:-1]))
+            for path in self.saved():
+                if int(path.stem.split("_")[1]) >= first_missing:
+                    path.unlink(missing_ok=True)
         self.dir.mkdir(parents=True, exist_ok=True)
         meta = self.dir / "render.json"
         _write_atomic(meta, lambda f: f.write(json.dumps({"fingerprint": self.print}).encode()))
