@@ -1,13 +1,17 @@
 """The simulation: which passes run (from the scene's [effects]), the step and the clock.
 
 One step of length dt:
-  1. vehicles: poses at t + dt on the host; the bed centre follows ``bed.follow``; tire rays uploaded;
-  2. rock pass (one fused kernel over the rocks): flight -> recycle -> count for the hash;
+  1. vehicles: poses at t + dt on the host; the bed centre follows ``bed.follow``; tire rays computed;
+  2. rock pass (one fused kernel over the rocks; it takes the rays as an argument): flight -> recycle ->
+     count for the hash;
   3. hash build: prefix sum over the table, scatter (and every ``reorder_every`` steps the rocks are
      re-sorted in memory by slot, which keeps the next steps' scattered writes local);
   4. tire pass: ray cells, candidate rocks, segment-sphere test, launch.
 Passes nobody asked for are neither compiled nor called, and their fields are not allocated: no splashing
 tire -> no hash table, no tire pass and no flight (only launched rocks ever leave the ground).
+Coasting: once every vehicle that matters has stopped for good, no tire can launch and the bed stands
+still; the rocks are then independent and any number of steps runs as one ``coast_pass`` launch,
+bit-identical to stepping (``Simulation.coast = False`` turns it off).
 Coordinates: kernels work in a local frame, world = origin + local; with ``origin = "floating"`` the
 origin jumps (by multiples of 64 m) to stay near the bed, so f32 keeps sub-millimetre precision anywhere.
 """
