@@ -8,9 +8,11 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -186,13 +188,55 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-def main(argv=None) -> int:
+# What each command imports, loaded up front while Ctrl-C is held back (see main).
+_PRELOAD = {
+    "check": ("taichi_rocks.scene",),
+    "schema": ("taichi_rocks.scene",),
+    "simulate": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.recording", "tqdm"),
+    "render": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.render", "taichi_rocks.video",
+               "taichi_rocks.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
+    "bench": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.bench"),
+}
+
+
+def _start(argv, held: list):
+    """Parse the arguments and import what the command needs, with Ctrl-C held back (``held`` collects it).
+
+    A KeyboardInterrupt raised inside a third-party import can be swallowed there (the run then goes on as if
+    nothing happened) or leave a half-initialised extension module behind (seen: Ctrl-C during SciPy's import
+    ended in 'ImportError: generic_type: type "ObjSense" is already registered!'); Taichi's initialisation
+    is held back too. Nothing is written before this returns."""
     args = _parser().parse_args(argv)
+    for name in _PRELOAD[args.command]:
+        importlib.import_module(name)
+    if args.command in ("simulate", "render", "bench"):
+        from .runtime import init_taichi
+
+        init_taichi(args.arch)
+    return args
+
+
+def main(argv=None, *, held=None, restore=None) -> int:
+    """The command line. ``held``: Ctrl-C presses already held back (``python -m taichi_rocks`` holds them
+    from its first line); ``restore``: the SIGINT handler to put back after start-up (default: the one
+    found)."""
+    held = [] if held is None else held
+    if restore is None:
+        restore = signal.getsignal(signal.SIGINT)
+        if not callable(restore) and restore not in (signal.SIG_IGN, signal.SIG_DFL):
+            restore = signal.default_int_handler
+    signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    try:
+        args = _start(argv, held)
+    finally:
+        signal.signal(signal.SIGINT, restore)
     from .scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "render": cmd_render,
                "bench": cmd_bench}[args.command]
     try:
+        if held:
+            raise KeyboardInterrupt
         return handler(args)
     except SceneError as e:
         _err(str(e))

@@ -94,6 +94,24 @@ def test_interrupted_simulate_leaves_no_file(tmp_path):
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", ["simulate", "render"])
+@pytest.mark.parametrize("delay", [0.2, 0.6, 1.0])
+def test_ctrl_c_during_start_up_is_a_clean_interrupt(tmp_path, command, delay):
+    """Ctrl-C while the command is still importing its libraries or starting Taichi: exit 130, one line, no
+    traceback, nothing written. (Without holding it back until the imports are done, a Ctrl-C inside SciPy's
+    import ended in an ImportError, and one inside another import was swallowed: the run went on.)"""
+    out = tmp_path / "out"
+    args = [command, ROOT / "scenes" / "minimal.toml", "--frames", "100000", "--out"]
+    args += [out / "x.npz"] if command == "simulate" else [out, "--resolution", "160x96"]
+    p = start_cli(*args)
+    time.sleep(delay)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and "interrupted" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_killed_simulate_leaves_no_final_file_and_the_next_run_cleans_up(tmp_path):
     """kill -9 while the .npz is being assembled (its temporary exists, ~110 MB): nothing appears under the
     final name; the next run removes the dead writer's temporaries and writes a complete file."""
