@@ -285,8 +285,7 @@ class Simulation:
         self.coast = True
         self._no_rays = np.zeros((1, RAY_FIELDS))
         self.steps_coasted = 0
-        self._still_after = self.fleet.still_after(
-            sorted({self.follow, *(self.fleet.splashing if splash else ())}))
+        self._matter = sorted({self.follow, *(self.fleet.splashing if splash else ())})
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -398,7 +397,8 @@ class Simulation:
         """True when the coming steps can run as one ``coast`` launch: every vehicle that matters (the one
         the bed follows, the splashing ones) has stopped for good, so the bed stands and no tire launches."""
         p = self.plan
-        return bool(self.coast and self.n_rocks and (p.flight or p.recycle) and self.time >= self._still_after)
+        return bool(self.coast and self.n_rocks and (p.flight or p.recycle)
+                    and self.time >= self.fleet.still_after(self._matter))
 
     def _coast(self, n: int) -> None:
         w, p = self.w, self.plan

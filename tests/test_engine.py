@@ -278,7 +278,7 @@ def test_coasting_is_bit_identical_to_stepping():
                vehicles=[{"name": "car", "path": {"points": [[-2.0, 0.0], [2.0, 0.0]], "speed": [4.0, 0.0]}}])
     sims = [Simulation(sc), Simulation(sc)]
     sims[1].coast = False
-    assert sims[0]._still_after == pytest.approx(2.0)
+    assert sims[0].fleet.still_after(sims[0]._matter) == pytest.approx(2.0)
     rng = np.random.default_rng(5)
     throw = rng.choice(3000, 1000, replace=False)
     vel = np.column_stack([rng.uniform(-6.0, 6.0, (1000, 2)), rng.uniform(0.5, 5.0, 1000)])
