@@ -885,8 +885,8 @@ class Renderer:
         drawn = self._draw_ggui(eye, target, sd, origin, poses)
         for _ in range(GLITCH_RETRIES):
             # GGUI 1.7.4 on lavapipe now and then loses a whole renderable (seen: the vehicles' mesh) in one
-            # frame: a collapse of the pixels GGUI drew, or a vehicle in view with no pixel drawn in its screen
-            # box, is that, not the scene: draw the 3D layer again
+            # frame: a collapse of the pixels GGUI drew, or a vehicle in view that hardly covers its screen box
+            # (_vehicle_lost), is that, not the scene: draw the 3D layer again
             if drawn >= GLITCH_DROP * self._prev_drawn and not self._vehicle_lost(eye, fwd, right, up):
                 break
             self.redraws += 1
@@ -1102,7 +1102,8 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     frames, default 30, in ``out_dir/.resume/``; see resume.py), advance the simulation and the camera from
     there to the first missing frame without drawing, re-encode the kept frames into the video and render the
     rest (the result equals an uninterrupted render: the simulation is deterministic); the frames must have
-    the requested resolution, and the scene, fps and rock mode must be the interrupted render's. ``progress``: a tqdm bar on stderr; None shows it only on a terminal.
+    the requested resolution, and the scene, fps and rock mode must be the interrupted render's.
+    ``progress``: a tqdm bar on stderr; None shows it only on a terminal.
     ``on_frame(k, image)``, if given, sees every frame drawn (tests).
 
     Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from" (first frame drawn),

@@ -58,12 +58,12 @@ class RenderCheckpoints:
 
     # ------------------------------------------------------------------------------------------------
     def start(self, resume: bool, first_missing: int = 0) -> None:
-        """A new render forgets older states; a resumed one first checks they are its own and drops those of
-        frames it will draw again (at or after ``first_missing``)."""
+        """A new render forgets older states; a resumed one (which has called :meth:`check_same_render`)
+        drops the temporaries of a killed render and the states of frames it will draw again (at or after
+        ``first_missing``)."""
         if not resume:
             shutil.rmtree(self.dir, ignore_errors=True)
         else:
-            self.check_same_render()
             for tmp in self.dir.glob(".*.*.*"):  # temporaries of a killed render: .frame_00029.npz.PID.XXX.part
                 for ext in (".npz.", ".json."):
                     if ext in tmp.name:
