@@ -199,8 +199,8 @@ _PRELOAD = {
 }
 
 
-def _start(argv, held: list):
-    """Parse the arguments and import what the command needs, with Ctrl-C held back (``held`` collects it).
+def _start(argv):
+    """Parse the arguments, import what the command needs and start Taichi (main holds Ctrl-C back meanwhile).
 
     A KeyboardInterrupt raised inside a third-party import can be swallowed there (the run then goes on as if
     nothing happened) or leave a half-initialised extension module behind (seen: Ctrl-C during SciPy's import
@@ -227,7 +227,7 @@ def main(argv=None, *, held=None, restore=None) -> int:
             restore = signal.default_int_handler
     signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
     try:
-        args = _start(argv, held)
+        args = _start(argv)
     finally:
         signal.signal(signal.SIGINT, restore)
     from .scene import SceneError
