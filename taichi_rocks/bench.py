@@ -1113,6 +1113,20 @@ def _timed_call(fn) -> float:
     return time.perf_counter() - t
 
 
+def _ab_steps(built: Built, scene_a, scene_b, rounds: int, m: int) -> tuple:
+    """Step times of ``built``'s simulation with the plans of two scenes, interleaved (``rounds`` x ``m``
+    steps each, after compiling b), so that drifting machine load hits both alike. Ends on plan b."""
+    swap_plan(built.sim, scene_b)
+    built.step_timed(2)  # compile
+    a, b = [], []
+    for _ in range(rounds):
+        swap_plan(built.sim, scene_a)
+        a += built.step_timed(m)
+        swap_plan(built.sim, scene_b)
+        b += built.step_timed(m)
+    return a, b
+
+
 def effects_costs(main: Built, bed_only: Built, cfg: Config, prog) -> dict:
     """Cost of each effect = step with it on - step with it off, measured interleaved (A, B, A, B, ...) on
     the same simulation so that drift cancels; the splash cost comes from a bed-only scene."""
@@ -1127,15 +1141,7 @@ def effects_costs(main: Built, bed_only: Built, cfg: Config, prog) -> dict:
         for name, ov in variants.items():
             if name not in cfg.effects:
                 continue
-            other = scene_with(scene0, ov)
-            swap_plan(sim, other)
-            main.step_timed(2)  # compile
-            a, b = [], []
-            for _ in range(rounds):
-                swap_plan(sim, scene0)
-                a += main.step_timed(m)
-                swap_plan(sim, other)
-                b += main.step_timed(m)
+            a, b = _ab_steps(main, scene0, scene_with(scene0, ov), rounds, m)
             base_all += a
             ma, mb = 1e3 * float(np.median(a)), 1e3 * float(np.median(b))
             out[name] = {"step_ms": mb, "effect_cost_ms": ma - mb, "baseline_ms": ma}
@@ -1150,15 +1156,7 @@ def effects_costs(main: Built, bed_only: Built, cfg: Config, prog) -> dict:
     bo = bed_only.sim
     bed_only.step_timed(cfg.warm)
     scene_b = bo.scene
-    off_scene = scene_with(scene_b, {"effects.recycle": False})
-    swap_plan(bo, off_scene)
-    bed_only.step_timed(2)
-    a, b = [], []
-    for _ in range(rounds):
-        swap_plan(bo, scene_b)
-        a += bed_only.step_timed(m)
-        swap_plan(bo, off_scene)
-        b += bed_only.step_timed(m)
+    a, b = _ab_steps(bed_only, scene_b, scene_with(scene_b, {"effects.recycle": False}), rounds, m)
     swap_plan(bo, scene_b)
     bed_ms, off = 1e3 * float(np.median(a)), 1e3 * float(np.median(b))
     res["splash off (bed only: recycle)"] = {"step_ms": bed_ms, "effect_cost_ms": base - bed_ms}

@@ -35,6 +35,19 @@ def atomic_path(final: Path) -> Path:
     return Path(tmp)
 
 
+def write_atomically(final: Path, write) -> None:
+    """Write ``final`` complete or not at all: ``write(f)`` fills a temporary file beside it (binary), which
+    is then renamed over ``final``; on any failure the temporary is removed."""
+    final = Path(final)
+    tmp = atomic_path(final)
+    try:
+        with open(tmp, "wb") as f:
+            write(f)
+        os.replace(tmp, final)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -114,15 +127,12 @@ def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool =
                  "seed": np.int64(sim.scene.seed), "scene": np.array(sim.scene.name)}
         for k, val in small.items():
             np.save(work / f"{k}.npy", val)
-        tmp = atomic_path(out)
-        try:
-            with zipfile.ZipFile(tmp, "w", zipfile.ZIP_STORED, allowZip64=True) as z:
+        def write_zip(f):
+            with zipfile.ZipFile(f, "w", zipfile.ZIP_STORED, allowZip64=True) as z:
                 for k in list(shapes) + list(small):
                     z.write(work / f"{k}.npy", arcname=f"{k}.npy")
-            os.replace(tmp, out)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
+
+        write_atomically(out, write_zip)
         return {"frames": frames, "rocks": n, "path": str(out), "bytes": out.stat().st_size}
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -14,13 +14,12 @@ uninterrupted render's. A fingerprint that differs (the scene file was edited, a
 
 import hashlib
 import json
-import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 
-from .recording import atomic_path, remove_stale_temporaries
+from .recording import remove_stale_temporaries, write_atomically
 
 CHECKPOINT_EVERY = 30  # frames between saved states (~10 MB for 200,000 rocks, ~20 ms to write)
 KEEP = 2
@@ -36,16 +35,6 @@ def fingerprint(scene, fps: float, resolution, rocks: str) -> str:
     blob = json.dumps({"scene": scene_to_dict(scene), "fps": float(fps), "resolution": [int(x) for x in resolution],
                        "rocks": rocks}, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()
-
-
-def _write_atomic(final: Path, write) -> None:
-    tmp = atomic_path(final)
-    try:
-        with open(tmp, "wb") as f:
-            write(f)
-        os.replace(tmp, final)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 class RenderCheckpoints:
@@ -73,7 +62,7 @@ class RenderCheckpoints:
                     path.unlink(missing_ok=True)
         self.dir.mkdir(parents=True, exist_ok=True)
         meta = self.dir / "render.json"
-        _write_atomic(meta, lambda f: f.write(json.dumps({"fingerprint": self.print}).encode()))
+        write_atomically(meta, lambda f: f.write(json.dumps({"fingerprint": self.print}).encode()))
 
     def check_same_render(self) -> None:
         meta = self.dir / "render.json"
@@ -96,7 +85,7 @@ class RenderCheckpoints:
         data.update(frame=np.int64(k), camera_heading=np.float64(rig.heading if rig.heading is not None else np.nan),
                     camera_t=np.float64(rig.t if rig.t is not None else np.nan), fingerprint=np.array(self.print))
         final = self.dir / f"frame_{k:05d}.npz"
-        _write_atomic(final, lambda f: np.savez(f, **data))
+        write_atomically(final, lambda f: np.savez(f, **data))
         for old in self.saved()[:-KEEP]:
             old.unlink(missing_ok=True)
         return final
