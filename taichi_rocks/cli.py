@@ -54,7 +54,7 @@ def _resolution(text: str) -> tuple[int, int]:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from .plan import ARCHES
+    from .config.plan import ARCHES
 
     p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -104,7 +104,7 @@ def _frames(scene, args) -> tuple[int, float]:
 
 
 def cmd_check(args) -> int:
-    from .scene import SceneError, load_scene, summarise
+    from .config.scene import SceneError, load_scene, summarise
 
     status = EXIT_OK
     for i, path in enumerate(args.scenes):
@@ -121,7 +121,7 @@ def cmd_check(args) -> int:
 
 
 def cmd_schema(args) -> int:
-    from .scene import scene_json_schema
+    from .config.scene import scene_json_schema
 
     print(json.dumps(scene_json_schema(), indent=2))
     return EXIT_OK
@@ -130,7 +130,7 @@ def cmd_schema(args) -> int:
 def cmd_simulate(args) -> int:
     from tqdm import tqdm
 
-    from .scene import load_scene
+    from .config.scene import load_scene
 
     scene = load_scene(args.scene)
     out = args.out or Path("renders") / scene.name / f"{scene.name}.npz"
@@ -140,8 +140,8 @@ def cmd_simulate(args) -> int:
         raise UsageError(f"{out}: is a directory, expected an .npz file name")
     frames, fps = _frames(scene, args)
     out.parent.mkdir(parents=True, exist_ok=True)
-    from .recording import record
-    from .simulation import Simulation
+    from .output.recording import record
+    from .engine.simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch, seed=args.seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
@@ -152,15 +152,15 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_render(args) -> int:
-    from .scene import load_scene
+    from .config.scene import load_scene
 
     scene = load_scene(args.scene)
-    from .render import render_scene
+    from .render.renderer import render_scene
     kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
                   profile=args.profile, checkpoint_every=args.checkpoint_every)
     if args.seed is not None:
-        from .scene import scene_with
+        from .config.scene import scene_with
 
         scene = scene_with(scene, {"seed": args.seed})
     if args.resume:
@@ -182,7 +182,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import run_bench
+    from .bench.core import run_bench
     info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK
@@ -190,12 +190,12 @@ def cmd_bench(args) -> int:
 
 # What each command imports, loaded up front while Ctrl-C is held back (see main).
 _PRELOAD = {
-    "check": ("taichi_rocks.scene",),
-    "schema": ("taichi_rocks.scene",),
-    "simulate": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.recording", "tqdm"),
-    "render": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.render", "taichi_rocks.video",
-               "taichi_rocks.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
-    "bench": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.bench"),
+    "check": ("taichi_rocks.config.scene",),
+    "schema": ("taichi_rocks.config.scene",),
+    "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
+    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.renderer", "taichi_rocks.output.video",
+               "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
+    "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.core"),
 }
 
 
@@ -210,7 +210,7 @@ def _start(argv):
     for name in _PRELOAD[args.command]:
         importlib.import_module(name)
     if args.command in ("simulate", "render", "bench"):
-        from .runtime import init_taichi
+        from .engine.runtime import init_taichi
 
         init_taichi(args.arch)
     return args
@@ -230,7 +230,7 @@ def main(argv=None, *, held=None, restore=None) -> int:
         args = _start(argv)
     finally:
         signal.signal(signal.SIGINT, restore)
-    from .scene import SceneError
+    from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "render": cmd_render,
                "bench": cmd_bench}[args.command]
@@ -249,7 +249,7 @@ def main(argv=None, *, held=None, restore=None) -> int:
              + ("; run the same command with --resume to continue" if args.command == "render" else ""))
         return EXIT_INTERRUPTED
     except Exception as e:  # noqa: BLE001 - one line, no traceback, for anything the engine raises
-        from .simulation import HealthError
+        from .engine.simulation import HealthError
 
         if isinstance(e, HealthError):
             _err(f"taichi-rocks {args.command}: simulation failed at {e}")

@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 @pytest.fixture(scope="session")
 def taichi_cpu():
-    from taichi_rocks.runtime import init_taichi
+    from taichi_rocks.engine.runtime import init_taichi
 
     return init_taichi("cpu")
 

@@ -4,8 +4,8 @@
 import numpy as np
 import taichi as ti
 
-from taichi_rocks import hashgrid, tires
-from taichi_rocks.world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
+from taichi_rocks.engine import hashgrid, tires
+from taichi_rocks.engine.world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
 
 P = np.array([73856093, 19349663, 83492791], dtype=np.uint64)
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from taichi_rocks.scene import parse_scene
+from taichi_rocks.config.scene import parse_scene
 
 
 def scene(rocks=2000, radius=8.0, vehicles=None, effects=None, sim=None, world=None, bed=None, launch=None,
@@ -23,7 +23,7 @@ class FakePath:
         self.duration = None
 
     def pose(self, t):
-        from taichi_rocks.paths import Pose
+        from taichi_rocks.motion.paths import Pose
 
         x, y, heading, speed = self.fn(t)
         return Pose(np.array([x, y], float), heading, speed, 0.0,
@@ -52,8 +52,8 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     smaller cells) and ray cells (longer rays, smaller cells) as needed. Missing rocks and rays are padded
     with dummies far away (10 km up), which nothing can hit. Returns the probe; ``hits()`` then works as
     usual (indices < len(pos))."""
-    from taichi_rocks import hashgrid
-    from taichi_rocks.world import IPar, Par, dilation_cells
+    from taichi_rocks.engine import hashgrid
+    from taichi_rocks.engine.world import IPar, Par, dilation_cells
 
     w = probe.w
     cap = w.pos.shape[0]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from scenes_util import FakePath, scene, uniformity_pvalue
-from taichi_rocks.simulation import Simulation
+from taichi_rocks.engine.simulation import Simulation
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 N = 12000

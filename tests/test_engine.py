@@ -5,8 +5,8 @@ import pytest
 import taichi as ti
 
 from scenes_util import scene
-from taichi_rocks.simulation import Simulation
-from taichi_rocks.world import FLYING, RESTING
+from taichi_rocks.engine.simulation import Simulation
+from taichi_rocks.engine.world import FLYING, RESTING
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
@@ -15,8 +15,8 @@ pytestmark = pytest.mark.usefixtures("taichi_cpu")
 @pytest.fixture(scope="module")
 def launch_kernel(taichi_cpu):
     from harness import Probe
-    from taichi_rocks import tires
-    from taichi_rocks.world import Par
+    from taichi_rocks.engine import tires
+    from taichi_rocks.engine.world import Par
 
     probe = Probe(np.zeros((1, 3)), [0.02], cell=0.1)
     w = probe.w
@@ -227,7 +227,7 @@ def test_reproducible_and_independent_of_memory_order_and_hash_settings():
     sc = scene(rocks=6000)
     _, a = run_states(sc)
     _, b = run_states(sc)
-    from taichi_rocks.scene import scene_with
+    from taichi_rocks.config.scene import scene_with
 
     _, c = run_states(scene_with(sc, {"sim.hash.reorder_every": 0}))
     _, d = run_states(scene_with(sc, {"sim.hash.insert": "aabb"}))

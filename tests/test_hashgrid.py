@@ -7,7 +7,7 @@ import pytest
 import taichi as ti
 
 from harness import Probe, np_cell, np_hash
-from taichi_rocks import hashgrid
+from taichi_rocks.engine import hashgrid
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
@@ -125,7 +125,7 @@ def dda_cells(segments, l):
     rays = np.asarray(segments, np.float64)
     probe = Probe(np.zeros((1, 3)), [0.01], cell=l, rays=rays)
     probe.set_rays(rays, rays)
-    from taichi_rocks import tires
+    from taichi_rocks.engine import tires
     tires.trace_rays(probe.w)
     counts = probe.w.ray_cell_count.to_numpy()
     cells = probe.w.ray_cells.to_numpy()

@@ -8,7 +8,7 @@ from scipy.integrate import quad
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
-from taichi_rocks.paths import CirclePath, WaypointPath, path_from_spec, sample
+from taichi_rocks.motion.paths import CirclePath, WaypointPath, path_from_spec, sample
 
 CURVY = [[0.0, 0.0], [20.0, 5.0], [35.0, -4.0], [60.0, 10.0], [70.0, 30.0]]
 LOOP = [[0.0, 0.0], [30.0, -5.0], [50.0, 20.0], [10.0, 30.0]]

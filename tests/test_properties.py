@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from harness import Probe, np_cell, np_hash, np_segment_sphere, segment_sphere_kernel
 from scenes_util import reload_probe
-from taichi_rocks import hashgrid, tires
+from taichi_rocks.engine import hashgrid, tires
 from test_hashgrid import brute_cells, cell_kernels  # noqa: F401  (cell_kernels: module fixture)
 from test_tires import seg_kernel  # noqa: F401  (module fixture: f64 segment-sphere kernel)
 

@@ -15,14 +15,14 @@ N_FRAMES = 6
 
 @pytest.fixture(scope="module")
 def render_mod(taichi_cpu):
-    from taichi_rocks import render
+    from taichi_rocks.render import renderer
 
-    return render
+    return renderer
 
 
 @pytest.fixture(scope="module")
 def minimal_scene(scenes_dir):
-    from taichi_rocks.scene import load_scene
+    from taichi_rocks.config.scene import load_scene
 
     return load_scene(scenes_dir / "minimal.toml")
 
@@ -50,7 +50,7 @@ def _mean_rgb(a):
 
 
 def _fresh(render_mod, scene, **kw):
-    from taichi_rocks.simulation import Simulation
+    from taichi_rocks.engine.simulation import Simulation
 
     sim = Simulation(scene, arch="cpu")
     return sim, render_mod.Renderer(sim, resolution=(W, H), **kw)
@@ -159,7 +159,7 @@ def test_a_rock_in_view_is_drawn_where_it_projects(shared, minimal_scene, phase)
 def test_ground_is_anchored_to_the_world(shared):
     """Moving the floating origin (here by 37.3 m, not a whole number of tiles) changes no pixel but rounding:
     the checker, the rocks and the vehicles are all drawn where they are in the world."""
-    from taichi_rocks.simulation import shift_origin
+    from taichi_rocks.engine.simulation import shift_origin
 
     sim, r = shared
     a = r.render_frame().copy()
@@ -215,7 +215,7 @@ def test_a_lost_vehicle_mesh_is_drawn_again(shared):
 
 
 def test_particles_mode_renders(render_mod, shared):
-    from taichi_rocks.render import Renderer
+    from taichi_rocks.render.renderer import Renderer
 
     sim, _ = shared
     r = Renderer(sim, resolution=(W, H), rocks="particles")
@@ -309,7 +309,7 @@ def test_missing_vulkan_message(render_mod):
 def test_png_encoder_round_trips():
     import imageio.v3 as iio
 
-    from taichi_rocks.video import png_bytes
+    from taichi_rocks.output.video import png_bytes
 
     rng = np.random.default_rng(0)
     for shape in [(1, 1, 3), (5, 7, 4), (H, W, 3)]:
@@ -318,7 +318,7 @@ def test_png_encoder_round_trips():
 
 
 def test_failed_render_keeps_frames_and_drops_partial_video(tmp_path):
-    from taichi_rocks.video import FrameWriter
+    from taichi_rocks.output.video import FrameWriter
 
     w = FrameWriter(tmp_path, "clip", 30.0, "mp4")
     for _ in range(3):
@@ -395,7 +395,7 @@ def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, 
 
     import imageio.v3 as iio
     from cli_util import cli, start_cli, wait_for
-    from taichi_rocks.video import finished_frames
+    from taichi_rocks.output.video import finished_frames
 
     frames_dir = tmp_path / "frames"
     p = start_cli(*render_cli_args(scenes_dir, tmp_path))

@@ -18,9 +18,9 @@ import pytest
 
 from harness import Probe
 from scenes_util import FakePath, reload_probe, scene, uniformity_pvalue
-from taichi_rocks.scene import SceneError, parse_scene
-from taichi_rocks.simulation import HealthError, Simulation
-from taichi_rocks.world import FLYING, RESTING
+from taichi_rocks.config.scene import SceneError, parse_scene
+from taichi_rocks.engine.simulation import HealthError, Simulation
+from taichi_rocks.engine.world import FLYING, RESTING
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 

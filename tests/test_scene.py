@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from taichi_rocks.scene import (Scene, SceneError, estimate_memory, load_scene, parse_scene, scene_json_schema,
+from taichi_rocks.config.scene import (Scene, SceneError, estimate_memory, load_scene, parse_scene, scene_json_schema,
                                 scene_to_dict, scene_with, summarise)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -28,7 +28,7 @@ def problems_of(fn, *args) -> list[str]:
 
 
 def test_scene_module_does_not_import_taichi():
-    code = "import sys, taichi_rocks.scene; assert 'taichi' not in sys.modules"
+    code = "import sys, taichi_rocks.config.scene; assert 'taichi' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
 
 
@@ -185,7 +185,7 @@ def test_memory_estimate():
 
 
 def test_accuracy_presets_fill_unset_keys_only():
-    from taichi_rocks.scene import PRESETS, parse_scene
+    from taichi_rocks.config.scene import PRESETS, parse_scene
 
     car = [{"name": "a", "path": {"points": [[0.0, 0.0], [1.0, 0.0]], "speed": 1.0}}]
     for name, preset in PRESETS.items():

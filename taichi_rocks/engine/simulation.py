@@ -26,10 +26,10 @@ import taichi as ti
 from . import hashgrid, tires
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
-from .plan import Plan
+from ..config.plan import Plan
 from .runtime import init_taichi
-from .scene import load_scene, scene_with
-from .vehicles import Fleet
+from ..config.scene import load_scene, scene_with
+from ..motion.vehicles import Fleet
 from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32

@@ -13,7 +13,7 @@ import sys
 
 import taichi as ti
 
-from .plan import ARCHES
+from ..config.plan import ARCHES
 
 _state: dict = {"arch": None}
 

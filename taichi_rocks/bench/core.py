@@ -51,10 +51,10 @@ from typing import Optional
 import numpy as np
 import taichi as ti
 
-from . import hashgrid, simulation, tires
-from .runtime import init_taichi
-from .scene import parse_scene, scene_with
-from .world import FLYING, IPar
+from ..engine import hashgrid, simulation, tires
+from ..engine.runtime import init_taichi
+from ..config.scene import parse_scene, scene_with
+from ..engine.world import FLYING, IPar
 
 G = 9.81
 ACC_T = 2.0  # s of flight for the accuracy and precision tests
@@ -457,7 +457,7 @@ class Built:
     """A Simulation plus its build time (construction + first step = compile)."""
 
     def __init__(self, scene, arch, label):
-        from .simulation import Simulation
+        from ..engine.simulation import Simulation
 
         t = time.perf_counter()
         self.sim = Simulation(scene, arch=arch)
@@ -506,7 +506,7 @@ def exact_quadratic_vertical(z0, w0, vt, t):
 def _test_cases(sim):
     """Test rocks per drag case: (x0, v0, r), and a function giving the exact positions."""
     par = sim.world.par.to_numpy().astype(np.float64)
-    from .world import Par
+    from ..engine.world import Par
 
     lin, quad = float(par[Par.LINEAR_DRAG]), float(par[Par.QUAD_DRAG])
     g = float(par[Par.GRAVITY])
@@ -734,7 +734,7 @@ def detection_runs(builds: dict, cfg: Config, prog) -> dict:
 # ================================================================================================ 1c precision
 def precision_runs(sims: dict, recs: dict, cfg: Config, prog) -> dict:
     """Flight of launched rocks stored as the engine stores them, at several distances from the origin."""
-    from .simulation import ORIGIN_SNAP
+    from ..engine.simulation import ORIGIN_SNAP
 
     launches = []  # (offset from the launch point reference, v0, r): vehicle at 25 m/s, three release angles
     spin = 25.0 * 1.15

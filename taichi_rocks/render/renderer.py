@@ -1,4 +1,4 @@
-"""Offscreen rendering of a :class:`~taichi_rocks.simulation.Simulation` with Taichi GGUI.
+"""Offscreen rendering of a :class:`~taichi_rocks.engine.simulation.Simulation` with Taichi GGUI.
 
 GGUI draws through Vulkan; on a machine without a GPU, Mesa's software driver (lavapipe) does the work.
 Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window and read back.
@@ -50,7 +50,7 @@ from types import SimpleNamespace
 import numpy as np
 import taichi as ti
 
-from .randomness import mix32
+from ..engine.randomness import mix32
 
 __all__ = ["render_scene", "Renderer", "CameraRig", "to_gl", "GL_UP", "VULKAN_HINT", "DEFAULT_LOD_PIXELS", "ROCK_MODES",
            "rock_color", "check_resolution", "vehicle_mesh", "vehicle_kind"]
@@ -1090,7 +1090,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
                  window_every=WINDOW_EVERY, on_frame=None, checkpoint_every=None) -> dict:
     """Simulate a scene and render it offscreen to PNG frames plus an MP4 or GIF (``fmt="png"``: frames only).
 
-    ``scene_or_path``: a scene file (TOML) or a validated :class:`~taichi_rocks.scene.Scene`. Frame k shows the
+    ``scene_or_path``: a scene file (TOML) or a validated :class:`~taichi_rocks.config.scene.Scene`. Frame k shows the
     simulation at t = k / fps; ``frames`` defaults to round(duration * fps). ``resolution`` and ``fps`` override
     the scene's [render] table. Outputs go to ``out_dir`` (default ``renders/<scene name>/``): ``frames/``
     and ``<scene name>.<fmt>``; existing outputs raise FileExistsError unless ``overwrite`` (which removes the
@@ -1117,11 +1117,11 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     mostly kernel compilation; included in the others)."""
     from tqdm import tqdm
 
-    from .resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
-    from .runtime import init_taichi
-    from .scene import load_scene
-    from .simulation import Simulation
-    from .video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
+    from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
+    from ..engine.runtime import init_taichi
+    from ..config.scene import load_scene
+    from ..engine.simulation import Simulation
+    from ..output.video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
 
     t_start = time.perf_counter()
     if resolution is not None:

@@ -30,7 +30,7 @@ def resume_dir(out_dir) -> Path:
 
 
 def fingerprint(scene, fps: float, resolution, rocks: str) -> str:
-    from .scene import scene_to_dict
+    from ..config.scene import scene_to_dict
 
     blob = json.dumps({"scene": scene_to_dict(scene), "fps": float(fps), "resolution": [int(x) for x in resolution],
                        "rocks": rocks}, sort_keys=True, default=str)

@@ -1,0 +1,1 @@
+"""``taichi-rocks bench``: the measured accuracy-against-cost study, speed against peers, and its report."""

@@ -1,0 +1,1 @@
+"""The offscreen GGUI renderer: kernels, meshes, camera, Renderer and the render pipeline."""
