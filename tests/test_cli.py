@@ -39,6 +39,18 @@ def test_simulate_bad_scene_creates_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("command", ["check", "simulate", "render"])
+def test_deeply_nested_scene_is_bad_input_for_every_command(tmp_path, command):
+    """5,000 levels of arrays once ended in a RecursionError (exit 1); it is bad input: one line with the place."""
+    deep = ROOT / "tests" / "bad_scenes" / "deep_nesting.toml"
+    out = tmp_path / "out"
+    r = cli(command, deep, *([] if command == "check" else ["--out", out / "x.npz" if command == "simulate" else out]))
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.strip().splitlines() == [f"{deep}: line 2, column 37: arrays and inline tables nested deeper "
+                                             "than 32 levels in the value of a"]
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("args", [["--frames", "0"], ["--frames", "-3"], ["--fps", "nan"], ["--arch", "tpu"]])
 def test_usage_errors(tmp_path, args):
     r = cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", tmp_path / "x.npz", *args)

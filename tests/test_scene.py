@@ -194,3 +194,116 @@ def test_accuracy_presets_fill_unset_keys_only():
     sim = parse_scene({"sim": {"accuracy": "draft", "dt": 0.01}, "vehicle": car}).sim
     assert sim.dt == 0.01 and sim.integrator == PRESETS["draft"]["integrator"]
     assert parse_scene({"vehicle": car}).sim.integrator == "symplectic_euler"  # "custom" keeps the defaults
+
+
+def test_vehicle_geometry_must_be_buildable():
+    """Each size that must fit in another is refused at its own key, defaults included; the limits are allowed."""
+    def lines(**vehicle):
+        return problems_of(parse_scene, {"vehicle": [CAR, {"name": "b", **vehicle}]})
+
+    assert lines(height=1.4, tire_radius=1.0) == [
+        "<scene>: vehicle[1].tire_radius: must be <= height / 2 (0.7) so that the tire fits in the vehicle's "
+        "height, got 1"]
+    assert lines(length=1.0, wheelbase=0.5, tire_radius=0.3) == [
+        "<scene>: vehicle[1].tire_radius: must be <= wheelbase / 2 (0.25) so that the front and rear tires do not "
+        "overlap, got 0.3"]
+    assert lines(length=4.0, wheelbase=4.5) == ["<scene>: vehicle[1].wheelbase: must be <= length (4), got 4.5"]
+    assert lines(width=1.8, track=2.0) == ["<scene>: vehicle[1].track: must be <= width (1.8), got 2"]
+    assert lines(track=0.3, tire_width=0.4) == [
+        "<scene>: vehicle[1].tire_width: must be <= track (0.3) so that the left and right tires do not overlap, "
+        "got 0.4"]
+    assert lines(tire_radius=5.0) == ["<scene>: vehicle[1].tire_radius: must be <= 3, got 5.0"]
+    assert lines(length=120.0) == ["<scene>: vehicle[1].length: must be <= 100, got 120.0"]
+    # a key the file leaves out is checked against the keys it sets
+    assert lines(height=0.5) == ["<scene>: vehicle[1].tire_radius: must be <= height / 2 (0.25) so that the tire "
+                                 "fits in the vehicle's height, got 0.33 (the default)"]
+    assert lines(length=2.0) == ["<scene>: vehicle[1].wheelbase: must be <= length (2), got 2.7 (the default)"]
+    # a key that is wrong itself is reported once, not again at the keys that must fit in it
+    assert lines(height=-1.0, tire_radius=1.0) == ["<scene>: vehicle[1].height: must be > 0, got -1.0"]
+    # exactly at the limits is buildable
+    v = parse_scene({"vehicle": [{"name": "c", "length": 0.8, "wheelbase": 0.8, "height": 0.8, "tire_radius": 0.4,
+                                  "width": 0.3, "track": 0.3, "tire_width": 0.3}]}).vehicles[0]
+    assert (v.wheelbase, 2 * v.tire_radius, v.track, v.tire_width) == (v.length, v.height, v.width, v.track)
+
+
+def test_json_schema_holds_the_vehicle_ranges():
+    props = scene_json_schema()["$defs"]["Vehicle"]["properties"]
+    for key in ("length", "width", "height", "wheelbase", "track", "tire_radius", "tire_width"):
+        assert props[key]["exclusiveMinimum"] == 0 and props[key]["maximum"] > props[key]["default"], key
+    assert props["tire_radius"]["maximum"] == 3
+    for key, other in (("wheelbase", "length"), ("track", "width"), ("tire_radius", "height"),
+                       ("tire_radius", "wheelbase"), ("tire_width", "track")):
+        assert other in props[key]["description"], (key, other)
+
+
+DEEP = 5000
+NESTED = {   # (text, line and column of the first bracket or brace past the limit, the key named)
+    "arrays": ("a = " + "[" * DEEP + "]" * DEEP, (1, 37), "a"),
+    "inline tables": ("a = " + "{b = " * DEEP + "1" + "}" * DEEP, (1, 165), "a"),
+    "both": ("a = " + "[{b = " * DEEP + "1" + "}]" * DEEP, (1, 101), "a"),
+    "in a vehicle": ('[[vehicle]]\nname = "car"\ncolor = [\n  # [[[\n  "[[[",\n' + "[" * DEEP + "]" * DEEP + "]",
+                     (6, 32), "color"),
+}
+
+
+@pytest.mark.parametrize("kind", NESTED)
+def test_deeply_nested_values_are_one_line_with_their_place(tmp_path, kind):
+    """tomllib recurses once per level: without the scan before it, 5,000 levels ended in a RecursionError."""
+    text, (line, column), key = NESTED[kind]
+    path = tmp_path / "deep.toml"
+    path.write_text(text + '\n\n[[vehicle]]\nname = "other"\n')
+    [problem] = problems_of(load_scene, path)
+    assert problem == (f"{path}: line {line}, column {column}: arrays and inline tables nested deeper than 32 "
+                       f"levels in the value of {key}")
+
+
+def test_nesting_scan_ignores_strings_and_comments():
+    import tomllib
+
+    from taichi_rocks.tomltext import MAX_NESTING, loads, nesting_overflow
+
+    b = "[{" * 40
+    text = f'''name = "{b}\\" {b}"  # {b}
+x = \'{b}\'
+y = """{b}
+"{b}"" """"
+z = \'\'\'{b}\'\'\'\'
+[[vehicle]]
+name = "car"
+'''
+    assert nesting_overflow(text) is None
+    assert loads(text) == tomllib.loads(text) == {"name": f'{b}" {b}', "x": b, "y": f'{b}\n"{b}"" "', "z": f"{b}\'",
+                                                 "vehicle": [{"name": "car"}]}
+    at_limit = "a = " + "[" * MAX_NESTING + "]" * MAX_NESTING
+    assert nesting_overflow(at_limit) is None
+    assert nesting_overflow("[[t]]\n" + at_limit.replace("a = [", "a = [[")) == (len("[[t]]\n") + 4 + 32, "a")
+
+
+def test_deeply_nested_data_built_in_code():
+    """parse_scene takes data of any depth: the messages show only the start of the value."""
+    deep = []
+    for _ in range(DEEP):
+        deep = [deep]
+    lines = problems_of(parse_scene, {"a": deep, "vehicle": [{"name": "c", "color": deep, "path": {"points": deep}}]})
+    want = ['<scene>: a: unknown key "a"', "<scene>: vehicle[0].color[0]: expected a number, got [[[[",
+            "<scene>: vehicle[0].path.points[0][0]: "]
+    for start in want:
+        assert any(line.startswith(start) for line in lines), (start, lines)
+    assert max(len(line) for line in lines if "[[[[" in line) < 140
+
+
+def test_recursion_in_parsing_or_validating_is_a_scene_error(tmp_path, monkeypatch):
+    """Belt and braces behind the nesting scan: a RecursionError becomes one line naming the file."""
+    import taichi_rocks.scene as scene_module
+    import taichi_rocks.tomltext as tomltext
+
+    def recurse(*args, **kwargs):
+        raise RecursionError("maximum recursion depth exceeded")
+
+    path = tmp_path / "s.toml"
+    path.write_text('[[vehicle]]\nname = "car"\n')
+    monkeypatch.setattr(tomltext.tomllib, "loads", recurse)
+    assert problems_of(load_scene, path) == [f"{path}: nested too deeply to read"]
+    monkeypatch.undo()
+    monkeypatch.setattr(scene_module.Scene, "model_validate", recurse)
+    assert problems_of(load_scene, path) == [f"{path}: lists and tables nested too deeply to check"]

@@ -20,11 +20,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
 from pydantic_core import PydanticCustomError
 
 from .plan import Plan
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python < 3.11
-    import tomli as tomllib
+from .tomltext import TomlTextError, loads as toml_loads
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
            "scene_json_schema", "estimate_memory", "summarise"]
@@ -224,16 +220,28 @@ Path_ = Union[WaypointPath, CirclePath]
 PATH_KINDS = {"waypoints": WaypointPath, "circle": CirclePath}
 
 
+# Vehicle keys that must fit in keys before them: (that key, its share, why). A key that failed its own check
+# is absent from the data a validator sees, so a bad length is reported once, not again at the wheelbase.
+_FITS = {"wheelbase": [("length", 1, "")], "track": [("width", 1, "")],
+         "tire_radius": [("height", 2, "the tire fits in the vehicle's height"),
+                         ("wheelbase", 2, "the front and rear tires do not overlap")],
+         "tire_width": [("track", 1, "the left and right tires do not overlap")]}
+# Bounds above the largest wheeled vehicles (haul trucks ~8 m tall, ~10 m wide, tires ~4 m across): wrong units
+MAX_BODY, MAX_TIRE_RADIUS = 100.0, 3.0
+_FIT = dict(gt=0, validate_default=True)   # a size that must fit in others: its default is checked too
+
+
 class Vehicle(_Table):
     """One vehicle ([[vehicle]] table)."""
     name: Name = Field(description="unique name of the vehicle")
-    length: Float = _f(4.5, "m", gt=0)
-    width: Float = _f(1.8, "m", gt=0)
-    height: Float = _f(1.4, "m", gt=0)
-    wheelbase: Float = _f(2.7, "m, <= length", gt=0)
-    track: Float = _f(1.6, "m, <= width", gt=0)
-    tire_radius: Float = _f(0.33, "m", gt=0)
-    tire_width: Float = _f(0.22, "m", gt=0)
+    length: Float = _f(4.5, "m, in (0, 100]", gt=0, le=MAX_BODY)
+    width: Float = _f(1.8, "m, in (0, 100]", gt=0, le=MAX_BODY)
+    height: Float = _f(1.4, "m, in (0, 100]", gt=0, le=MAX_BODY)
+    wheelbase: Float = _f(2.7, "m, > 0, <= length: front to rear axle", le=MAX_BODY, **_FIT)
+    track: Float = _f(1.6, "m, > 0, <= width: left to right tire centre", le=MAX_BODY, **_FIT)
+    tire_radius: Float = _f(0.33, "m, in (0, 3]; the diameter is <= height and <= wheelbase", le=MAX_TIRE_RADIUS,
+                            **_FIT)
+    tire_width: Float = _f(0.22, "m, > 0, <= track", le=MAX_BODY, **_FIT)
     color: Color = _f((0.8, 0.2, 0.1), 'RGB in [0, 1], or "#rrggbb"')
     splash: Bool = _f(True, "its rear tires launch rocks")
     slip: Float = _f(0.15, "wheel spin = speed / tire_radius * (1 + slip)", ge=0)
@@ -244,12 +252,15 @@ class Vehicle(_Table):
     def _default_kind(cls, v: Any) -> Any:
         return {"kind": "waypoints", **v} if isinstance(v, dict) and "kind" not in v else v
 
-    @field_validator("wheelbase", "track")
+    @field_validator(*_FITS)
     @classmethod
     def _fits(cls, value: float, info: ValidationInfo) -> float:
-        limit = {"wheelbase": "length", "track": "width"}[info.field_name]
-        if limit in info.data and value > info.data[limit]:   # absent if that key was invalid itself
-            raise ValueError(f"must be <= {limit} ({info.data[limit]:g}), got {value:g}")
+        for limit, share, why in _FITS[info.field_name]:
+            if limit in info.data and value > info.data[limit] / share:
+                bound = limit + (f" / {share}" if share > 1 else "") + f" ({info.data[limit] / share:g})"
+                default = " (the default)" if value == cls.model_fields[info.field_name].default else ""
+                raise ValueError(f"must be <= {bound}" + (f" so that {why}" if why else "") + f", got {value:g}"
+                                 + default)
         return value
 
 
@@ -314,8 +325,8 @@ _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error
 
 
 # ---------------------------------------------------------------------------------------------- messages
-def _show(v: Any) -> str:
-    """A value as the user wrote it (TOML-ish), kept short."""
+def _show(v: Any, room: int = 60) -> str:
+    """A value as the user wrote it (TOML-ish); a list is cut to ``room`` characters, looking only at what fits."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
@@ -323,8 +334,13 @@ def _show(v: Any) -> str:
     if isinstance(v, dict):
         return "a table"
     if isinstance(v, (list, tuple)):
-        text = "[" + ", ".join(_show(x) for x in v) + "]"
-        return text if len(text) <= 60 else text[:56] + " ...]"
+        text = "["
+        for i, x in enumerate(v):
+            if len(text) > room:
+                break
+            text += (", " if i else "") + _show(x, room - len(text) - 2 * bool(i))
+        text += "]"
+        return text if len(text) <= room else text[:max(room - 4, 0)] + " ...]"
     return "nothing" if v is None else str(v)
 
 
@@ -466,9 +482,12 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
     problems = _name_problems(data)
     scene = None
     try:
-        scene = Scene.model_validate(_with_defaults(data, default_name))
-    except ValidationError as e:
-        problems = [p for err in e.errors() for p in _messages(err)] + problems
+        try:
+            scene = Scene.model_validate(_with_defaults(data, default_name))
+        except ValidationError as e:
+            problems = [p for err in e.errors() for p in _messages(err)] + problems
+    except RecursionError:   # not seen: validating goes as deep as the models, _show as deep as it prints
+        raise SceneError([f"{source}: lists and tables nested too deeply to check"]) from None
     if scene is not None:
         need, have = estimate_memory(scene), _physical_memory()
         if have and need > have:
@@ -490,17 +509,9 @@ def load_scene(path: Union[str, os.PathLike]) -> Scene:
     except UnicodeDecodeError as e:
         raise SceneError([f"{source}: cannot read scene: not UTF-8 text ({e.reason} at byte {e.start})"]) from None
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        msg = str(e)
-        m = re.search(r"\s*\(at line (\d+), column (\d+)\)$", msg)
-        if m:
-            where, msg = f"line {m[1]}, column {m[2]}", msg[:m.start()]
-        else:
-            lines = text.split("\n")
-            where = f"line {len(lines)}, column {len(lines[-1]) + 1}"
-            msg = re.sub(r"\s*\(at end of document\)$", "", msg)
-        raise SceneError([f"{source}: {where}: {msg}"]) from None
+        data = toml_loads(text)
+    except TomlTextError as e:
+        raise SceneError([f"{source}: {e}"]) from None
     return parse_scene(data, source, Path(path).stem)
 
 
