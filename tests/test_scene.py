@@ -260,7 +260,7 @@ def test_deeply_nested_values_are_one_line_with_their_place(tmp_path, kind):
 def test_nesting_scan_ignores_strings_and_comments():
     import tomllib
 
-    from taichi_rocks.tomltext import MAX_NESTING, loads, nesting_overflow
+    from taichi_rocks.config.tomltext import MAX_NESTING, loads, nesting_overflow
 
     b = "[{" * 40
     text = f'''name = "{b}\\" {b}"  # {b}
@@ -295,7 +295,7 @@ def test_deeply_nested_data_built_in_code():
 def test_recursion_in_parsing_or_validating_is_a_scene_error(tmp_path, monkeypatch):
     """Belt and braces behind the nesting scan: a RecursionError becomes one line naming the file."""
     import taichi_rocks.scene as scene_module
-    import taichi_rocks.tomltext as tomltext
+    import taichi_rocks.config.tomltext as tomltext
 
     def recurse(*args, **kwargs):
         raise RecursionError("maximum recursion depth exceeded")
