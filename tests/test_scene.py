@@ -294,7 +294,7 @@ def test_deeply_nested_data_built_in_code():
 
 def test_recursion_in_parsing_or_validating_is_a_scene_error(tmp_path, monkeypatch):
     """Belt and braces behind the nesting scan: a RecursionError becomes one line naming the file."""
-    import taichi_rocks.scene as scene_module
+    import taichi_rocks.config.scene as scene_module
     import taichi_rocks.config.tomltext as tomltext
 
     def recurse(*args, **kwargs):
