@@ -28,6 +28,7 @@ from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from ..config.plan import Plan
 from .runtime import init_taichi
+from .timing import NO_TIMER
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
 from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
@@ -166,11 +167,12 @@ class Simulation:
     """A rock bed following a vehicle, with splashing rear tires. See the module docstring."""
 
     @classmethod
-    def from_scene(cls, path, arch: str = "cpu", seed=None) -> "Simulation":
-        return cls(load_scene(path), arch=arch, seed=seed)
+    def from_scene(cls, path, arch: str = "cpu", seed=None, timer=NO_TIMER) -> "Simulation":
+        return cls(load_scene(path), arch=arch, seed=seed, timer=timer)
 
-    def __init__(self, scene, arch: str = "cpu", seed=None):
+    def __init__(self, scene, arch: str = "cpu", seed=None, timer=NO_TIMER):
         self.arch = init_taichi(arch)
+        self.timer = timer  # the timing hook (engine/timing.py): PassTimer() times every pass of a step
         if seed is not None:
             scene = scene_with(scene, {"seed": int(seed)})
         self.scene = scene
@@ -347,16 +349,24 @@ class Simulation:
         """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs
         by construction (World), so the scatter cannot lose a rock."""
         w, p = self.w, self.plan
+        timer = self.timer
         if p.reorder_every and self.step_count % p.reorder_every == 0:
-            hashgrid.inclusive_scan(w)
-            hashgrid.scatter(w, p.center)
-            self._reorder()
+            with timer("hash scan"):
+                hashgrid.inclusive_scan(w)
+            with timer("hash scatter"):
+                hashgrid.scatter(w, p.center)
+            with timer("reorder"):
+                self._reorder()
             if not p.swept:
-                tires.trace_rays(w)
-            launched = tires.tire_pass(w, self.step_count, p.swept, p.center, p.ground)
-            hashgrid.clear_counts(w)
+                with timer("trace rays"):
+                    tires.trace_rays(w)
+            with timer("tire pass"):
+                launched = tires.tire_pass(w, self.step_count, p.swept, p.center, p.ground)
+            with timer("hash clear"):
+                hashgrid.clear_counts(w)
             return launched
-        return hash_and_tires(w, self.step_count, p.swept, p.center, p.ground)
+        with timer("hash + tires"):
+            return hash_and_tires(w, self.step_count, p.swept, p.center, p.ground)
 
     def _reorder(self) -> None:
         """Re-sort the rocks in memory by slot (entries is then the identity)."""
@@ -408,10 +418,11 @@ class Simulation:
         self.step_count += n
         self.steps_coasted += n
         lc = self.bed_center[:2] - self.origin[:2]
-        for s in range(0, n, 1 << 30):
-            coast_pass(w, min(n - s, 1 << 30), self.dt, float(lc[0]), float(lc[1]), float(self._lead[0]),
-                  float(self._lead[1]), step0 + s, p.flight, p.recycle, p.integrator, p.gravity, p.drag,
-                  p.ground)
+        with self.timer("coast"):
+            for s in range(0, n, 1 << 30):
+                coast_pass(w, min(n - s, 1 << 30), self.dt, float(lc[0]), float(lc[1]), float(self._lead[0]),
+                           float(self._lead[1]), step0 + s, p.flight, p.recycle, p.integrator, p.gravity,
+                           p.drag, p.ground)
         self._poses = self.fleet.poses(self.time)
         self._tires_prev = self.fleet.rear_tires(self._poses)
         self.last_launches = 0
@@ -432,7 +443,8 @@ class Simulation:
             new = np.round(c[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
             shift = new - self.origin[:2]
             if self.n_rocks:
-                shift_origin(w, float(shift[0]), float(shift[1]))
+                with self.timer("origin shift"):
+                    shift_origin(w, float(shift[0]), float(shift[1]))
             self.origin[:2] = new
         tires_now = self.fleet.rear_tires(poses)
         rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
@@ -441,9 +453,10 @@ class Simulation:
         if self.n_rocks and (p.flight or p.recycle or p.splash):
             lc = self.bed_center[:2] - self.origin[:2]
             g = self._grid_origin()
-            rock_pass(w, rays, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
-                      float(self._lead[0]), float(self._lead[1]), float(g[0]), float(g[1]), self.step_count,
-                      p.flight, p.recycle, p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
+            with self.timer("rock pass"):
+                rock_pass(w, rays, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
+                          float(self._lead[0]), float(self._lead[1]), float(g[0]), float(g[1]), self.step_count,
+                          p.flight, p.recycle, p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
         if p.splash:
             self.last_launches = self._hash_and_tires()
 
