@@ -12,6 +12,7 @@ import weakref
 import numpy as np
 import taichi as ti
 from taichi.lang.field import Field
+from taichi.lang.util import to_numpy_type
 
 # Rock phases.
 RESTING, FLYING, SLIDING = 0, 1, 2
@@ -79,6 +80,41 @@ def next_prime(n: int) -> int:
     return n
 
 
+class _Trees:
+    """Allocates fields in SNode trees of one element size each (a tree per size: 4-byte, 8-byte, ...).
+
+    Why not all in one tree: Taichi's SPIR-V backends (Vulkan) pack the fields of a tree end to end, sorted
+    by size, with no alignment padding, and index a 64-bit element at byte offset o as element o >> 3. A
+    64-bit field landing at 4 mod 8 (after fields of an odd number of 32-bit words) is thus read and
+    written 4 bytes too low, over its neighbour, silently (Taichi 1.7.4; the LLVM backends, CPU and CUDA,
+    align their layouts). The i64 launch counter did: in minimal.toml's layout it shared 8 bytes with the
+    last ``ray_cell_count`` entry, so on Vulkan launches_total read that ray's cell count plus the step's
+    launches, and each launch bumped the count. In a tree whose fields all have one element size every
+    offset is a multiple of that size."""
+
+    def __init__(self):
+        self._builders: dict[int, ti.FieldsBuilder] = {}
+
+    def _place(self, f, dtype, shape):
+        shape = (shape,) if isinstance(shape, int) else tuple(shape)
+        size = np.dtype(to_numpy_type(dtype)).itemsize
+        if size not in self._builders:
+            self._builders[size] = ti.FieldsBuilder()
+        fb = self._builders[size]
+        fb.dense(ti.axes(*range(len(shape))), shape).place(f)
+        return f
+
+    def field(self, dtype, shape):
+        return self._place(ti.field(dtype), dtype, shape)
+
+    def vector(self, n: int, dtype, shape):
+        return self._place(ti.Vector.field(n, dtype), dtype, shape)
+
+    def finalize(self) -> None:
+        for fb in self._builders.values():
+            fb.finalize()
+
+
 @ti.data_oriented
 class World:
     """All fields of one simulation. ``n`` rocks; ``n_tires`` splashing rear tires."""
@@ -89,35 +125,36 @@ class World:
         self.n = n
         self.real = real
         cap = max(n, 1)  # Taichi fields cannot be empty
+        trees = _Trees()
         vec3 = ti.types.vector(3, real)
         self.vec3 = vec3
-        self.pos = ti.Vector.field(3, real, shape=cap)
-        self.vel = ti.Vector.field(3, real, shape=cap)
-        self.radius = ti.field(real, shape=cap)
-        self.friction = ti.field(real, shape=cap)
-        self.rock_id = ti.field(ti.i32, shape=cap)
-        self.phase = ti.field(ti.i32, shape=cap)
-        self.par = ti.field(real, shape=Par.COUNT)
-        self.ipar = ti.field(ti.i32, shape=IPar.COUNT)
-        self.launches = ti.field(ti.i64, shape=())
+        self.pos = trees.vector(3, real, cap)
+        self.vel = trees.vector(3, real, cap)
+        self.radius = trees.field(real, cap)
+        self.friction = trees.field(real, cap)
+        self.rock_id = trees.field(ti.i32, cap)
+        self.phase = trees.field(ti.i32, cap)
+        self.par = trees.field(real, Par.COUNT)
+        self.ipar = trees.field(ti.i32, IPar.COUNT)
+        self.launches = trees.field(ti.i64, ())
         self.hashed = hash_table > 0
         if self.hashed:
             self.table_size = hash_table
             self.entry_capacity = max(hash_entries, 1)
             # cell_start[s] .. cell_start[s + 1] is slot s's range of `entries` after a build.
-            self.cell_start = ti.field(ti.i32, shape=hash_table + 1)
-            self.entries = ti.field(ti.i32, shape=self.entry_capacity)
-            self.slot = ti.field(ti.i32, shape=cap)  # centre-cell slot of each rock (centre insert)
-            self.hit_step = ti.field(ti.i32, shape=cap)  # last step a rock was launched
+            self.cell_start = trees.field(ti.i32, hash_table + 1)
+            self.entries = trees.field(ti.i32, self.entry_capacity)
+            self.slot = trees.field(ti.i32, cap)  # centre-cell slot of each rock (centre insert)
+            self.hit_step = trees.field(ti.i32, cap)  # last step a rock was launched
         # scope "tires": a coarse XY mask around the tires' query regions; only rocks on marked tiles are
         # hashed, listed in `listed` (compile-time switch: `masked` is a Python attribute)
         self.masked = self.hashed and tiles is not None
         if self.masked:
             self.tiles = tuple(int(t) for t in tiles)
             self.tile_size = float(tile_size)
-            self.tile_mask = ti.field(ti.i32, shape=self.tiles)
-            self.listed = ti.field(ti.i32, shape=cap)
-            self.n_listed = ti.field(ti.i32, shape=())
+            self.tile_mask = trees.field(ti.i32, self.tiles)
+            self.listed = trees.field(ti.i32, cap)
+            self.n_listed = trees.field(ti.i32, ())
         self.n_tires = n_tires
         self.substeps = substeps
         if n_tires > 0:
@@ -125,15 +162,16 @@ class World:
             self.ray_capacity = ray_capacity
             # per tire (layout in tires.py): ray a0, b0 at the previous step, a1, b1 now, wheel velocity,
             # heading, spin speed omega * R
-            self.ray = ti.field(real, shape=(n_tires, RAY_FIELDS))
-            self.ray_cells = ti.Vector.field(3, ti.i32, shape=(self.n_rays, max(ray_capacity, 1)))
-            self.ray_cell_count = ti.field(ti.i32, shape=self.n_rays)
+            self.ray = trees.field(real, (n_tires, RAY_FIELDS))
+            self.ray_cells = trees.vector(3, ti.i32, (self.n_rays, max(ray_capacity, 1)))
+            self.ray_cell_count = trees.field(ti.i32, self.n_rays)
         self.reorder = reorder
         if reorder:
-            self.tmp_vec = ti.Vector.field(3, real, shape=cap)
-            self.tmp_real = ti.field(real, shape=cap)
-            self.tmp_int = ti.field(ti.i32, shape=cap)
-        self.health_out = ti.field(ti.i32, shape=6)  # the runtime guard's counts (Simulation.check_health)
+            self.tmp_vec = trees.vector(3, real, cap)
+            self.tmp_real = trees.field(real, cap)
+            self.tmp_int = trees.field(ti.i32, cap)
+        self.health_out = trees.field(ti.i32, 6)  # the runtime guard's counts (Simulation.check_health)
+        trees.finalize()
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
 
     def fields(self) -> list:

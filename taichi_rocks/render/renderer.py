@@ -721,7 +721,11 @@ class Renderer:
         bw, bh = (w, h) if rocks == "splat" else (1, 1)
         self._zbuf = ti.field(ti.i64)
         self._acc = ti.Vector.field(2, ti.i64)  # packed premultiplied rgb, weight (COVERAGE_ONE = 1 pixel)
-        ti.root.dense(ti.j, bh).dense(ti.i, bw).place(self._zbuf, self._acc)
+        # a tree of their own: next to 32-bit fields Vulkan can misalign 64-bit ones (see world._Trees); here
+        # the buffers landed at 4 mod 8 after the sky, and zbuf[0] overwrote the sky's last pixel each frame
+        buffers = ti.FieldsBuilder()
+        buffers.dense(ti.j, bh).dense(ti.i, bw).place(self._zbuf, self._acc)
+        buffers.finalize()
         self._rows = ti.field(ti.i32, shape=2)
         _clear_buffers(self._zbuf, self._acc)
         self._cars = ti.Vector.field(7, ti.f32, shape=MAX_CARS)
