@@ -45,7 +45,7 @@ CASES = {
 
 def _vulkan_device() -> str:
     """The arch Taichi really starts for ``vulkan`` in a fresh process (``vulkan``, or ``cpu`` on fallback)."""
-    code = "from taichi_rocks.runtime import init_taichi; print(init_taichi('vulkan', warn=lambda m: None))"
+    code = "from taichi_rocks.engine.runtime import init_taichi; print(init_taichi('vulkan', warn=lambda m: None))"
     r = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     return r.stdout.strip().splitlines()[-1]
@@ -155,7 +155,7 @@ def test_world_trees_hold_one_element_size(taichi_cpu, real):
     import taichi as ti
     from taichi.lang.util import to_numpy_type
 
-    from taichi_rocks.world import World
+    from taichi_rocks.engine.world import World
 
     w = World(101, getattr(ti, real), hash_table=1031, hash_entries=101, n_tires=2, substeps=2, ray_capacity=5,
               reorder=True, tiles=(3, 3))

@@ -28,6 +28,7 @@ from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from ..config.plan import Plan
 from .runtime import init_taichi
+from .setup import drag_coefficients
 from .timing import NO_TIMER
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
@@ -238,8 +239,7 @@ class Simulation:
         par[Par.CELL] = self.cell_size
         par[Par.ANGLE_MIN], par[Par.ANGLE_MAX] = np.radians(scene.launch.release_angle)
         par[Par.SPREAD] = np.radians(scene.launch.spread)
-        par[Par.LINEAR_DRAG] = 4.5 * wd.air_viscosity / bed.density
-        par[Par.QUAD_DRAG] = 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density)
+        par[Par.LINEAR_DRAG], par[Par.QUAD_DRAG] = drag_coefficients(scene)
         par[Par.R_MAX] = r_max
         par[Par.TIE_EPS] = 1e-5
         par[Par.MARGIN] = self._margin
