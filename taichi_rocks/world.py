@@ -100,6 +100,7 @@ class World:
         self.par = ti.field(real, shape=Par.COUNT)
         self.ipar = ti.field(ti.i32, shape=IPar.COUNT)
         self.launches = ti.field(ti.i64, shape=())
+        self.recycles = ti.field(ti.i64, shape=())  # rocks moved to the leading edge so far (bed.py)
         self.hashed = hash_table > 0
         if self.hashed:
             self.table_size = hash_table
