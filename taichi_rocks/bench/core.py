@@ -18,8 +18,9 @@ around the timed region):
      (a rectangle; a rock is a true contact iff its centre lies within its radius of it). Recall =
      launched true contacts / true contacts.
    * precision x distance from the origin: launched rocks flown 2 s with the rock positions stored as the
-     engine stores them (local = world - origin; origin 0 for ``origin = "world"``, the 64 m snapped bed
-     centre for ``"floating"``) in f32 and f64; error = world position against an f64 flight at the origin.
+     engine stores them (local = world - origin; origin 0 for ``origin = "world"``, for ``"floating"`` the bed
+     centre rounded to 64 m steps from the bed's start, here the world origin) in f32 and f64; error = world
+     position against an f64 flight at the origin.
    * hash settings: the same scene run k steps with each setting; the launched rock ids must be identical.
 2. Speed against peers: full step for N rocks x T rear tires; time per pass (kernels timed inside a real
    step, and called one at a time); NumPy brute force, SciPy cKDTree, NVIDIA Warp HashGrid (CPU) and a

@@ -69,3 +69,4 @@ def recycle_to_leading_edge(w: ti.template(), i, center_xy, move, lead, step):
         w.pos[i] = ti.Vector([q[0], q[1], ground + r])
         w.vel[i] = ti.Vector([0.0, 0.0, 0.0])
         w.phase[i] = RESTING
+        w.recycles[None] += 1

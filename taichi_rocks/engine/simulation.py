@@ -12,8 +12,15 @@ tire -> no hash table, no tire pass and no flight (only launched rocks ever leav
 Coasting: once every vehicle that matters has stopped for good, no tire can launch and the bed stands
 still; the rocks are then independent and any number of steps runs as one ``coast_pass`` launch,
 bit-identical to stepping (``Simulation.coast = False`` turns it off).
-Coordinates: kernels work in a local frame, world = origin + local; with ``origin = "floating"`` the
-origin jumps (by multiples of 64 m) to stay near the bed, so f32 keeps sub-millimetre precision anywhere.
+Coordinates: kernels work in a local frame, world = origin + local. With ``origin = "floating"`` the origin
+is anchor + shift: the anchor is the point the followed path is computed from (its first waypoint, where the
+bed starts; a circle's centre), exact as the scene gives it; the shift moves in whole multiples of
+ORIGIN_SNAP (exact in f32) to stay within ORIGIN_RANGE of the bed. All the kernels get (bed centre and its
+move, tire rays, initial rocks) is computed relative to the anchor (``Pose.from_anchor``,
+``Fleet.rear_tires(relative=True)``), never as a difference of world coordinates: the same scene moved
+anywhere runs on the same bits (up to the rounding of the moved waypoints themselves), so f32 keeps
+sub-millimetre precision and the same motion relative to the bed at any distance. ``origin = "world"``:
+anchor and shift are 0 (world coordinates in the kernels).
 """
 
 
@@ -34,7 +41,7 @@ from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
 from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
 
-ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
+ORIGIN_SNAP = 64.0  # m: the origin moves from its anchor in whole multiples of this, so a shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
 
 
@@ -251,21 +258,16 @@ class Simulation:
         # clock, bed and origin
         self.step_count = 0
         self.time = 0.0
-        poses = self.fleet.poses(0.0)
-        self._poses = poses
-        c = poses[self.follow].position
-        self.bed_center = np.array([c[0], c[1], wd.ground_z])
-        self.origin = np.zeros(3)
-        if sim.origin == "floating":
-            self.origin[:2] = np.round(self.bed_center[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
+        self._poses = poses = self._place_origin()
         par[Par.GROUND_Z] = wd.ground_z - self.origin[2]
         w.set_params(par, ipar)
         self._par = par
 
         # rocks: uniform over the disk, resting on the ground
         local = np.zeros((max(n, 1), 3))
-        local[:n, 0] = self.bed_center[0] - self.origin[0] + bed.radius * rho * np.cos(theta)
-        local[:n, 1] = self.bed_center[1] - self.origin[1] + bed.radius * rho * np.sin(theta)
+        lc = self._bed_local()
+        local[:n, 0] = lc[0] + bed.radius * rho * np.cos(theta)
+        local[:n, 1] = lc[1] + bed.radius * rho * np.sin(theta)
         local[:n, 2] = par[Par.GROUND_Z] + radius
         pad = lambda a, fill=0: np.concatenate([a, np.full(max(n, 1) - n, fill, dtype=a.dtype)])
         npr = w.np_real()
@@ -277,7 +279,7 @@ class Simulation:
         w.phase.from_numpy(np.zeros(max(n, 1), np.int32))
         if splash:
             w.hit_step.from_numpy(np.full(max(n, 1), -1, np.int32))
-        self._tires_prev = self.fleet.rear_tires(poses)
+        self._tires_prev = self.fleet.rear_tires(poses, relative=True)
         self._upload_rays(self._tires_prev, self._tires_prev)
         self._lead = np.array([math.cos(poses[self.follow].heading), math.sin(poses[self.follow].heading)])
         self.last_launches = 0
@@ -294,20 +296,52 @@ class Simulation:
     def launches_total(self) -> int:
         return int(self.w.launches[None])
 
+    @property
+    def recycles_total(self) -> int:
+        """Rocks moved to the bed's leading edge so far (each time a rock leaves the bed it counts once)."""
+        return int(self.w.recycles[None])
+
     def vehicle_poses(self):
         return self._poses
+
+    def _place_origin(self) -> list:
+        """Anchor the origin, place the bed and the origin at t = 0; return the poses at t = 0. Floating: the
+        anchor is where the followed path is computed from (its first waypoint: the bed's start), the shift
+        the bed's offset from it rounded to ORIGIN_SNAP (0 for waypoints); "world": both 0."""
+        floating = self.scene.sim.origin == "floating"
+        self.anchor = np.zeros(3)
+        if floating:
+            self.anchor[:2] = self.fleet.reference_point(self.follow)
+        self.fleet.anchor = self.anchor[:2].copy()
+        poses = self.fleet.poses(0.0)
+        c = poses[self.follow]
+        self.bed_center = np.array([c.position[0], c.position[1], self.scene.world.ground_z])
+        self._bed_rel = c.rel[:2].copy()  # bed centre - anchor, never from world coordinates
+        self._set_shift(np.round(self._bed_rel / ORIGIN_SNAP) * ORIGIN_SNAP if floating else np.zeros(2))
+        return poses
+
+    def _set_shift(self, shift) -> None:
+        """Put the floating origin at anchor + shift (shift: whole multiples of ORIGIN_SNAP, or 0)."""
+        self._shift = np.array(shift, dtype=np.float64)
+        self.origin = self.anchor.copy()
+        self.origin[:2] += self._shift
+
+    def _bed_local(self) -> np.ndarray:
+        """The bed centre (XY) in the kernels' frame, from anchor-relative coordinates only."""
+        return self._bed_rel - self._shift
 
     def _upload_rays(self, prev, cur, dt: float = 0.0) -> None:
         if self.w.n_tires:
             self.w.ray.from_numpy(self._ray_data(prev, cur, dt).astype(self.w.np_real()))
 
     def _ray_data(self, prev, cur, dt: float = 0.0) -> np.ndarray:
-        """The rays of every splashing rear tire, float64 (T, RAY_FIELDS) in the World.ray layout."""
+        """The rays of every splashing rear tire, float64 (T, RAY_FIELDS) in the World.ray layout, in the
+        kernels' frame; ``prev`` and ``cur`` are relative to the anchor (``Fleet.rear_tires(relative=True)``)."""
         w = self.w
         data = np.zeros((max(w.n_tires, 1), RAY_FIELDS))
         if w.n_tires == 0:
             return data
-        o = self.origin
+        o = np.array([self._shift[0], self._shift[1], 0.0])
         # a tire that moved much farther than its speed allows (a path that jumps, e.g. a looping arc) did
         # not sweep the ground in between: its previous ray is taken to be the current one
         moved = np.linalg.norm(cur.center - prev.center, axis=1)
@@ -322,16 +356,17 @@ class Simulation:
         data[:, 17] = cur.spin
         # tires far from the bed cannot touch a rock: park their rays, degenerate, high above the bed
         reach = self.scene.bed.radius + 2.0 * float(self.scene.bed.rock_radius[1]) + 2.0
-        far = np.hypot(cur.center[:, 0] - self.bed_center[0], cur.center[:, 1] - self.bed_center[1]) > reach
+        far = np.hypot(cur.center[:, 0] - self._bed_rel[0], cur.center[:, 1] - self._bed_rel[1]) > reach
         if far.any():
-            park = self.bed_center - o + np.array([0.0, 0.0, 1000.0])
+            lc = self._bed_local()
+            park = np.array([lc[0], lc[1], self.bed_center[2] - self.origin[2] + 1000.0])
             data[far, 0:12] = np.tile(park, 4)
             data[far, 17] = 0.0
         data[:, ACTIVE] = ~far
         return data
 
     def _grid_origin(self) -> np.ndarray:
-        return self.bed_center[:2] - self.origin[:2] - self._grid_half
+        return self._bed_local() - self._grid_half
 
     def _initial_sort(self) -> None:
         """Sort the rocks in memory by slot once at the start (scope "all"), and clear the counts."""
@@ -417,14 +452,14 @@ class Simulation:
             self.time += self.dt
         self.step_count += n
         self.steps_coasted += n
-        lc = self.bed_center[:2] - self.origin[:2]
+        lc = self._bed_local()
         with self.timer("coast"):
             for s in range(0, n, 1 << 30):
                 coast_pass(w, min(n - s, 1 << 30), self.dt, float(lc[0]), float(lc[1]), float(self._lead[0]),
                            float(self._lead[1]), step0 + s, p.flight, p.recycle, p.integrator, p.gravity,
                            p.drag, p.ground)
         self._poses = self.fleet.poses(self.time)
-        self._tires_prev = self.fleet.rear_tires(self._poses)
+        self._tires_prev = self.fleet.rear_tires(self._poses, relative=True)
         self.last_launches = 0
 
     def _step(self, dt=None) -> None:
@@ -433,25 +468,26 @@ class Simulation:
         self.step_count += 1
         self.time += dt
         poses = self.fleet.poses(self.time)
-        c = poses[self.follow].position
-        move = c[:2] - self.bed_center[:2]
+        c, rel = poses[self.follow].position, poses[self.follow].rel[:2]
+        move = rel - self._bed_rel  # anchor-relative: the same bits wherever the scene is
         self.bed_center = np.array([c[0], c[1], self.bed_center[2]])
+        self._bed_rel = rel.copy()
         lead = poses[self.follow].velocity[:2]
         if np.hypot(*lead) > 1e-9:
             self._lead = lead / np.hypot(*lead)
-        if self.scene.sim.origin == "floating" and np.max(np.abs(c[:2] - self.origin[:2])) > ORIGIN_RANGE:
-            new = np.round(c[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
-            shift = new - self.origin[:2]
+        if self.scene.sim.origin == "floating" and np.max(np.abs(rel - self._shift)) > ORIGIN_RANGE:
+            new = np.round(rel / ORIGIN_SNAP) * ORIGIN_SNAP
+            d = new - self._shift  # whole multiples of ORIGIN_SNAP: exact in f32
             if self.n_rocks:
                 with self.timer("origin shift"):
-                    shift_origin(w, float(shift[0]), float(shift[1]))
-            self.origin[:2] = new
-        tires_now = self.fleet.rear_tires(poses)
+                    shift_origin(w, float(d[0]), float(d[1]))
+            self._set_shift(new)
+        tires_now = self.fleet.rear_tires(poses, relative=True)
         rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
         self._tires_prev = tires_now
         self._poses = poses
         if self.n_rocks and (p.flight or p.recycle or p.splash):
-            lc = self.bed_center[:2] - self.origin[:2]
+            lc = self._bed_local()
             g = self._grid_origin()
             with self.timer("rock pass"):
                 rock_pass(w, rays, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
@@ -486,6 +522,7 @@ class Simulation:
             "vehicle_headings": np.array([p.heading for p in poses]),
             "vehicle_names": np.array(self.fleet.names),
             "launches_total": self.launches_total,
+            "recycles_total": self.recycles_total,
         }
 
     # ------------------------------------------------------------------------------------------------
@@ -498,9 +535,10 @@ class Simulation:
         if self.plan.splash:
             data["rock_hit_step"] = w.hit_step.to_numpy()
         data.update(step_count=np.int64(self.step_count), time=np.float64(self.time), origin=self.origin.copy(),
-                    bed_center=self.bed_center.copy(), lead=self._lead.copy(),
-                    launches=np.int64(self.launches_total), scene=np.array(self.scene.name),
-                    seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
+                    origin_anchor=self.anchor.copy(), origin_shift=self._shift.copy(),
+                    bed_center=self.bed_center.copy(), bed_rel=self._bed_rel.copy(), lead=self._lead.copy(),
+                    launches=np.int64(self.launches_total), recycles=np.int64(self.recycles_total),
+                    scene=np.array(self.scene.name), seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
         return data
 
     def restore(self, data: dict) -> None:
@@ -514,15 +552,23 @@ class Simulation:
             w.hit_step.from_numpy(np.asarray(data["rock_hit_step"]))
         self.step_count = int(data["step_count"])
         self.time = float(data["time"])
-        self.origin = np.array(data["origin"], dtype=np.float64)
         self.bed_center = np.array(data["bed_center"], dtype=np.float64)
+        if "origin_shift" in data:
+            self.anchor = np.array(data["origin_anchor"], dtype=np.float64)
+            self.fleet.anchor = self.anchor[:2].copy()
+            self._bed_rel = np.array(data["bed_rel"], dtype=np.float64)
+            self._set_shift(data["origin_shift"])
+        else:  # saved before the origin had an anchor: this simulation's anchor, the saved origin
+            self._bed_rel = self.bed_center[:2] - self.anchor[:2]
+            self._set_shift(np.asarray(data["origin"], dtype=np.float64)[:2] - self.anchor[:2])
         self._lead = np.array(data["lead"], dtype=np.float64)
         w.launches[None] = int(data["launches"])
+        w.recycles[None] = int(data["recycles"]) if "recycles" in data else 0
         par = self._par.copy()
         par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
         w.par.from_numpy(par.astype(w.np_real()))
         self._poses = self.fleet.poses(self.time)
-        self._tires_prev = self.fleet.rear_tires(self._poses)
+        self._tires_prev = self.fleet.rear_tires(self._poses, relative=True)
         if self.plan.splash:
             self._upload_rays(self._tires_prev, self._tires_prev)
 
@@ -531,7 +577,7 @@ class Simulation:
         non-finite, outside the bed (with recycling) or below the ground (with ground contact)."""
         if not self.n_rocks:
             return
-        lc = self.bed_center[:2] - self.origin[:2]
+        lc = self._bed_local()
         # 1 mm, or a few float spacings at the bed's distance from the kernel origin ("world" origin, f32)
         eps = float(np.finfo(self.w.np_real()).eps)
         slack = 1e-3 + 8.0 * eps * (float(np.max(np.abs(lc))) + self.scene.bed.radius)
@@ -552,8 +598,9 @@ class Simulation:
             f"{np.array2string(v, precision=4)} m/s")
 
     def tire_rays(self) -> np.ndarray:
+        """The rear tires' rays (centre, bottom) now, world coordinates, (T, 2, 3)."""
         t = self._tires_prev
-        return np.stack([t.center, t.bottom], axis=1) if len(t.spin) else np.zeros((0, 2, 3))
+        return np.stack([t.center, t.bottom], axis=1) + self.anchor if len(t.spin) else np.zeros((0, 2, 3))
 
     def queried_cells(self) -> np.ndarray:
         w = self.w

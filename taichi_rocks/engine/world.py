@@ -137,6 +137,7 @@ class World:
         self.par = trees.field(real, Par.COUNT)
         self.ipar = trees.field(ti.i32, IPar.COUNT)
         self.launches = trees.field(ti.i64, ())
+        self.recycles = trees.field(ti.i64, ())  # rocks moved to the leading edge so far (bed.py)
         self.hashed = hash_table > 0
         if self.hashed:
             self.table_size = hash_table

@@ -13,8 +13,12 @@ waypoints: a segment of arc length L goes from v0 to v1 in T = 2 L / (v0 + v1) w
 a = (v1 - v0) / T, s(tau) = v0 tau + a tau^2 / 2.  v0 = v1 = 0 means the vehicle never gets past:
 it stays parked there forever (``duration is None``).
 
-Every pose is computed relative to an internal origin (first point / circle centre) so that huge
-world coordinates keep their precision; ``pose(t)`` only does bisections and closed forms.
+Every pose is computed relative to the path's ``anchor`` (first point / circle centre) so that huge
+world coordinates keep their precision: ``Pose.from_anchor`` is that relative position, and
+``Pose.position = anchor + from_anchor``. The relative position depends only on the waypoints relative to
+the first one (a circle's radius and angles), not on where the path is: a path moved by an offset its
+waypoints take exactly gives the same bits (the simulation's floating origin relies on it).
+``pose(t)`` only does bisections and closed forms.
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ class Pose:
     speed: float          # m/s along the heading (negative when driving backwards)
     yaw_rate: float       # rad/s, d(heading)/dt
     velocity: np.ndarray  # (2,) m/s = speed * (cos h, sin h)
+    from_anchor: np.ndarray | None = None  # (2,) m, position - path.anchor as computed (None: not known)
 
 
 class Path:
@@ -53,6 +58,8 @@ class Path:
     duration: float | None = None
     #: from this time on the pose never changes again (inf: it may always move)
     still_after: float = math.inf
+    #: the world point the poses are computed from (None: poses give only world positions)
+    anchor: tuple[float, float] | None = None
 
     def pose(self, t: float) -> Pose:
         raise NotImplementedError
@@ -101,6 +108,11 @@ class _ProfiledPath(Path):
     _timing: _Timing
     _reverse: bool
 
+    @property
+    def anchor(self) -> tuple[float, float]:
+        """The world point the poses are computed from (first waypoint, circle centre), exactly as given."""
+        return self._origin
+
     def _geom(self, s: float) -> tuple[float, float, float, float]:
         """Local (x, y), tangent angle, signed curvature at arc length s."""
         raise NotImplementedError
@@ -126,7 +138,7 @@ class _ProfiledPath(Path):
             tangent, v = tangent + math.pi, -v if v > 0.0 else 0.0
         h = _wrap(tangent)
         return Pose(np.array([self._origin[0] + x, self._origin[1] + y]), h, v, yaw,
-                    np.array([v * math.cos(h), v * math.sin(h)]))
+                    np.array([v * math.cos(h), v * math.sin(h)]), np.array([x, y]))
 
 
 def _speeds(speed, n: int) -> np.ndarray:

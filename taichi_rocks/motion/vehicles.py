@@ -1,5 +1,11 @@
 """Vehicles on their scripted paths: body pose and rear-tire rays, on the host (a few vehicles).
 
+Positions come in two frames: world (``position``) and relative to the fleet's ``anchor`` (``rel``; the
+simulation's floating origin is the anchor plus whole steps). ``rel`` is the path's own relative position
+(``Pose.from_anchor``) plus the constant (path anchor - fleet anchor), never the difference of two large
+world coordinates: moving a whole scene changes ``rel`` only by the rounding of the moved waypoints
+themselves (~1e-16 of their distance from the world origin; none when the offset is exact in them).
+
 A rear wheel sits at body offset (-wheelbase/2, +-track/2). Its rigid-body velocity is
 v_wheel = v_body + yaw_rate * z x r_wheel, so the rear wheels of a turning vehicle slide outwards (the path
 steers the body centre). Its tread speed is omega R = (v_wheel . heading) * (1 + slip).
@@ -23,11 +29,13 @@ class VehiclePose:
     speed: float
     yaw_rate: float
     velocity: np.ndarray  # (3,)
+    rel: np.ndarray | None = None  # (3,) position - (fleet anchor, 0), computed without world coordinates
 
 
 @dataclass(frozen=True)
 class RearTires:
-    """Rear tires of the splashing vehicles, world frame, float64; one row per tire."""
+    """Rear tires of the splashing vehicles, float64 (world frame, or relative to the fleet's anchor); one row
+    per tire."""
 
     center: np.ndarray  # (T, 3)
     bottom: np.ndarray  # (T, 3)
@@ -52,6 +60,20 @@ class Fleet:
             kind, kwargs = _path_kwargs(v.path)
             self.paths.append(path_from_spec(kind, **kwargs))
         self.splashing = [i for i, v in enumerate(self.specs) if v.splash]
+        self.anchor = np.zeros(2)  # world XY point that ``VehiclePose.rel`` is measured from
+
+    def reference_point(self, i: int) -> np.ndarray:
+        """The world XY point vehicle i's path computes its poses from (first waypoint, circle centre; its
+        position at t = 0 for a path without one)."""
+        path = self.paths[i]
+        a = getattr(path, "anchor", None)
+        return np.array(a if a is not None else path.pose(0.0).position[:2], dtype=np.float64)
+
+    def _relative(self, path, pose) -> np.ndarray:
+        a, loc = getattr(path, "anchor", None), getattr(pose, "from_anchor", None)
+        if a is None or loc is None:
+            return np.array([pose.position[0] - self.anchor[0], pose.position[1] - self.anchor[1], self.ground_z])
+        return np.array([(a[0] - self.anchor[0]) + loc[0], (a[1] - self.anchor[1]) + loc[1], self.ground_z])
 
     def still_after(self, indices) -> float:
         """Time from which the vehicles ``indices`` never move again (0 for none; inf if one always may)."""
@@ -63,21 +85,23 @@ class Fleet:
             p = path.pose(t)
             vel = np.array([p.velocity[0], p.velocity[1], 0.0])
             out.append(VehiclePose(spec.name, np.array([p.position[0], p.position[1], self.ground_z]),
-                                   float(p.heading), float(p.speed), float(p.yaw_rate), vel))
+                                   float(p.heading), float(p.speed), float(p.yaw_rate), vel,
+                                   self._relative(path, p)))
         return out
 
-    def rear_tires(self, poses: list[VehiclePose]) -> RearTires:
+    def rear_tires(self, poses: list[VehiclePose], relative: bool = False) -> RearTires:
+        """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor."""
         rows = []
         for i in self.splashing:
             spec, pose = self.specs[i], poses[i]
+            base = pose.rel if relative else pose.position
             c, s = np.cos(pose.heading), np.sin(pose.heading)
             fwd = np.array([c, s])
             for side in (1.0, -1.0):
                 bx, by = -0.5 * spec.wheelbase, side * 0.5 * spec.track
                 r = np.array([c * bx - s * by, s * bx + c * by])
                 vel = pose.velocity[:2] + pose.yaw_rate * np.array([-r[1], r[0]])
-                centre = np.array([pose.position[0] + r[0], pose.position[1] + r[1],
-                                   self.ground_z + spec.tire_radius])
+                centre = np.array([base[0] + r[0], base[1] + r[1], self.ground_z + spec.tire_radius])
                 spin = float(vel @ fwd) * (1.0 + spec.slip)
                 rows.append((centre, np.array([centre[0], centre[1], self.ground_z]),
                              np.array([vel[0], vel[1], 0.0]), fwd, spin))
