@@ -44,13 +44,12 @@ def _positive_float(text: str) -> float:
 
 
 def _resolution(text: str) -> tuple[int, int]:
+    from .config.resolution import parse_resolution
+
     try:
-        w, h = (int(x) for x in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 1280x720, got {text!r}") from None
-    if w < 16 or h < 16 or w % 2 or h % 2:
-        raise argparse.ArgumentTypeError(f"width and height must be even and >= 16 (H.264), got {text}")
-    return w, h
+        return parse_resolution(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _parser() -> argparse.ArgumentParser:
