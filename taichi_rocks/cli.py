@@ -154,7 +154,7 @@ def cmd_render(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
-    from .render.renderer import render_scene
+    from .render.pipeline import render_scene
     kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
                   profile=args.profile, checkpoint_every=args.checkpoint_every)
@@ -192,7 +192,7 @@ _PRELOAD = {
     "check": ("taichi_rocks.config.scene",),
     "schema": ("taichi_rocks.config.scene",),
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
-    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.renderer", "taichi_rocks.output.video",
+    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.core"),
 }
