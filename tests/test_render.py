@@ -228,6 +228,32 @@ def test_particles_mode_renders(pipeline, shared):
         r.close()
 
 
+def test_host_rock_colour_is_the_kernels(pipeline):
+    """kernels.rock_color (NumPy, on the engine's hash twin) gives the colours the kernels draw, for resting,
+    flying and sliding rocks."""
+    import taichi as ti
+
+    from taichi_rocks.engine.world import FLYING, RESTING, SLIDING
+    from taichi_rocks.render import kernels
+
+    ids = np.array([0, 1, 2, 7, 1000, 123457, 2 ** 31 - 1] + list(range(3, 200, 7)), np.int32)
+    phases = np.array([RESTING, FLYING, SLIDING], np.int32)
+    out = ti.ndarray(ti.types.vector(3, ti.f32), (len(ids), len(phases)))
+
+    @ti.kernel
+    def colours(rid: ti.types.ndarray(dtype=ti.i32, ndim=1), ph: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                col: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2)):
+        for i, k in ti.ndrange(rid.shape[0], ph.shape[0]):
+            col[i, k] = kernels._rock_color(rid[i], ph[k])
+
+    colours(ids, phases, out)
+    got = out.to_numpy()
+    want = np.array([[kernels.rock_color(int(i), int(p)) for p in phases] for i in ids])
+    assert got[:, 0].std(axis=0).min() > 0.02  # the colours vary from rock to rock
+    assert np.all(got[:, 1].mean(axis=0) != got[:, 0].mean(axis=0))  # flying rocks are tinted
+    np.testing.assert_allclose(got, want, rtol=0, atol=2e-6)
+
+
 # -------------------------------------------------------------------------------------------------- other outputs
 def test_gif_written(pipeline, minimal_scene, tmp_path):
     import imageio.v3 as iio
