@@ -21,7 +21,7 @@ _API = {
     "Scene": "config.scene", "SceneError": "config.scene", "load_scene": "config.scene",
     "parse_scene": "config.scene", "scene_with": "config.scene", "Plan": "config.plan",
     "Simulation": "engine.simulation", "HealthError": "engine.simulation", "init_taichi": "engine.runtime",
-    "record": "output.recording", "render_scene": "render.renderer", "Renderer": "render.renderer",
+    "record": "output.recording", "render_scene": "render.pipeline", "Renderer": "render.renderer",
     "run_bench": "bench.core",
 }
 __all__ = sorted(_API)

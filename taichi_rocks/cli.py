@@ -44,13 +44,12 @@ def _positive_float(text: str) -> float:
 
 
 def _resolution(text: str) -> tuple[int, int]:
+    from .config.resolution import parse_resolution
+
     try:
-        w, h = (int(x) for x in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 1280x720, got {text!r}") from None
-    if w < 16 or h < 16 or w % 2 or h % 2:
-        raise argparse.ArgumentTypeError(f"width and height must be even and >= 16 (H.264), got {text}")
-    return w, h
+        return parse_resolution(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -155,7 +154,7 @@ def cmd_render(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
-    from .render.renderer import render_scene
+    from .render.pipeline import render_scene
     kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
                   profile=args.profile, checkpoint_every=args.checkpoint_every)
@@ -193,7 +192,7 @@ _PRELOAD = {
     "check": ("taichi_rocks.config.scene",),
     "schema": ("taichi_rocks.config.scene",),
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
-    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.renderer", "taichi_rocks.output.video",
+    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.core"),
 }

@@ -14,10 +14,10 @@ N_FRAMES = 6
 
 
 @pytest.fixture(scope="module")
-def render_mod(taichi_cpu):
-    from taichi_rocks.render import renderer
+def pipeline(taichi_cpu):
+    from taichi_rocks.render import pipeline
 
-    return renderer
+    return pipeline
 
 
 @pytest.fixture(scope="module")
@@ -28,18 +28,18 @@ def minimal_scene(scenes_dir):
 
 
 @pytest.fixture(scope="module")
-def mp4_render(render_mod, minimal_scene, tmp_path_factory):
+def mp4_render(pipeline, minimal_scene, tmp_path_factory):
     out = tmp_path_factory.mktemp("mp4")
     frames = []
-    res = render_mod.render_scene(minimal_scene, out_dir=out, frames=N_FRAMES, resolution=(W, H), fmt="mp4",
+    res = pipeline.render_scene(minimal_scene, out_dir=out, frames=N_FRAMES, resolution=(W, H), fmt="mp4",
                                   progress=False, profile=True, on_frame=lambda k, img: frames.append(img.copy()))
     return res, frames, out
 
 
 @pytest.fixture(scope="module")
-def shared(render_mod, minimal_scene):
+def shared(pipeline, minimal_scene):
     """One simulation at t = 0.5 s and its renderer, for the single-frame tests (each restores what it moves)."""
-    sim, r = _fresh(render_mod, minimal_scene, window_every=0)
+    sim, r = _fresh(minimal_scene, window_every=0)
     sim.advance_to(0.5)
     yield sim, r
     r.close()
@@ -49,11 +49,12 @@ def _mean_rgb(a):
     return a.reshape(-1, 3).astype(np.float64).mean(axis=0) / 255.0
 
 
-def _fresh(render_mod, scene, **kw):
+def _fresh(scene, **kw):
     from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.render.renderer import Renderer
 
     sim = Simulation(scene, arch="cpu")
-    return sim, render_mod.Renderer(sim, resolution=(W, H), **kw)
+    return sim, Renderer(sim, resolution=(W, H), **kw)
 
 
 # -------------------------------------------------------------------------------------------------- outputs
@@ -164,21 +165,21 @@ def test_ground_is_anchored_to_the_world(shared):
     sim, r = shared
     a = r.render_frame().copy()
     d = np.array([37.3, -21.7])
-    shift_origin(sim.w, float(d[0]), float(d[1]))
+    shift_origin(sim.world, float(d[0]), float(d[1]))
     sim.origin[:2] += d
     try:
         b = r.render_frame().copy()
     finally:
-        shift_origin(sim.w, float(-d[0]), float(-d[1]))
+        shift_origin(sim.world, float(-d[0]), float(-d[1]))
         sim.origin[:2] -= d
     diff = np.abs(a.astype(int) - b.astype(int)).max(axis=2)
     assert (diff > 8).mean() < 0.01, (diff > 8).mean()
 
 
-def test_deterministic_frames_and_window_recycling(render_mod, minimal_scene, mp4_render):
+def test_deterministic_frames_and_window_recycling(pipeline, minimal_scene, mp4_render):
     """A second, independent run (re-creating its window after every frame) draws the same pixels."""
     _, reference, _ = mp4_render
-    sim, r = _fresh(render_mod, minimal_scene, window_every=1)
+    sim, r = _fresh(minimal_scene, window_every=1)
     try:
         for k in range(4):
             sim.advance_to(k / 30)
@@ -214,7 +215,7 @@ def test_a_lost_vehicle_mesh_is_drawn_again(shared):
     np.testing.assert_array_equal(img, reference)
 
 
-def test_particles_mode_renders(render_mod, shared):
+def test_particles_mode_renders(pipeline, shared):
     from taichi_rocks.render.renderer import Renderer
 
     sim, _ = shared
@@ -227,34 +228,60 @@ def test_particles_mode_renders(render_mod, shared):
         r.close()
 
 
+def test_host_rock_colour_is_the_kernels(pipeline):
+    """kernels.rock_color (NumPy, on the engine's hash twin) gives the colours the kernels draw, for resting,
+    flying and sliding rocks."""
+    import taichi as ti
+
+    from taichi_rocks.engine.world import FLYING, RESTING, SLIDING
+    from taichi_rocks.render import kernels
+
+    ids = np.array([0, 1, 2, 7, 1000, 123457, 2 ** 31 - 1] + list(range(3, 200, 7)), np.int32)
+    phases = np.array([RESTING, FLYING, SLIDING], np.int32)
+    out = ti.ndarray(ti.types.vector(3, ti.f32), (len(ids), len(phases)))
+
+    @ti.kernel
+    def colours(rid: ti.types.ndarray(dtype=ti.i32, ndim=1), ph: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                col: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2)):
+        for i, k in ti.ndrange(rid.shape[0], ph.shape[0]):
+            col[i, k] = kernels._rock_color(rid[i], ph[k])
+
+    colours(ids, phases, out)
+    got = out.to_numpy()
+    want = np.array([[kernels.rock_color(int(i), int(p)) for p in phases] for i in ids])
+    assert got[:, 0].std(axis=0).min() > 0.02  # the colours vary from rock to rock
+    assert np.all(got[:, 1].mean(axis=0) != got[:, 0].mean(axis=0))  # flying rocks are tinted
+    np.testing.assert_allclose(got, want, rtol=0, atol=2e-6)
+
+
 # -------------------------------------------------------------------------------------------------- other outputs
-def test_gif_written(render_mod, minimal_scene, tmp_path):
+def test_gif_written(pipeline, minimal_scene, tmp_path):
     import imageio.v3 as iio
 
-    res = render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=3, resolution=(W, H), fmt="gif",
+    res = pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=3, resolution=(W, H), fmt="gif",
                                   progress=False)
     gif = iio.imread(res["video"], index=None)
     assert res["video"].endswith("minimal.gif") and gif.shape[:3] == (3, H, W)
     assert len(list((tmp_path / "frames").glob("*.png"))) == 3
 
 
-def test_png_only_and_no_overwrite(render_mod, minimal_scene, tmp_path):
-    res = render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=2, resolution=(W, H), fmt="png",
+def test_png_only_and_no_overwrite(pipeline, minimal_scene, tmp_path):
+    res = pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=2, resolution=(W, H), fmt="png",
                                   progress=False)
     assert res["video"] is None and sorted(os.listdir(tmp_path)) == ["frames"]
     first = tmp_path / "frames" / "frame_00000.png"
     stamp = first.stat().st_mtime_ns
     with pytest.raises(FileExistsError, match="frames"):
-        render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=1, resolution=(W, H), fmt="png",
+        pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=1, resolution=(W, H), fmt="png",
                                 progress=False)
     assert first.stat().st_mtime_ns == stamp
-    res = render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=1, resolution=(W, H), fmt="png",
+    res = pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=1, resolution=(W, H), fmt="png",
                                   progress=False, overwrite=True)
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["frame_00000.png"]  # stale frame gone
 
 
 @pytest.mark.parametrize("every, drop_last, replayed_from", [(1, False, 2), (1, True, 1), (30, False, 0)])
-def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene, mp4_render, tmp_path, every,
+def test_interrupted_render_resumes_to_the_same_frames(pipeline, minimal_scene, mp4_render, tmp_path, every,
                                                        drop_last, replayed_from):
     """Interrupted at frame 2: resuming restores the newest saved state before the first missing frame
     (every frame: after frame 1; the newest frame lost, as when PNGs were still queued: after frame 0; none
@@ -268,7 +295,7 @@ def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), progress=False,
+        pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), progress=False,
                                 on_frame=stop, checkpoint_every=every)
     assert sorted(os.listdir(tmp_path)) == [".resume", "frames"]  # no video, no partial video
     assert sorted(os.listdir(tmp_path / "frames")) == ["frame_00000.png", "frame_00001.png"]
@@ -276,9 +303,9 @@ def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene
     if drop_last:
         (tmp_path / "frames" / "frame_00001.png").unlink()
     with pytest.raises(ValueError, match="cannot resume"):  # another frame rate: not this render's frames
-        render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), fps=25,
+        pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), fps=25,
                                 progress=False, resume=True)
-    res = render_mod.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), progress=False,
+    res = pipeline.render_scene(minimal_scene, out_dir=tmp_path, frames=4, resolution=(W, H), progress=False,
                                   resume=True, checkpoint_every=every)
     assert res["resumed_from"] == (1 if drop_last else 2) and res["frames"] == 4
     assert res["replayed_from"] == replayed_from
@@ -288,20 +315,22 @@ def test_interrupted_render_resumes_to_the_same_frames(render_mod, minimal_scene
     assert sorted(os.listdir(tmp_path)) == ["frames", "minimal.mp4"]  # finished: nothing left to resume
 
 
-def test_bad_arguments(render_mod, minimal_scene, tmp_path):
+def test_bad_arguments(pipeline, minimal_scene, tmp_path):
     with pytest.raises(ValueError, match="even"):
-        render_mod.render_scene(minimal_scene, out_dir=tmp_path, resolution=(161, 96), progress=False)
+        pipeline.render_scene(minimal_scene, out_dir=tmp_path, resolution=(161, 96), progress=False)
     with pytest.raises(ValueError, match="format"):
-        render_mod.render_scene(minimal_scene, out_dir=tmp_path, resolution=(W, H), fmt="avi", progress=False)
+        pipeline.render_scene(minimal_scene, out_dir=tmp_path, resolution=(W, H), fmt="avi", progress=False)
     assert not os.listdir(tmp_path)
 
 
-def test_missing_vulkan_message(render_mod):
+def test_missing_vulkan_message():
+    from taichi_rocks.render.window import ggui
+
     def no_vulkan(*a, **k):
         raise RuntimeError("Vulkan must be available for GGUI")
 
     with pytest.raises(RuntimeError) as e:
-        render_mod._ggui(no_vulkan)
+        ggui(no_vulkan)
     msg = str(e.value)
     assert "\n" not in msg and "apt-get install -y mesa-vulkan-drivers libvulkan1" in msg
 
@@ -329,8 +358,10 @@ def test_failed_render_keeps_frames_and_drops_partial_video(tmp_path):
 
 
 # -------------------------------------------------------------------------------------------------- camera
-def test_camera_snaps_then_smooths_independently_of_frame_rate(render_mod):
-    rig = render_mod.CameraRig((-9.0, 0.0, 3.5), 6.0, 0.3)
+def test_camera_snaps_then_smooths_independently_of_frame_rate():
+    from taichi_rocks.render.camera import CameraRig
+
+    rig = CameraRig((-9.0, 0.0, 3.5), 6.0, 0.3)
     eye, target, h = rig.update(np.array([10.0, 5.0, 0.0]), 0.5, 0.0)
     assert h == 0.5  # first frame snaps
     np.testing.assert_allclose(eye, [10 - 9 * math.cos(0.5), 5 - 9 * math.sin(0.5), 3.5], atol=1e-12)
@@ -338,14 +369,14 @@ def test_camera_snaps_then_smooths_independently_of_frame_rate(render_mod):
     # a heading step from 0 to 1 rad, followed at 30 and at 120 frames/s: same heading after 0.3 s
     out = []
     for fps in (30, 120):
-        rig = render_mod.CameraRig((-9.0, 0.0, 3.5), 6.0, 0.3)
+        rig = CameraRig((-9.0, 0.0, 3.5), 6.0, 0.3)
         rig.update(np.zeros(3), 0.0, 0.0)
         for k in range(1, int(0.3 * fps) + 1):
             _, _, h = rig.update(np.zeros(3), 1.0, k / fps)
         out.append(h)
     np.testing.assert_allclose(out, 1.0 - math.exp(-1.0), atol=1e-9)
     # the short way round across +-pi
-    rig = render_mod.CameraRig((-9.0, 0.0, 3.5), 6.0, 0.3)
+    rig = CameraRig((-9.0, 0.0, 3.5), 6.0, 0.3)
     rig.update(np.zeros(3), math.pi - 0.1, 0.0)
     _, _, h = rig.update(np.zeros(3), -math.pi + 0.1, 10.0)
     assert abs(math.remainder(h - (-math.pi + 0.1), 2 * math.pi)) < 1e-6

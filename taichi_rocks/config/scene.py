@@ -20,6 +20,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
 from pydantic_core import PydanticCustomError
 
 from .plan import Plan
+from .resolution import MIN_SIDE, SIDE_MULTIPLE
 from .tomltext import TomlTextError, loads as toml_loads
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
@@ -82,7 +83,7 @@ Color = _either(HexColor, tuple[Unit, Unit, Unit], _is_str)   # always a tuple o
 Speed = Annotated[float, Strict(), Field(ge=0)]
 CellSize = _either(Literal["auto", "min_radius", "max_diameter"], Annotated[float, Strict(), Field(gt=0)], _is_str)
 TableSize = _either(Literal["auto"], Annotated[int, Strict(), Field(ge=1)], _is_str)
-Pixels = Annotated[int, Strict(), Field(ge=16, multiple_of=2)]
+Pixels = Annotated[int, Strict(), Field(ge=MIN_SIDE, multiple_of=SIDE_MULTIPLE)]
 
 
 def _vehicle_name_schema(schema: dict) -> None:
@@ -275,7 +276,7 @@ class Camera(_Table):
 
 class Render(_Table):
     """Video output."""
-    resolution: tuple[Pixels, Pixels] = _f((1280, 720), "[width, height], even ints >= 16")
+    resolution: tuple[Pixels, Pixels] = _f((1280, 720), f"[width, height], even ints >= {MIN_SIDE}")
     fps: Float = _f(30.0, "frames per second of simulated time", gt=0)
     background: Color = _f((0.62, 0.76, 0.92), 'sky RGB in [0, 1], or "#rrggbb"')
     draw_distance: Float = _f(80.0, "m", gt=0)
@@ -405,7 +406,7 @@ def _messages(err: dict) -> list[tuple[tuple, str]]:
     if kind == "union_tag_invalid":
         key = ctx["discriminator"].strip("'")
         return [(loc + (key,), _unknown("value", ctx["tag"], _choices(ctx["expected_tags"])))]
-    if kind == "multiple_of" and ctx.get("multiple_of") == 2:
+    if kind == "multiple_of" and ctx.get("multiple_of") == SIDE_MULTIPLE:
         return [(loc, "must be even" + got)]
     if kind in _SIMPLE:
         return [(loc, _SIMPLE[kind].format(**{k: _num(v) for k, v in ctx.items()}) + got)]

@@ -1,1 +1,2 @@
-"""The offscreen GGUI renderer: kernels, meshes, camera, Renderer and the render pipeline."""
+"""The offscreen GGUI renderer: kernels (the background layer), meshes, camera, window, overlays, the
+Renderer (one frame) and the pipeline (render_scene: a whole render to frames and a video)."""

@@ -1,0 +1,488 @@
+"""The renderer's Taichi kernels: the background layer of a frame and the merge of GGUI's read-back over it.
+
+A frame is made of two layers. The *background image* (W x H, row 0 at the bottom) holds the sky, the
+ground and the *resting* rocks: :func:`rocks_pass` culls every rock to the view frustum and the draw distance
+and splats the resting/sliding ones (:func:`_splat_sphere`: shaded spheres, depth-tested by an atomic min;
+:func:`_splat_coverage`: sub-pixel rocks blended by coverage); :func:`paint_ground` then traces one ray per
+pixel to the ground plane: a checker of ``render.ground_tile`` metre tiles anchored to *world* coordinates
+(it scrolls as the vehicles drive; box-filtered, so no moire at the horizon), soft contact shadows under the
+vehicles, the splatted rocks, haze. Everything GGUI draws (the second layer: vehicles, flying rocks,
+overlays) lies above the ground plane, so drawing the ground and what lies on it *behind* the 3D scene is
+exact (up to a rock touching a tire's contact patch). :func:`to_u8` merges the two.
+
+Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)). Kernel arguments are grouped in the structs
+below (local f32 coordinates, the simulation's Z up); the buffers live in a :class:`Buffers`.
+"""
+
+import numpy as np
+import taichi as ti
+
+from ..engine.randomness import mix32, mix32_np
+from ..engine.world import FLYING
+from .looks import KEY
+
+__all__ = ["COVERAGE_ONE", "OPAQUE_PX", "Camera", "Frustum", "Sizing", "Light", "Ground", "Palette", "Buffers",
+           "Bucket", "rock_color", "rocks_pass", "clear_buffers", "paint_ground", "to_u8"]
+
+COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
+OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
+
+_vec2 = ti.types.vector(2, ti.f32)
+_vec3 = ti.types.vector(3, ti.f32)
+
+#: the camera: eye and unit basis (right is horizontal: no roll)
+Camera = ti.types.struct(eye=_vec3, fwd=_vec3, right=_vec3, up=_vec3)
+#: the view volume: image half-extents at 1 m depth (tan_*), their secants (a sphere's margin), near and far
+#: (the draw distance) planes, pixels per metre at 1 m depth
+Frustum = ti.types.struct(tan_x=ti.f32, tan_y=ti.f32, sec_x=ti.f32, sec_y=ti.f32, near=ti.f32, far=ti.f32,
+                          px_per_rad=ti.f32)
+#: rocks drawn as GGUI particles: far resting rocks thinned below ``lod_px`` pixels (0: never), radii scaled
+Sizing = ti.types.struct(lod_px=ti.f32, radius_scale=ti.f32)
+#: the lights: unit vector towards the sun, ambient and sun colours
+Light = ti.types.struct(sun=_vec3, ambient=_vec3, sun_color=_vec3)
+#: the ground plane z, the world's checker phase (origin mod 2 tiles), the tile size, the haze distance
+Ground = ti.types.struct(z=ti.f32, wrap=_vec2, tile=ti.f32, haze_dist=ti.f32)
+#: the checker's two colours, the ground's light (ambient + sun * cos), the sky's colour and the horizon's
+Palette = ti.types.struct(ground_a=_vec3, ground_b=_vec3, light=_vec3, sky=_vec3, horizon=_vec3)
+
+
+@ti.data_oriented
+class Buffers:
+    """The fields of the background layer, ``width`` x ``height``: the image (``sky``), the software buffers of
+    the splatted rocks (1 x 1 placeholders unless ``splat``), the rows they touch, the vehicles' shadows, and
+    two counters (rocks compacted for GGUI, pixels GGUI drew)."""
+
+    def __init__(self, width: int, height: int, splat: bool, max_cars: int):
+        self.splat = bool(splat)  # read at compile time
+        self.count = ti.field(ti.i32, shape=())
+        self.sky = ti.Vector.field(4, ti.u8)
+        ti.root.dense(ti.j, height).dense(ti.i, width).place(self.sky)  # rows contiguous: written row by row
+        bw, bh = (width, height) if splat else (1, 1)
+        self.zbuf = ti.field(ti.i64)  # (depth bits << 24) | rgb8 of the nearest opaque rock
+        self.acc = ti.Vector.field(2, ti.i64)  # packed premultiplied rgb, weight (COVERAGE_ONE = 1 pixel)
+        # a tree of their own: next to 32-bit fields Vulkan can misalign 64-bit ones (see world._Trees); here
+        # the buffers landed at 4 mod 8 after the sky, and zbuf[0] overwrote the sky's last pixel each frame
+        tree = ti.FieldsBuilder()
+        tree.dense(ti.j, bh).dense(ti.i, bw).place(self.zbuf, self.acc)
+        tree.finalize()
+        self.rows = ti.field(ti.i32, shape=2)  # lowest and highest row a splat touched
+        clear_buffers(self)
+        # x, y, cos, sin, half length, half width, shadow softness (local, m)
+        self.cars = ti.Vector.field(7, ti.f32, shape=max_cars)
+        self.drawn_px = ti.field(ti.i32, shape=())
+
+
+@ti.data_oriented
+class Bucket:
+    """Compacted rocks for GGUI particles: positions, radii and colours of at most ``cap`` rocks."""
+
+    def __init__(self, cap: int):
+        self.cap = int(cap)  # read at compile time
+        self.pos = ti.Vector.field(3, ti.f32, cap)
+        self.rad = ti.field(ti.f32, cap)
+        self.col = ti.Vector.field(3, ti.f32, cap)
+
+
+# ------------------------------------------------------------------------------------------------ rock colour
+_GOLDEN = 0x9E3779B9
+_SALT = 0x85EBCA6B
+
+
+@ti.func
+def _unit(rid, salt):
+    """A number in [0, 1) from a rock id and a salt: stable across frames and memory re-orderings."""
+    h = mix32(ti.cast(ti.cast(rid, ti.u32) * ti.u32(_GOLDEN) + ti.cast(salt, ti.u32) * ti.u32(_SALT), ti.u32))
+    return ti.cast(h >> ti.u32(8), ti.f32) * (1.0 / 16777216.0)
+
+
+def _unit_np(rid, salt) -> np.ndarray:
+    """:func:`_unit` on the host."""
+    x = (np.asarray(rid, np.int64).astype(np.uint64) * np.uint64(_GOLDEN)
+         + np.asarray(salt, np.int64).astype(np.uint64) * np.uint64(_SALT))
+    return (mix32_np(x) >> np.uint32(8)) / 16777216.0
+
+
+_GREY = (0.60, 0.59, 0.57)
+_BROWN = (0.62, 0.50, 0.37)
+_DARK = (0.36, 0.34, 0.32)
+_WARM = (1.30, 1.12, 0.85)  # flying rocks: warmer and lighter, so the splash reads
+_LIFT = 0.06
+
+
+@ti.func
+def _rock_color(rid, phase):
+    a = _unit(rid, 1)
+    b = _unit(rid, 2)
+    c = _unit(rid, 3)
+    grey = ti.Vector(_GREY)
+    brown = ti.Vector(_BROWN)
+    dark = ti.Vector(_DARK)
+    col = grey + (brown - grey) * (a * a)
+    col = col + (dark - col) * (0.55 * c * c)
+    col = col * (0.72 + 0.45 * b)
+    if phase == FLYING:
+        col = ti.min(col * ti.Vector(_WARM) + _LIFT, 1.0)
+    return col
+
+
+def rock_color(rock_id, phase: int = 0) -> np.ndarray:
+    """Host twin of the kernels' rock colour (float64; equal to the kernels' to f32 round-off)."""
+    a, b, c = (float(_unit_np(rock_id, salt)) for salt in (1, 2, 3))
+    grey, brown, dark = np.array(_GREY), np.array(_BROWN), np.array(_DARK)
+    col = grey + (brown - grey) * a * a
+    col = col + (dark - col) * 0.55 * c * c
+    col = col * (0.72 + 0.45 * b)
+    if phase == FLYING:
+        col = np.minimum(col * np.array(_WARM) + _LIFT, 1.0)
+    return col
+
+
+# ------------------------------------------------------------------------------------------------ splatting
+@ti.func
+def _smooth01(x):
+    s = ti.min(ti.max(x, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@ti.func
+def _empty_key():
+    """The depth-buffer value of a pixel no rock covers."""
+    return ti.cast(0x7FFFFFFF, ti.i64) << 32
+
+
+@ti.func
+def _key_rgb(key):
+    """The colour packed in a depth-buffer value."""
+    rgb = ti.cast(key & 0xFFFFFF, ti.i32)
+    return ti.Vector([(rgb >> 16) & 255, (rgb >> 8) & 255, rgb & 255]) * (1.0 / 255.0)
+
+
+@ti.func
+def _splat_coverage(buf, X, Y, pr, base, fwd, light):
+    """A sub-pixel rock (pr < OPAQUE_PX): its shaded colour spread bilinearly over the 2 x 2 pixels around its
+    centre with weight = its area in pixels, accumulated in fixed point (order independent, so
+    deterministic); the ground pass blends it by coverage, which antialiases the far gravel."""
+    W, H = buf.zbuf.shape
+    lam = (2.0 / 3.0) * ti.max(-fwd.dot(light.sun), 0.0)  # mean of n . l over the visible disc
+    c = ti.min(ti.max(base * (light.ambient + light.sun_color * lam), 0.0), 1.0)
+    area = 3.14159265 * pr * pr
+    fx = X - 0.5
+    fy = Y - 0.5
+    i0 = ti.cast(ti.floor(fx), ti.i32)
+    j0 = ti.cast(ti.floor(fy), ti.i32)
+    ax = fx - i0
+    ay = fy - j0
+    for di, dj in ti.static(ti.ndrange(2, 2)):
+        ii = i0 + di
+        jj = j0 + dj
+        if 0 <= ii < W and 0 <= jj < H:
+            wx = ax if di == 1 else 1.0 - ax
+            wy = ay if dj == 1 else 1.0 - ay
+            q = wx * wy * area * COVERAGE_ONE  # <= pi * COVERAGE_ONE per rock
+            if q >= 1.0:
+                # r, g, b premultiplied, 21 bits each, in one i64: one atomic instead of three
+                rgb = ti.cast(c[0] * q + 0.5, ti.i64) | (ti.cast(c[1] * q + 0.5, ti.i64) << 21) | \
+                    (ti.cast(c[2] * q + 0.5, ti.i64) << 42)
+                buf.acc[ii, jj][0] += rgb
+                buf.acc[ii, jj][1] += ti.cast(q + 0.5, ti.i64)
+    ti.atomic_min(buf.rows[0], ti.max(j0, 0))
+    ti.atomic_max(buf.rows[1], ti.min(j0 + 1, H - 1))
+
+
+@ti.func
+def _splat_sphere(buf, X, Y, pr, z, r, base, cam, light):
+    """An opaque shaded sphere of radius pr pixels at view depth z, pixel by pixel, depth-tested through an
+    atomic min on (depth, rgb) packed in an i64 (order independent, so deterministic)."""
+    W, H = buf.zbuf.shape
+    j_lo = ti.max(ti.cast(ti.floor(Y - pr), ti.i32), 0)
+    j_hi = ti.min(ti.cast(ti.floor(Y + pr), ti.i32), H - 1)
+    inv = 1.0 / pr
+    for jj in range(j_lo, j_hi + 1):
+        dy = (jj + 0.5 - Y) * inv
+        half = 1.0 - dy * dy
+        if half > 0.0:
+            span = pr * ti.sqrt(half)  # the disc's half width on this row, pixels
+            i_lo = ti.max(ti.cast(ti.ceil(X - span - 0.5), ti.i32), 0)
+            i_hi = ti.min(ti.cast(ti.floor(X + span - 0.5), ti.i32), W - 1)
+            for ii in range(i_lo, i_hi + 1):
+                dx = (ii + 0.5 - X) * inv
+                nz = ti.sqrt(ti.max(half - dx * dx, 0.0))
+                nrm = cam.right * dx + cam.up * dy - cam.fwd * nz
+                col = ti.min(ti.max(base * (light.ambient + light.sun_color * ti.max(nrm.dot(light.sun), 0.0)),
+                                    0.0), 1.0) * 255.0 + 0.5
+                depth = ti.max(z - r * nz, 1e-4)
+                key = (ti.cast(ti.bit_cast(depth, ti.i32), ti.i64) << 24) | ti.cast(
+                    (ti.cast(col[0], ti.i32) << 16) | (ti.cast(col[1], ti.i32) << 8) | ti.cast(col[2], ti.i32),
+                    ti.i64)
+                ti.atomic_min(buf.zbuf[ii, jj], key)
+    if j_lo <= j_hi:
+        ti.atomic_min(buf.rows[0], j_lo)
+        ti.atomic_max(buf.rows[1], j_hi)
+
+
+@ti.func
+def _splat_rock(buf, X, Y, pr, z, r, base, cam, light):
+    """Draw one resting rock into the software buffers: centre (X, Y) in pixels (row 0 at the bottom),
+    projected radius pr pixels, view depth z, radius r, colour ``base``."""
+    if pr < OPAQUE_PX:
+        _splat_coverage(buf, X, Y, pr, base, cam.fwd, light)
+    else:
+        _splat_sphere(buf, X, Y, pr, z, r, base, cam, light)
+
+
+@ti.func
+def _compact(bucket, count, p, draw_r, col):
+    """Append one rock to the bucket (the first ``count`` entries are valid; count may exceed the capacity)."""
+    j = ti.atomic_add(count[None], 1)
+    if j < bucket.cap:
+        bucket.pos[j] = p
+        bucket.rad[j] = draw_r
+        bucket.col[j] = col
+
+
+@ti.kernel
+def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: Camera,
+               fr: Frustum, size: Sizing, light: Light):
+    """Cull the first ``n`` rocks of ``world`` to the view frustum and the draw distance, then
+
+    * ``buf.splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`),
+      flying rocks are compacted into ``bucket`` for GGUI;
+    * otherwise every visible rock is compacted into ``bucket`` (atomic counter ``buf.count``; the first
+      ``count`` entries are valid, count may exceed the bucket's capacity: then the caller re-runs with a bigger
+      bucket), far resting rocks thinned (a fraction q^2 kept by a hash of rock_id and drawn 1/q larger,
+      q = projected radius / lod_px).
+    """
+    buf.count[None] = 0
+    if ti.static(buf.splat):
+        buf.rows[0] = buf.zbuf.shape[1]
+        buf.rows[1] = -1
+    W = ti.cast(buf.zbuf.shape[0], ti.f32)
+    H = ti.cast(buf.zbuf.shape[1], ti.f32)
+    for i in range(n):
+        p = ti.cast(world.pos[i], ti.f32)
+        r = ti.cast(world.radius[i], ti.f32)
+        d = p - cam.eye
+        z = d.dot(cam.fwd)
+        if z > fr.near - r and d.norm_sqr() < fr.far * fr.far:
+            x = d.dot(cam.right)
+            y = d.dot(cam.up)
+            if ti.abs(x) < z * fr.tan_x + r * fr.sec_x and ti.abs(y) < z * fr.tan_y + r * fr.sec_y:
+                ph = world.phase[i]
+                rid = world.rock_id[i]
+                if ti.static(buf.splat):
+                    if ph != FLYING:
+                        if z > fr.near:
+                            zz = ti.max(z, fr.near)
+                            _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
+                                        (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
+                                        _rock_color(rid, ph), cam, light)
+                        continue
+                keep = True
+                draw_r = r
+                if ph != FLYING and size.lod_px > 0:
+                    pr = r * fr.px_per_rad / ti.max(z, fr.near)  # projected radius, pixels
+                    if pr < size.lod_px:
+                        q = pr / size.lod_px
+                        if _unit(rid, 7) < q * q:  # keep a fraction q^2, drawn 1/q larger: same coverage
+                            draw_r = r / q
+                        else:
+                            keep = False
+                if keep:
+                    _compact(bucket, buf.count, p, draw_r * size.radius_scale, _rock_color(rid, ph))
+
+
+@ti.kernel
+def clear_buffers(buf: ti.template()):
+    for i, j in buf.zbuf:
+        buf.zbuf[i, j] = _empty_key()
+        buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
+
+
+# ------------------------------------------------------------------------------------------------ background
+@ti.func
+def _composite(col, buf, i, j):
+    """Blend the splatted rocks of pixel (i, j) over ``col`` and reset the pixel's buffers."""
+    a = buf.acc[i, j]
+    if a[1] > 0:
+        w = ti.cast(a[1], ti.f32) * (1.0 / COVERAGE_ONE)
+        m = ti.cast(0x1FFFFF, ti.i64)
+        rgb = ti.Vector([ti.cast(a[0] & m, ti.f32), ti.cast((a[0] >> 21) & m, ti.f32),
+                         ti.cast((a[0] >> 42) & m, ti.f32)]) * (1.0 / COVERAGE_ONE)
+        if w >= 1.0:
+            col = rgb / w
+        else:
+            col = col * (1.0 - w) + rgb
+        buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
+    key = buf.zbuf[i, j]
+    if key != _empty_key():
+        col = _key_rgb(key)
+        buf.zbuf[i, j] = _empty_key()
+    return col
+
+
+@ti.func
+def _to_rgba8(col):
+    c = ti.min(ti.max(col, 0.0), 1.0) * 255.0 + 0.5
+    return ti.Vector([ti.cast(c[0], ti.u8), ti.cast(c[1], ti.u8), ti.cast(c[2], ti.u8), ti.u8(255)])
+
+
+@ti.func
+def _checker(hx, hy, fx, fy, wrap, inv_tile):
+    """The checker's share of its second colour at ground point (hx, hy) over a footprint fx x fy (m): box-
+    filtered square waves (difference of the integrated triangle wave), so far tiles blend to the mean."""
+    qx = (hx + wrap[0]) * inv_tile
+    qy = (hy + wrap[1]) * inv_tile
+    wx = fx * inv_tile + 1e-4
+    wy = fy * inv_tile + 1e-4
+    sa = (qx - 0.5 * wx) * 0.5
+    sb = (qx + 0.5 * wx) * 0.5
+    ta = (qy - 0.5 * wy) * 0.5
+    tb = (qy + 0.5 * wy) * 0.5
+    sx = 2.0 * (ti.abs(sa - ti.floor(sa) - 0.5) - ti.abs(sb - ti.floor(sb) - 0.5)) / wx  # in [-1, 1]
+    sy = 2.0 * (ti.abs(ta - ti.floor(ta) - 0.5) - ti.abs(tb - ti.floor(tb) - 0.5)) / wy
+    return 0.5 - 0.5 * sx * sy
+
+
+@ti.func
+def _contact_shadows(g, hx, hy, cars, n_cars):
+    """``g`` darkened under the vehicles: soft-edged rectangles of their footprints."""
+    for k in range(n_cars):
+        c = cars[k]  # x, y, cos, sin, half length, half width, shadow softness (local, m)
+        rx = hx - c[0]
+        ry = hy - c[1]
+        ox = ti.abs(rx * c[2] + ry * c[3]) - c[4]
+        oy = ti.abs(-rx * c[3] + ry * c[2]) - c[5]
+        if ox < c[6] and oy < c[6]:
+            dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
+            g *= 0.5 + 0.5 * _smooth01(dd / c[6])
+    return g
+
+
+@ti.func
+def _ground_row(buf, j, dr, t, rocks, cam, fr, ground, pal, n_cars):
+    """Row j where the ground shows: ray ``dr`` through the row's centre line meets the plane at distance t
+    (in units of dr). The pixel's ray is dr + right * u."""
+    W, H = buf.sky.shape
+    inv_tile = 1.0 / ground.tile
+    right = cam.right
+    # pixel footprint on the plane: d(hit)/d(column) = t * du (du horizontal),
+    # d(hit)/d(row) = t * (dv - d * dv_z / dz), d = dr + right * u
+    gu = right * (2.0 * fr.tan_x / W * t)
+    gv0 = t * (cam.up * (2.0 * fr.tan_y / H) - dr * (cam.up[2] * (2.0 * fr.tan_y / H) / dr[2]))
+    gv1 = -t * right * (cam.up[2] * (2.0 * fr.tan_y / H) / dr[2])  # times u
+    bx0 = cam.eye[0] + t * dr[0]
+    by0 = cam.eye[1] + t * dr[1]
+    r2 = dr.norm_sqr()
+    for i in range(W):
+        u = ((i + 0.5) / W * 2.0 - 1.0) * fr.tan_x
+        g = ti.Vector([0.0, 0.0, 0.0])
+        covered = False
+        if ti.static(buf.splat):
+            if rocks:
+                key = buf.zbuf[i, j]
+                if key != _empty_key():  # an opaque rock: no ground to compute under it
+                    covered = True
+                    buf.zbuf[i, j] = _empty_key()
+                    buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
+                    g = _key_rgb(key)
+        if not covered:
+            hx = bx0 + t * u * right[0]
+            hy = by0 + t * u * right[1]
+            fx = ti.abs(gu[0]) + ti.abs(gv0[0] + gv1[0] * u)
+            fy = ti.abs(gu[1]) + ti.abs(gv0[1] + gv1[1] * u)
+            chk = _checker(hx, hy, fx, fy, ground.wrap, inv_tile)
+            g = (pal.ground_a + (pal.ground_b - pal.ground_a) * chk) * pal.light
+            g = _contact_shadows(g, hx, hy, buf.cars, n_cars)
+            if ti.static(buf.splat):
+                if rocks:
+                    g = _composite(g, buf, i, j)
+        x = t * ti.sqrt(r2 + u * u) / ground.haze_dist  # distance / haze distance (right is a unit normal to dr)
+        fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
+        buf.sky[i, j] = _to_rgba8(g + (pal.horizon - g) * fog)
+
+
+@ti.func
+def _sky_row(buf, j, dr, rocks, pal):
+    """Row j above the horizon: one colour (elevation of the row's centre), rocks only when the camera is lower
+    than they are."""
+    W, H = buf.sky.shape
+    elev = dr[2] / ti.sqrt(dr.norm_sqr())
+    col = pal.horizon + (pal.sky - pal.horizon) * _smooth01(elev * (1.0 / 0.12))
+    px = _to_rgba8(col)
+    if ti.static(buf.splat):
+        if rocks:
+            for i in range(W):
+                buf.sky[i, j] = _to_rgba8(_composite(col, buf, i, j))
+        else:
+            for i in range(W):
+                buf.sky[i, j] = px
+    else:
+        for i in range(W):
+            buf.sky[i, j] = px
+
+
+@ti.kernel
+def paint_ground(buf: ti.template(), cam: Camera, fr: Frustum, ground: Ground, pal: Palette, n_cars: ti.i32):
+    """Sky, ground and (``buf.splat``) the splatted resting rocks, one ray per pixel, into the background
+    image ``buf.sky`` (W, H), row 0 at the bottom.
+
+    Ground: the plane z = ground.z, a checker of ``ground.tile`` metre squares whose parity is that of the
+    *world* tile (``ground.wrap`` = origin mod 2 tiles), box-filtered over the pixel's footprint (no moire: far
+    tiles blend to the mean colour), lit like GGUI lights a mesh facing up (``pal.light`` = ambient + sun *
+    cos), darkened under the first ``n_cars`` vehicles of ``buf.cars`` (soft contact shadows), then the rocks
+    blended in (:func:`_composite`), then hazed towards ``pal.horizon`` with distance. Sky: ``pal.sky`` above,
+    lightening to ``pal.horizon`` at the horizon. Everything GGUI draws afterwards lies above the plane, so
+    painting the ground behind the 3D scene is exact; resting rocks lie on it (a rock just in front of a
+    tire's contact patch is the only thing that can come out behind instead of in front). Parallel over rows:
+    the camera has no roll (its right vector is horizontal), so a row's rays share their height and distance
+    to the plane.
+    """
+    W, H = buf.sky.shape
+    h = cam.eye[2] - ground.z
+    for j in range(H):
+        v = ((j + 0.5) / H * 2.0 - 1.0) * fr.tan_y
+        dr = cam.fwd + cam.up * v  # ray through the row's centre line
+        dz = dr[2]  # right is horizontal (no roll), so the whole row shares dz and the plane distance t
+        rocks = False
+        if ti.static(buf.splat):
+            rocks = buf.rows[0] <= j <= buf.rows[1]
+        if dz < 0.0 and h > 0.0:
+            _ground_row(buf, j, dr, h / -dz, rocks, cam, fr, ground, pal, n_cars)
+        else:
+            _sky_row(buf, j, dr, rocks, pal)
+
+
+@ti.kernel
+def to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3),
+          buf: ti.template()):
+    """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), with the
+    background image ``buf.sky`` (W, H) wherever GGUI left its clear colour :data:`KEY` (nothing drawn there).
+
+    Merging here instead of ``canvas.set_image`` saves lavapipe a full-screen textured quad and GGUI a
+    staging copy (~25 ms of CPU a frame at 720p). GGUI draws without antialiasing, so a pixel is either
+    cleared (exactly the key, k/255 floats) or drawn. Works in 32 x 32 tiles so that both the reads and the
+    transposed writes stay in cache. ``buf.drawn_px`` counts the pixels GGUI drew.
+    """
+    H = out.shape[0]
+    W = out.shape[1]
+    buf.drawn_px[None] = 0
+    for by, bx in ti.ndrange((H + 31) // 32, (W + 31) // 32):
+        n = 0
+        for ex, ey in ti.ndrange(32, 32):
+            x = bx * 32 + ex
+            yy = by * 32 + ey  # row of the read-back (0 = bottom)
+            if x < W and yy < H:
+                r = ti.cast(raw[x, yy, 0] * 255.0 + 0.5, ti.i32)
+                g = ti.cast(raw[x, yy, 1] * 255.0 + 0.5, ti.i32)
+                b = ti.cast(raw[x, yy, 2] * 255.0 + 0.5, ti.i32)
+                if r == KEY[0] and g == KEY[1] and b == KEY[2]:
+                    px = buf.sky[x, yy]
+                    out[H - 1 - yy, x, 0] = px[0]
+                    out[H - 1 - yy, x, 1] = px[1]
+                    out[H - 1 - yy, x, 2] = px[2]
+                else:
+                    n += 1
+                    out[H - 1 - yy, x, 0] = ti.cast(ti.min(ti.max(r, 0), 255), ti.u8)
+                    out[H - 1 - yy, x, 1] = ti.cast(ti.min(ti.max(g, 0), 255), ti.u8)
+                    out[H - 1 - yy, x, 2] = ti.cast(ti.min(ti.max(b, 0), 255), ti.u8)
+        buf.drawn_px[None] += n

@@ -1,0 +1,219 @@
+"""Simulate a scene and render it to PNG frames and a video: arguments, outputs, resuming an interrupted
+render (output/resume.py), the frame loop and its profile."""
+
+import os
+import sys
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+from ..config.resolution import check_resolution
+from .renderer import WINDOW_EVERY, Renderer, check_rocks
+
+__all__ = ["render_scene"]
+
+
+def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=None, fmt="mp4", arch="cpu",
+                 overwrite=False, progress=True, profile=False, *, resume=False, rocks="splat",
+                 window_every=WINDOW_EVERY, on_frame=None, checkpoint_every=None) -> dict:
+    """Simulate a scene and render it offscreen to PNG frames plus an MP4 or GIF (``fmt="png"``: frames only).
+
+    ``scene_or_path``: a scene file (TOML) or a validated :class:`~taichi_rocks.config.scene.Scene`. Frame k shows the
+    simulation at t = k / fps; ``frames`` defaults to round(duration * fps). ``resolution`` and ``fps`` override
+    the scene's [render] table. Outputs go to ``out_dir`` (default ``renders/<scene name>/``): ``frames/``
+    and ``<scene name>.<fmt>``; existing outputs raise FileExistsError unless ``overwrite`` (which removes the
+    old frames and video first). An odd resolution raises ValueError; a machine without Vulkan raises
+    RuntimeError naming the packages to install. ``rocks``: "splat" (resting rocks drawn by a Taichi kernel
+    behind the GGUI scene, flying ones as GGUI particles; fast) or "particles" (every rock a GGUI particle).
+    ``resume``: keep the frames a previous (interrupted) render finished, frame_00000.png ... without a gap,
+    restore the newest simulation state it saved before the first missing frame (every ``checkpoint_every``
+    frames, default 30, in ``out_dir/.resume/``; see resume.py), advance the simulation and the camera from
+    there to the first missing frame without drawing, re-encode the kept frames into the video and render the
+    rest (the result equals an uninterrupted render: the simulation is deterministic); the frames must have
+    the requested resolution, and the scene, fps and rock mode must be the interrupted render's.
+    ``progress``: a tqdm bar on stderr; None shows it only on a terminal.
+    ``on_frame(k, image)``, if given, sees every frame drawn (tests).
+
+    Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from" (first frame drawn),
+    "replayed_from" (first frame simulated without drawing, after a restored state), "resolution", "video_fps",
+    "seconds", "frames_per_second" (frames drawn / seconds of the frame loop; also "fps_measured"), "redraws"}
+    and with ``profile`` a "profile" dict of seconds: "simulation", "culling" (rock
+    culling and splatting), "drawing" (camera, sky and ground, GGUI drawing and the read-back), "encoding"
+    (time the render loop waited on the frame writer, including the final flush) and "encoding_busy" (the
+    writer thread's own time, which overlaps the others), "other" (the rest of the frame loop), "setup"
+    (before the first frame: scene, simulation and window set-up) and "first_frame" (the first frame alone,
+    mostly kernel compilation; included in the others)."""
+    t_start = time.perf_counter()
+    resolution = _check_arguments(resolution, fps, frames, rocks)
+    job = _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resume)
+    run = _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume)
+    t_replay = _replay(job, run)
+    times = _frame_loop(job, run, progress, on_frame)
+    times.start, times.replay = t_start, t_replay
+    return _report(job, run, times, profile)
+
+
+def _check_arguments(resolution, fps, frames, rocks):
+    """ValueError on a bad argument; the resolution as (width, height) ints, or None."""
+    if resolution is not None:
+        resolution = check_resolution(resolution)
+    if fps is not None and not (isinstance(fps, (int, float)) and fps > 0):
+        raise ValueError(f"fps must be a number > 0, got {fps!r}")
+    if frames is not None and (not isinstance(frames, int) or isinstance(frames, bool) or frames < 1):
+        raise ValueError(f"frames must be an int >= 1, got {frames!r}")
+    check_rocks(rocks)
+    return resolution
+
+
+def _existing_outputs(paths: dict) -> list:
+    """Files of a previous render that this one would replace."""
+    found = []
+    video = paths["video"]
+    if video is not None and video.exists():
+        found.append(video)
+    frames = paths["frames"]
+    if frames.is_dir():
+        found += sorted(frames.glob("frame_*.png"))
+    return found
+
+
+def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resume) -> SimpleNamespace:
+    """What to render and where: the scene, the output paths, the frame count and rate, the first frame to
+    draw (``start``: after the frames an interrupted render kept) and the old files to remove (``old``).
+    Raises before anything is written."""
+    from ..config.scene import load_scene
+    from ..output.video import existing_size, finished_frames, frame_name, output_paths
+
+    scene = load_scene(scene_or_path) if isinstance(scene_or_path, (str, os.PathLike)) else scene_or_path
+    out_dir = Path(out_dir) if out_dir is not None else Path("renders") / scene.name
+    paths = output_paths(out_dir, scene.name, fmt)  # ValueError on an unknown format
+    video_fps = float(fps if fps is not None else scene.render.fps)
+    n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))
+    old = _existing_outputs(paths)
+    start = 0
+    if resume:
+        start = min(finished_frames(paths["frames"]), n_frames)
+        size = existing_size(paths["frames"]) if start else None
+        want = resolution or tuple(int(x) for x in scene.render.resolution)
+        if size is not None and tuple(size) != tuple(want):
+            raise ValueError(f"cannot resume: {paths['frames']} holds {size[0]}x{size[1]} frames, "
+                             f"this render is {want[0]}x{want[1]}")
+        keep = {paths["frames"] / frame_name(i) for i in range(start)}
+        old = [f for f in old if f not in keep]
+    elif old and not overwrite:
+        what = paths["video"] if paths["video"] in old else paths["frames"]
+        raise FileExistsError(f"{what} already exists (pass overwrite=True or --overwrite to replace it)")
+    return SimpleNamespace(scene=scene, out_dir=out_dir, paths=paths, fmt=fmt, video_fps=video_fps,
+                           n_frames=n_frames, start=start, old=old)
+
+
+def _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume) -> SimpleNamespace:
+    """Taichi, the simulation, the renderer (its window), the checkpoints and the frame writer; the old outputs
+    are removed only once all of these stand."""
+    from ..engine.runtime import init_taichi
+    from ..engine.simulation import Simulation
+    from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
+    from ..output.video import FrameWriter
+
+    init_taichi(arch)
+    sim = Simulation(job.scene, arch=arch)
+    renderer = Renderer(sim, resolution=resolution, fps=job.video_fps, rocks=rocks, window_every=window_every)
+    every = CHECKPOINT_EVERY if checkpoint_every is None else int(checkpoint_every)
+    checkpoints = RenderCheckpoints(job.out_dir, fingerprint(job.scene, job.video_fps, renderer.resolution, rocks),
+                                    every)
+    if resume:
+        try:
+            checkpoints.check_same_render()
+        except ValueError:
+            renderer.close()
+            raise
+    for f in job.old:  # only now: a failure above leaves the previous render untouched
+        f.unlink()
+    checkpoints.start(resume, job.start)
+    writer = FrameWriter(job.out_dir, job.scene.name, job.video_fps, job.fmt, start=job.start)
+    return SimpleNamespace(sim=sim, renderer=renderer, checkpoints=checkpoints, writer=writer, replay_from=0)
+
+
+def _replay(job, run) -> float:
+    """Resuming: restore the newest saved state, replay simulation and camera to the first frame to draw, draw
+    nothing. Return the seconds it took."""
+    t0 = time.perf_counter()
+    try:
+        if job.start:
+            saved = run.checkpoints.latest_before(job.start)
+            if saved is not None:
+                run.replay_from = run.checkpoints.restore(saved, run.sim, run.renderer.rig) + 1
+        for k in range(run.replay_from, job.start):
+            run.sim.advance_to(k / job.video_fps)
+            run.renderer.view()
+    except BaseException:
+        run.renderer.close()
+        run.writer.close(ok=False)
+        raise
+    return time.perf_counter() - t0
+
+
+def _frame_loop(job, run, progress, on_frame) -> SimpleNamespace:
+    """Simulate, draw and write frames ``job.start`` ... ``job.n_frames - 1``; close the renderer and the writer
+    (the video is finished only if every frame was written). Return the loop's timings."""
+    from tqdm import tqdm
+
+    sim, renderer, writer, checkpoints = run.sim, run.renderer, run.writer, run.checkpoints
+    t = SimpleNamespace(sim=0.0, first=0.0)
+    ok = False
+    bar = tqdm(total=job.n_frames, initial=job.start, unit="frame", desc=job.scene.name, file=sys.stderr,
+               disable=None if progress is None else not progress, dynamic_ncols=True)
+    t.loop_start = time.perf_counter()
+    try:
+        for k in range(job.start, job.n_frames):
+            t0 = time.perf_counter()
+            sim.advance_to(k / job.video_fps)
+            t.sim += time.perf_counter() - t0
+            img = renderer.render_frame()
+            if on_frame is not None:
+                on_frame(k, img)
+            writer.write(img)
+            if checkpoints.due(k, job.n_frames):
+                checkpoints.save(k, sim, renderer.rig)
+            bar.update(1)
+            if k == job.start:
+                t.first = time.perf_counter() - t.loop_start
+        ok = True
+    finally:
+        bar.close()
+        renderer.close()
+        run.video = writer.close(ok=ok)
+    checkpoints.finish()  # complete: nothing to resume
+    return t
+
+
+def _report(job, run, t, profile: bool) -> dict:
+    """The dict render_scene returns (see there)."""
+    seconds = time.perf_counter() - t.start
+    loop = time.perf_counter() - t.loop_start
+    renderer, video = run.renderer, run.video
+    out = {
+        "scene": job.scene.name,
+        "out_dir": str(job.out_dir),
+        "frames_dir": str(job.paths["frames"]),
+        "video": str(video) if video is not None else None,
+        "frames": job.n_frames,
+        "resumed_from": job.start,
+        "replayed_from": run.replay_from if job.start else None,
+        "resolution": tuple(renderer.resolution),
+        "video_fps": job.video_fps,
+        "seconds": seconds,
+        "frames_per_second": (job.n_frames - job.start) / loop if loop > 0 else 0.0,
+        "redraws": renderer.redraws,  # frames whose GGUI layer had to be drawn twice (GGUI glitch guard)
+    }
+    out["fps_measured"] = out["frames_per_second"]
+    if profile:
+        writer = run.writer
+        prof = {"simulation": t.sim, "culling": renderer.timings["cull"], "drawing": renderer.timings["draw"],
+                "encoding": writer.timings["encode"], "encoding_busy": writer.timings["encode_busy"]}
+        prof["other"] = max(0.0, loop - t.sim - prof["culling"] - prof["drawing"] - prof["encoding"])
+        prof["setup"] = t.loop_start - t.start - t.replay
+        prof["resume_replay"] = t.replay  # simulating the frames kept from an interrupted render
+        prof["first_frame"] = t.first  # included above; mostly kernel compilation (cached on later runs)
+        out["profile"] = prof
+    return out
