@@ -24,7 +24,7 @@ GGUI 1.7.4 quirks handled here (see also :mod:`.window`):
 * ``mesh_instance`` lights the *untransformed* mesh (Mesh_vk.vert forwards the model-space position and
   normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one: vehicles are one
   ``scene.mesh`` whose vertices and normals are transformed on the host each frame;
-* (``/work/shared/TAICHI-NOTES.md``) the image comes back (W, H, 4) float and y-flipped
+* the image comes back (W, H, 4) float and y-flipped
   (:func:`.kernels.to_u8`); capture exactly once per frame; a 3D scene leaks ~0.3 MB per captured frame on
   lavapipe: the window is recreated every ``window_every`` frames (the camera state lives in
   :class:`.camera.CameraRig` and carries over);
