@@ -15,7 +15,7 @@ pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
 @pytest.fixture(scope="module")
 def bench_run(tmp_path_factory, taichi_cpu):
-    from taichi_rocks.bench.core import run_bench
+    from taichi_rocks.bench import run_bench
 
     out = tmp_path_factory.mktemp("bench")
     res = run_bench(out_dir=out, quick=True, tiny=True, progress=False)
@@ -115,7 +115,7 @@ def test_ratios_positive_finite(bench_run):
 
 
 def test_closed_forms():
-    from taichi_rocks.bench.core import exact_gravity, exact_linear, exact_quadratic_vertical
+    from taichi_rocks.bench.flight import exact_gravity, exact_linear, exact_quadratic_vertical
 
     t = np.linspace(0.0, 2.0, 201)
     x0, v0 = np.array([0.0, 0.0, 1.0]), np.array([3.0, 1.0, 15.0])
