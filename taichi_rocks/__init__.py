@@ -22,7 +22,7 @@ _API = {
     "parse_scene": "config.scene", "scene_with": "config.scene", "Plan": "config.plan",
     "Simulation": "engine.simulation", "HealthError": "engine.simulation", "init_taichi": "engine.runtime",
     "record": "output.recording", "render_scene": "render.pipeline", "Renderer": "render.renderer",
-    "run_bench": "bench.core",
+    "run_bench": "bench.run",
 }
 __all__ = sorted(_API)
 

@@ -181,7 +181,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench.core import run_bench
+    from .bench import run_bench
     info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK
@@ -194,7 +194,7 @@ _PRELOAD = {
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
     "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
-    "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.core"),
+    "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run"),
 }
 
 

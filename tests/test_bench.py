@@ -15,7 +15,7 @@ pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
 @pytest.fixture(scope="module")
 def bench_run(tmp_path_factory, taichi_cpu):
-    from taichi_rocks.bench.core import run_bench
+    from taichi_rocks.bench import run_bench
 
     out = tmp_path_factory.mktemp("bench")
     res = run_bench(out_dir=out, quick=True, tiny=True, progress=False)
@@ -115,7 +115,7 @@ def test_ratios_positive_finite(bench_run):
 
 
 def test_closed_forms():
-    from taichi_rocks.bench.core import exact_gravity, exact_linear, exact_quadratic_vertical
+    from taichi_rocks.bench.flight import exact_gravity, exact_linear, exact_quadratic_vertical
 
     t = np.linspace(0.0, 2.0, 201)
     x0, v0 = np.array([0.0, 0.0, 1.0]), np.array([3.0, 1.0, 15.0])
@@ -131,3 +131,91 @@ def test_closed_forms():
     h = 1e-6
     dz = (exact_quadratic_vertical(1.0, 20.0, 40.0, [h])[0] - 1.0) / h
     assert dz == pytest.approx(20.0, rel=1e-4)
+
+
+def test_passes_inside_a_step_are_timed_by_the_engine(bench_run):
+    """The per-pass breakdown inside real steps comes from the engine's timing hook (PassTimer): the fused rock
+    pass and the fused hash + tire pass are there, each a positive share of the step."""
+    _, res = bench_run
+    for e in res["speed"]["grid"]:
+        prof = e["in_step"]["per_pass_ms"]
+        assert _positive_finite(prof["rock pass (fused)"]) and _positive_finite(prof["hash scan+scatter+tires (fused)"])
+        assert sum(v for k, v in prof.items() if k != "host and launch overhead") <= e["in_step"][
+            "mean_step_ms_with_syncs"] * 1.001
+
+
+def _small_scene():
+    from taichi_rocks.bench.scenes import fleet_scene
+
+    return fleet_scene(20_000, 2, 8.0)  # the tiny run's grid scene: after it, its World is free in the pool
+
+
+def test_rebuild_carries_on_bit_identically_on_the_same_world():
+    import gc
+
+    from taichi_rocks.bench.measure import Built
+    from taichi_rocks.config.scene import scene_with
+
+    scene = _small_scene()
+    b = Built(scene, "cpu", "straight")
+    b.sim.step(12)
+    straight = b.sim.state()
+    del b
+    gc.collect()
+    b = Built(scene, "cpu", "rebuilt")
+    world = b.sim.world
+    b.sim.step(5)
+    b.rebuild(scene_with(scene, {"effects.drag": "none"}))  # another plan on the same fields
+    assert b.sim.world is world and b.sim.plan.drag == "none" and b.sim.step_count == 5
+    b.rebuild(scene)
+    b.sim.step(7)
+    assert b.sim.world is world and b.sim.step_count == 12
+    again = b.sim.state()
+    for key in ("positions", "velocities", "phase", "launches_total"):
+        np.testing.assert_array_equal(again[key], straight[key], err_msg=key)
+    assert straight["launches_total"] > 0  # the comparison is not vacuous
+    held = b.sim
+    with pytest.raises(RuntimeError, match="still referenced"):
+        b.rebuild(scene)  # a Simulation referenced elsewhere keeps its World: refused, not recompiled
+    del held
+
+
+def test_fly_only_flies_test_rocks_and_restores_the_rocks():
+    from taichi_rocks.bench.flight import exact_gravity
+    from taichi_rocks.engine import probes
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.engine.world import IPar
+
+    sim = Simulation(_small_scene())
+    sim.step(5)
+    before = sim.checkpoint()
+    x0 = np.array([[0.0, 0.0, 1.0], [2.0, -1.0, 0.5]])
+    v0 = np.array([[12.0, 2.0, 15.0], [-3.0, 1.0, 9.0]])
+    xs = probes.fly_only(sim, x0, v0, [0.03, 0.02], 0.01, steps=100, every=10, integrator="heun", drag="none")
+    assert xs.shape == (2, 10, 3)
+    t = np.arange(10, 101, 10) * 0.01
+    for j in range(2):  # Heun is exact for a parabola: f32 rounding only
+        np.testing.assert_allclose(xs[j], exact_gravity(x0[j], v0[j], t), atol=1e-3)
+    after = sim.checkpoint()
+    for key, value in before.items():
+        np.testing.assert_array_equal(after[key], value, err_msg=key)
+    assert int(sim.world.ipar[IPar.N_ROCKS]) == sim.n_rocks
+    with probes.active_rocks(sim, 0):
+        assert int(sim.world.ipar[IPar.N_ROCKS]) == 0
+    assert int(sim.world.ipar[IPar.N_ROCKS]) == sim.n_rocks
+
+
+def test_separate_passes_in_step_order():
+    from taichi_rocks.bench.measure import separate_passes_ms
+    from taichi_rocks.engine import probes
+    from taichi_rocks.engine.simulation import Simulation
+
+    sim = Simulation(_small_scene())
+    sim.step(3)
+    names = [name for name, _ in probes.separate_passes(sim)]
+    assert names == ["flight", "recycle", "hash clear", "hash count", "hash scan", "hash scatter", "trace rays",
+                     "tire pass"]
+    ms = separate_passes_ms(sim, 1)
+    assert set(names) < set(ms) and all(_positive_finite(v) for v in ms.values())
+    sim.step(3)  # the passes left a state the step carries on from
+    sim.check_health()

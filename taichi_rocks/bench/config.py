@@ -1,0 +1,115 @@
+"""What a benchmark run measures and how much of it: the run's sizes (Config: tiny, quick, full), the hash
+settings compared, the integrators and drag laws swept, and the presets' targets. No Taichi here."""
+
+from __future__ import annotations
+
+import dataclasses
+
+G = 9.81  # m/s^2: the closed forms' gravity (the benchmark's scenes keep the default gravity; checked)
+ACC_T = 2.0  # s of flight for the accuracy and precision tests
+SAMPLE_EVERY = 0.1  # s between error samples (every dt of the sweep divides it)
+TAU_LINEAR = 1.0  # s: Stokes time constant of the 3 cm rock in the linear-drag test
+PRESET_SPEED = 60.0  # m/s: the speed the presets' recall is judged at
+
+# Presets: the cheapest settings meeting all of (name, flight error, recall at 60 m/s, launch-time bound):
+#  * flight error: max position error over a 2 s flight of the default-physics cases (gravity only,
+#    quadratic drag), and the f32/f64 error of a flight 100 km from the origin (floating origin) - measured;
+#  * recall of true tire contacts at 60 m/s - measured (swept; single ray from a recall-vs-displacement fit);
+#  * launch-time bound: a rock is launched at the end of the step in which the tire reaches it, up to dt
+#    late, so its path is off by up to v_launch dt (v_launch <= 30 m/s) - modelled, not measured.
+V_LAUNCH_MAX = 30.0
+PRESET_TARGETS = (
+    ("draft", 0.05, 0.90, 0.6),  # a rock diameter; 0.6 m / 30 m/s -> dt <= 0.02 s
+    ("balanced", 1e-3, 0.99, 0.06),  # a millimetre; dt <= 0.002 s
+    ("reference", 1e-6, 0.999, 0.006),  # a micrometre (beyond f32); dt <= 0.0002 s
+)
+
+
+@dataclasses.dataclass
+class Config:
+    mode: str
+    grid_n: tuple
+    grid_t: tuple
+    bed_radius: float
+    main: tuple  # (N, T) of the targets
+    k_hits: int  # steps from t = 0 whose launched ids are compared across hash settings
+    warm: int
+    reps: int
+    pass_reps: int
+    numpy_reps: int
+    kdtree_reps: int
+    warp_reps: int
+    probe_n: int
+    probe_radius: float
+    speeds: tuple
+    run_time: float
+    acc_dts: tuple
+    acc_f64: bool
+    distances: tuple
+    hash_settings: tuple  # names from HASH_SETTINGS
+    hash_n: int
+    integ_cost: tuple  # (integrator, drag) pairs timed with every rock flying
+    validate_presets: bool
+    use_warp: bool = True
+    substeps_mode: bool = True  # detection with ray x4 substeps (its own simulation)
+    effects: tuple = ("gravity off", "drag none", "ground none", "recycle off")
+    effects_all_flying: bool = True
+    passes_all: bool = True  # per-pass breakdown for every grid configuration (else the main one only)
+
+
+HASH_SETTINGS = {  # name -> scene overrides (the default scene: centre insert, cell 2 r_max, auto table)
+    "default (center, auto=2 r_max, auto, scope tires)": {},
+    "center, cell r_min": {"sim.hash.cell_size": "min_radius"},
+    "center, cell 0.03 m": {"sim.hash.cell_size": 0.03},
+    "center, cell 0.05 m": {"sim.hash.cell_size": 0.05},
+    "design: aabb, cell r_min": {"sim.hash.insert": "aabb", "sim.hash.cell_size": "min_radius"},
+    "aabb, cell 0.03 m": {"sim.hash.insert": "aabb", "sim.hash.cell_size": 0.03},
+    "aabb, cell 2 r_max": {"sim.hash.insert": "aabb", "sim.hash.cell_size": "max_diameter"},
+    "table 0.5 N": {"sim.hash.table_size": "0.5N"},
+    "table 4 N": {"sim.hash.table_size": "4N"},
+    "scope all": {"sim.hash.scope": "all"},
+    "design, scope all": {"sim.hash.insert": "aabb", "sim.hash.cell_size": "min_radius", "sim.hash.scope": "all"},
+}
+DEFAULT_HASH = "default (center, auto=2 r_max, auto, scope tires)"
+DESIGN_HASH = "design: aabb, cell r_min"
+
+INTEGRATORS = ("symplectic_euler", "heun", "rk4")
+DRAGS = ("none", "linear", "quadratic")
+CASE_OF_DRAG = {"none": "gravity", "linear": "linear", "quadratic": "quadratic"}
+
+
+def make_config(quick: bool = False, tiny: bool = False) -> Config:
+    if tiny:
+        return Config(mode="tiny", grid_n=(20_000,), grid_t=(2,), bed_radius=8.0, main=(20_000, 2), k_hits=30,
+                      warm=2, reps=4, pass_reps=2, numpy_reps=2, kdtree_reps=1, warp_reps=2,
+                      probe_n=20_000, probe_radius=16.0, speeds=(10.0, 60.0), run_time=0.2,
+                      acc_dts=(1e-2, 2e-2), acc_f64=False, distances=(0.0, 1e5),
+                      hash_settings=(DEFAULT_HASH, DESIGN_HASH), hash_n=20_000,
+                      integ_cost=tuple((i, "quadratic") for i in INTEGRATORS), validate_presets=False,
+                      use_warp=False, substeps_mode=False, effects=("drag none",), effects_all_flying=False)
+    if quick:
+        return Config(mode="quick", grid_n=(10_000, 100_000), grid_t=(2, 20), bed_radius=30.0,
+                      main=(100_000, 20), k_hits=20, warm=3, reps=10, pass_reps=4, numpy_reps=2, kdtree_reps=2,
+                      warp_reps=5, probe_n=100_000, probe_radius=16.0,
+                      speeds=(5.0, 10.0, 20.0, 30.0, 45.0, 60.0), run_time=0.4,
+                      acc_dts=(2e-3, 5e-3, 1e-2, 2e-2), acc_f64=False,
+                      distances=(0.0, 1e3, 1e4, 1e5),
+                      hash_settings=(DEFAULT_HASH, DESIGN_HASH, "scope all"),
+                      hash_n=100_000, integ_cost=tuple((i, "quadratic") for i in INTEGRATORS),
+                      validate_presets=False, passes_all=False)
+    return Config(mode="full", grid_n=(10_000, 100_000, 1_000_000), grid_t=(2, 20, 64), bed_radius=30.0,
+                  main=(1_000_000, 20), k_hits=30, warm=5, reps=20, pass_reps=8, numpy_reps=3, kdtree_reps=3,
+                  warp_reps=10, probe_n=200_000, probe_radius=16.0,
+                  speeds=(5.0, 10.0, 20.0, 30.0, 45.0, 60.0), run_time=0.4,
+                  acc_dts=(1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2e-2), acc_f64=True,
+                  distances=(0.0, 1e2, 1e3, 1e4, 3e4, 1e5), hash_settings=tuple(HASH_SETTINGS),
+                  hash_n=100_000, integ_cost=tuple((i, d) for i in INTEGRATORS for d in DRAGS),
+                  validate_presets=True)
+
+
+def count_tasks(cfg: Config) -> int:
+    """Progress-bar steps of a run of this configuration."""
+    n_grid = len(cfg.grid_n) * len(cfg.grid_t)
+    acc = (2 if cfg.acc_f64 else 1) * 9
+    return (4 + acc + 2 + len(cfg.integ_cost) + n_grid * 5 + len(cfg.hash_settings) - 1 + 6 + 6
+            + (3 if cfg.validate_presets else 0) + 3)

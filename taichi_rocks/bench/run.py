@@ -1,0 +1,139 @@
+"""``run_bench``: the whole benchmark in order, and its outputs (report.md, results.json, six PNG plots).
+
+Order: the lanes scenes (detection, in lockstep), then direct flights on their fields (integrator x dt,
+precision); the speed grid; the hash settings (on the grid's default simulation, before anything changes its
+state); effects and preset costs (the main scene rebuilt from changed scenes); launch overheads; last the flight
+cost with every rock flying (it leaves the main scene's rocks all flying); then presets and targets.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Optional
+
+from ..engine.runtime import init_taichi
+from .config import Config, count_tasks, make_config
+from .detection import REFERENCE, lanes
+from .flight import flight_cost, integrator_sweep
+from .hashing import hash_settings_study
+from .machine import Progress, loadavg, machine, pin_sources
+from .measure import Built
+from .peers import Floor, start_warp
+from .plots import plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers, plot_precision
+from .precision import precision_runs
+from .presets import choose_presets, preset_costs, validate_presets
+from .report import jsonable, write_report
+from .scenes import fleet_scene
+from .speed import effects_costs, grid_entry, launch_overheads
+from .targets import evaluate_targets
+
+PLOTS = (plot_integrators, plot_detection, plot_precision, plot_hash, plot_peers, plot_passes)
+
+
+def _accuracy(res: dict, cfg: Config, arch: str, prog) -> dict:
+    """1b, 1a, 1c on the lanes scenes; returns the lanes scene's step costs per detection mode."""
+    det, builds, build_s = lanes(cfg, arch, prog)
+    res["build_s"].update(build_s)
+    acc_sims = {"f32": builds["f32"].sim}
+    if cfg.acc_f64:
+        acc_sims["f64"] = builds["f64"].sim
+    res["accuracy"] = {"detection": {"modes": det, "reference": REFERENCE}}
+    res["accuracy"]["integrator_dt"] = integrator_sweep(acc_sims, cfg, prog)
+    res["accuracy"]["precision"] = precision_runs({k: b.sim for k, b in builds.items()}, cfg, prog)
+    return det
+
+
+def _speed_grid(res: dict, cfg: Config, arch: str, warp, prog) -> tuple:
+    """The speed grid; returns (entries by (N, T), the main scene's Built)."""
+    floor = Floor(max(cfg.grid_n))
+    grid, by_nt, main = [], {}, None
+    for n in cfg.grid_n:
+        for t in cfg.grid_t:
+            b = Built(fleet_scene(n, t, cfg.bed_radius), arch, f"grid N={n} T={t}")
+            e = grid_entry(b, cfg, floor, warp, prog, record_hits=(n == cfg.hash_n or (n, t) == cfg.main))
+            res["build_s"][b.label] = e["build_s"]
+            grid.append(e)
+            by_nt[(n, t)] = e
+            if (n, t) == cfg.main:
+                main = b
+    res["speed"] = {"grid": grid}
+    return by_nt, main
+
+
+def _main_scene_studies(res: dict, cfg: Config, arch: str, main: Built, det: dict, prog) -> None:
+    """Effects, preset costs, launch overheads, then the flight cost with every rock flying (last: it leaves
+    the main scene's rocks all flying)."""
+    bed_only = Built(fleet_scene(*cfg.main, cfg.bed_radius, {"effects.splash": False}), arch, "bed only")
+    res["speed"]["effects"] = effects_costs(main, bed_only, cfg, prog)
+    res["build_s"]["bed only"] = bed_only.ctor_s + (bed_only.first_step_s or 0.0)
+    res["accuracy"]["preset_costs"] = preset_costs(main, cfg, det, prog)
+    res["speed"]["overheads"] = launch_overheads(main.sim)
+    res["accuracy"]["flight_cost"] = flight_cost(main.sim, cfg.integ_cost, max(3, cfg.reps // 2), prog,
+                                                 effects=cfg.effects_all_flying)
+
+
+def _plots(res: dict, out: Path, prog) -> list:
+    plots = []
+    for fn in PLOTS:
+        try:
+            plots.append(fn(res, out))
+        except Exception as exc:
+            res["errors"].append(f"plot {fn.__name__}: {type(exc).__name__}: {exc}")
+            plots.append("")
+            traceback.print_exc()
+        prog("plots")
+    return plots
+
+
+def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=True, tiny: bool = False,
+              config: "Optional[Config]" = None) -> dict:
+    """Run the benchmark and write report.md, results.json and PNG plots to ``out_dir``.
+
+    ``quick``: the CI smoke run (< 2 min on 2 cores); ``tiny``: the smallest sizes (tests); ``config``
+    overrides both. ``progress``: True shows a tqdm bar on stderr, None only on a terminal, False never.
+    """
+    t_start = time.perf_counter()
+    cfg = config or make_config(quick=quick, tiny=tiny)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    used = init_taichi(arch)
+    pin_sources()
+    prog = Progress(count_tasks(cfg), progress)
+    res: dict = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine(used),
+                 "load_average_start": loadavg(), "config": dataclasses.asdict(cfg), "errors": [], "build_s": {}}
+    warp, res["warp"] = start_warp(cfg.use_warp)
+    res["machine"]["warp"] = res["warp"].get("version")
+    prog("warp")
+
+    det = _accuracy(res, cfg, used, prog)
+    grid_by_nt, main = _speed_grid(res, cfg, used, warp, prog)
+    res["accuracy"]["hash_settings"] = hash_settings_study(cfg, used, grid_by_nt, prog)
+    _main_scene_studies(res, cfg, used, main, det, prog)
+    for e in res["speed"]["grid"]:
+        for k in ("launched_after_k", "_built"):
+            e.pop(k, None)
+
+    res["accuracy"]["presets"] = choose_presets(res)
+    if cfg.validate_presets:
+        try:
+            validate_presets(res["accuracy"]["presets"], cfg, used, prog)
+        except Exception as exc:
+            res["errors"].append(f"preset validation: {type(exc).__name__}: {exc}")
+    res["targets"] = evaluate_targets(res, cfg)
+
+    res["elapsed_s"] = time.perf_counter() - t_start
+    res["load_average_end"] = loadavg()
+    plots = _plots(res, out, prog)
+    res["plots"] = [p for p in plots if p]
+    res["elapsed_s"] = time.perf_counter() - t_start
+    res["report"] = str(write_report(res, out, plots))
+    (out / "results.json").write_text(json.dumps(jsonable(res), indent=1))
+    prog.close()
+    if res["accuracy"]["hash_settings"]["verdict"] != "PASS":
+        print("taichi-rocks bench: FAIL: hash settings launched different rocks (see report)", file=sys.stderr)
+    return res

@@ -1,0 +1,161 @@
+"""The engine's face for measurements: what the benchmark (taichi_rocks/bench) needs beyond stepping a
+Simulation, as public functions, so that nothing outside engine/ calls the engine's kernels, writes its fields
+or reaches into a Simulation.
+
+* :func:`separate_passes` - each pass of a step as a callable of its own (the rock pass with one part at a
+  time, the hash build's clear, count, scan and scatter, the ray cells, the tire pass), with the arguments the
+  step just taken gave it; :func:`rock_pass_call` - the rock pass with chosen parts and switches;
+  :func:`clear_hash` - leaves the hash counts cleared as a step does; :func:`reorder` - the in-memory re-sort
+  of the rocks by hash slot.
+* :func:`fly_only` - chosen test rocks flown by the flight part of the rock pass alone (no ground, no
+  recycling, no hash), the rock fields restored afterwards; :func:`set_flying` - every rock flying with given
+  velocities; :func:`active_rocks` - the rock loops limited to the first n rock slots inside a ``with`` block.
+
+Whole steps are timed by the step itself (engine/timing.py); settings change by building a Simulation from a
+changed Scene (the World pool, engine/world.py ``acquire``, hands a released World back without recompiling).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import Callable
+
+import numpy as np
+
+from . import hashgrid, tires
+from .simulation import rock_pass
+from .world import FLYING, RAY_FIELDS, IPar
+
+
+def _pass_args(sim) -> tuple:
+    """The arguments of ``rock_pass`` between the World and the switches, as the step just taken passed them:
+    the rays (read back from the World, where the step's count put them), dt, the bed centre and its move in
+    that step (the followed vehicle's, recomputed: equal up to rounding), the lead direction, the mask's grid
+    origin, the step number."""
+    w = sim.w
+    rays = w.ray.to_numpy().astype(np.float64) if w.n_tires else np.zeros((1, RAY_FIELDS))
+    lc = sim.bed_center[:2] - sim.origin[:2]
+    move = np.zeros(2)
+    if sim.step_count > 0:
+        before = sim.fleet.poses(sim.time - sim.dt)[sim.follow].position
+        move = sim.bed_center[:2] - np.asarray(before[:2], float)
+    g = sim._grid_origin()
+    lead = sim._lead
+    return (rays, float(sim.dt), float(lc[0]), float(lc[1]), float(move[0]), float(move[1]), float(lead[0]),
+            float(lead[1]), float(g[0]), float(g[1]), int(sim.step_count))
+
+
+def rock_pass_call(sim, *, flight: bool = False, recycle: bool = False, count: bool = False, integrator=None,
+                   gravity=None, drag=None, ground=None) -> Callable[[], None]:
+    """A callable that runs the rock pass once with only the chosen parts (flight, recycle, count for the
+    hash) and the plan's switches unless given, with the arguments of the step just taken (bound now: a call
+    costs one launch and nothing else). It holds the World, not the Simulation."""
+    p = sim.plan
+    switches = (bool(flight), bool(recycle), bool(count), p.center, integrator or p.integrator,
+                p.gravity if gravity is None else bool(gravity), drag or p.drag, ground or p.ground)
+    return _bound_rock_pass(sim.w, _pass_args(sim), switches)
+
+
+def _bound_rock_pass(w, args: tuple, switches: tuple) -> Callable[[], None]:
+    def call() -> None:
+        rock_pass(w, *args, *switches)
+
+    return call
+
+
+def separate_passes(sim) -> list[tuple[str, Callable]]:
+    """Each pass of a step on its own, in the order a step runs them, as (name, callable): "flight",
+    "recycle" (parts of the rock pass), then "hash clear", "hash count" (the rock pass counting alone),
+    "hash scan", "hash scatter", "trace rays" (single-ray detection) and "tire pass". Call them in this order
+    (each needs the ones before it), then :func:`clear_hash`. Passes the plan does not run are left out."""
+    p, w = sim.plan, sim.w
+    args = _pass_args(sim)
+    step = int(sim.step_count)
+    part = lambda flight, recycle, count: _bound_rock_pass(w, args, (flight, recycle, count, p.center, p.integrator,
+                                                                    p.gravity, p.drag, p.ground))
+    out = []
+    if p.flight:
+        out.append(("flight", part(True, False, False)))
+    if p.recycle:
+        out.append(("recycle", part(False, True, False)))
+    if p.splash:
+        out += [("hash clear", lambda: hashgrid.clear_counts(w)),
+                ("hash count", part(False, False, True)),
+                ("hash scan", lambda: hashgrid.inclusive_scan(w)),
+                ("hash scatter", lambda: hashgrid.scatter(w, p.center))]
+        if not p.swept:
+            out.append(("trace rays", lambda: tires.trace_rays(w)))
+        out.append(("tire pass", lambda: tires.tire_pass(w, step, p.swept, p.center, p.ground)))
+    return out
+
+
+def clear_hash(sim) -> None:
+    """Clear the hash counts, as every step leaves them (nothing to do without a hash)."""
+    if sim.plan.splash:
+        hashgrid.clear_counts(sim.w)
+
+
+def reorder(sim) -> None:
+    """Re-sort the rocks in memory by hash slot, as the step does every ``reorder_every`` steps (plans that
+    reorder only: centre insert, every rock hashed)."""
+    if not sim.plan.reorder_every:
+        raise ValueError("this simulation's plan does not reorder the rocks (reorder_every = 0)")
+    sim._reorder()
+
+
+@contextlib.contextmanager
+def active_rocks(sim, n: int):
+    """Inside the block the rock loops of every kernel run over the first ``n`` rock slots only."""
+    w = sim.w
+    saved = int(w.ipar[IPar.N_ROCKS])
+    w.ipar[IPar.N_ROCKS] = int(n)
+    try:
+        yield
+    finally:
+        w.ipar[IPar.N_ROCKS] = saved
+
+
+def set_flying(sim, velocities) -> None:
+    """Every rock flying, with these velocities ((n_rocks, 3), m/s), from where it is."""
+    w, n = sim.w, sim.n_rocks
+    vel = w.vel.to_numpy()
+    vel[:n] = np.asarray(velocities, np.float64).astype(w.np_real())
+    phase = w.phase.to_numpy()
+    phase[:n] = FLYING
+    w.vel.from_numpy(vel)
+    w.phase.from_numpy(phase)
+
+
+_ROCK = ("pos", "vel", "radius", "phase")
+
+
+def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integrator: str, drag: str,
+             gravity: bool = True) -> np.ndarray:
+    """Fly k test rocks with the flight part of the rock pass alone (ground contact "none", no recycling,
+    no hash): rock slots 0..k-1 get these positions (local frame), velocities and radii, flying; ``steps``
+    passes of ``dt`` run over those k slots only. The rock fields and the rock count are restored afterwards.
+    Returns the local positions every ``every`` steps, float64, shape (k, steps // every, 3)."""
+    w = sim.w
+    k = len(x0_local)
+    npr = w.np_real()
+    saved = {f: getattr(w, f).to_numpy() for f in _ROCK}
+    test = {"pos": np.asarray(x0_local, np.float64), "vel": np.asarray(v0, np.float64),
+            "radius": np.asarray(radius, np.float64), "phase": np.full(k, FLYING)}
+    for f in _ROCK:
+        a = saved[f].copy()
+        a[:k] = test[f].astype(a.dtype if f == "phase" else npr)
+        getattr(w, f).from_numpy(a)
+    rays = np.zeros((1, RAY_FIELDS))
+    p = sim.plan
+    samples = []
+    try:
+        with active_rocks(sim, k):
+            for s in range(1, steps + 1):
+                rock_pass(w, rays, float(dt), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, s, True, False, False,
+                          p.center, integrator, bool(gravity), drag, "none")
+                if s % every == 0:
+                    samples.append(w.pos.to_numpy()[:k].astype(np.float64))
+    finally:
+        for f in _ROCK:
+            getattr(w, f).from_numpy(saved[f])
+    return np.stack(samples, axis=1)
