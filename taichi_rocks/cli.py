@@ -139,8 +139,7 @@ def cmd_simulate(args) -> int:
     if out.exists() and out.is_dir():
         raise UsageError(f"{out}: is a directory, expected an .npz file name")
     frames, fps = _frames(scene, args)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    from .recording import record
+    from .recording import record  # creates the missing folders of out, removed again on failure
     from .simulation import Simulation
 
     sim = Simulation(scene, arch=args.arch, seed=args.seed)
@@ -188,7 +187,10 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-# What each command imports, loaded up front while Ctrl-C is held back (see main).
+# What each command imports, loaded up front while Ctrl-C is held back (see main). The second group: what the
+# libraries import on first use (NumPy's memmap, tqdm's lock, Taichi's first kernel compilation, the ffmpeg
+# binary's lookup); a Ctrl-C that lands in such a late first import can be swallowed (CPython reports it as
+# "Exception ignored in: <function _get_module_lock.<locals>.cb ...>" and the run goes on). Imported if present.
 _PRELOAD = {
     "check": ("taichi_rocks.scene",),
     "schema": ("taichi_rocks.scene",),
@@ -197,6 +199,9 @@ _PRELOAD = {
                "taichi_rocks.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "bench": ("taichi_rocks.scene", "taichi_rocks.simulation", "taichi_rocks.bench"),
 }
+_LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
+_PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
+    "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers")}
 
 
 def _start(argv):
@@ -209,6 +214,11 @@ def _start(argv):
     args = _parser().parse_args(argv)
     for name in _PRELOAD[args.command]:
         importlib.import_module(name)
+    for name in _PRELOAD_IF_PRESENT.get(args.command, ()):
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
     if args.command in ("simulate", "render", "bench"):
         from .runtime import init_taichi
 

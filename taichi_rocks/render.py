@@ -1115,13 +1115,12 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     writer thread's own time, which overlaps the others), "other" (the rest of the frame loop), "setup"
     (before the first frame: scene, simulation and window set-up) and "first_frame" (the first frame alone,
     mostly kernel compilation; included in the others)."""
-    from tqdm import tqdm
-
+    from .recording import new_folders
     from .resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
     from .runtime import init_taichi
     from .scene import load_scene
     from .simulation import Simulation
-    from .video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
+    from .video import existing_size, finished_frames, frame_name, output_paths
 
     t_start = time.perf_counter()
     if resolution is not None:
@@ -1165,49 +1164,19 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
             raise
     for f in old:  # only now: a failure above leaves the previous render untouched
         f.unlink()
-    checkpoints.start(resume, start)
-    writer = FrameWriter(out_dir, scene.name, video_fps, fmt, start=start)
-    t_sim = 0.0
-    t_first = 0.0
-    ok = False
-    t0 = time.perf_counter()
-    replay_from = 0
-    try:
-        if start:  # resuming: restore the newest saved state, replay simulation and camera, draw nothing
-            saved = checkpoints.latest_before(start)
-            if saved is not None:
-                replay_from = checkpoints.restore(saved, sim, renderer.rig) + 1
-        for k in range(replay_from, start):
-            sim.advance_to(k / video_fps)
-            renderer.view()
-        t_replay = time.perf_counter() - t0
-    except BaseException:
-        renderer.close()
-        writer.close(ok=False)
-        raise
-    bar = tqdm(total=n_frames, initial=start, unit="frame", desc=scene.name, file=sys.stderr,
-               disable=None if progress is None else not progress, dynamic_ncols=True)
-    t_loop = time.perf_counter()
-    try:
-        for k in range(start, n_frames):
-            t0 = time.perf_counter()
-            sim.advance_to(k / video_fps)
-            t_sim += time.perf_counter() - t0
-            img = renderer.render_frame()
-            if on_frame is not None:
-                on_frame(k, img)
-            writer.write(img)
-            if checkpoints.due(k, n_frames):
-                checkpoints.save(k, sim, renderer.rig)
-            bar.update(1)
-            if k == start:
-                t_first = time.perf_counter() - t_loop
-        ok = True
-    finally:
-        bar.close()
-        renderer.close()
-        video = writer.close(ok=ok)
+    with new_folders(paths["frames"]):  # a render ending before its first finished frame leaves none of them
+        try:
+            checkpoints.start(resume, start)
+            run = _draw_frames(scene.name, sim, renderer, checkpoints, out_dir, video_fps, fmt, start, n_frames,
+                               progress, on_frame)
+        except BaseException:
+            renderer.close()
+            if not finished_frames(paths["frames"]):
+                checkpoints.finish()  # nothing to resume from
+            raise
     checkpoints.finish()  # complete: nothing to resume
+    video, t_sim, t_first, t_replay, t_loop = run.video, run.t_sim, run.t_first, run.t_replay, run.t_loop
+    replay_from, encoding = run.replay_from, run.encoding
     seconds = time.perf_counter() - t_start
     loop = time.perf_counter() - t_loop
     out = {
@@ -1227,10 +1196,63 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     out["fps_measured"] = out["frames_per_second"]
     if profile:
         prof = {"simulation": t_sim, "culling": renderer.timings["cull"], "drawing": renderer.timings["draw"],
-                "encoding": writer.timings["encode"], "encoding_busy": writer.timings["encode_busy"]}
+                "encoding": encoding["encode"], "encoding_busy": encoding["encode_busy"]}
         prof["other"] = max(0.0, loop - t_sim - prof["culling"] - prof["drawing"] - prof["encoding"])
         prof["setup"] = t_loop - t_start - t_replay
         prof["resume_replay"] = t_replay  # simulating the frames kept from an interrupted render
         prof["first_frame"] = t_first  # included above; mostly kernel compilation (cached on later runs)
         out["profile"] = prof
     return out
+
+
+def _draw_frames(name, sim, renderer, checkpoints, out_dir, fps, fmt, start, n_frames, progress, on_frame):
+    """The frame loop of :func:`render_scene`: resuming, restore the newest saved state before frame ``start``
+    and replay the simulation and the camera to it without drawing; then draw, write and checkpoint frames
+    ``start`` .. ``n_frames - 1``. Closes the renderer and the frame writer (on failure keeping the finished
+    frames, dropping the partial video). Returns the video path, the first frame replayed and the timings."""
+    from tqdm import tqdm
+
+    from .video import FrameWriter
+
+    writer = FrameWriter(out_dir, name, fps, fmt, start=start)
+    t_sim = t_first = 0.0
+    ok = False
+    t0 = time.perf_counter()
+    replay_from = 0
+    try:
+        if start:  # resuming: restore the newest saved state, replay simulation and camera, draw nothing
+            saved = checkpoints.latest_before(start)
+            if saved is not None:
+                replay_from = checkpoints.restore(saved, sim, renderer.rig) + 1
+        for k in range(replay_from, start):
+            sim.advance_to(k / fps)
+            renderer.view()
+        t_replay = time.perf_counter() - t0
+    except BaseException:
+        renderer.close()
+        writer.close(ok=False)
+        raise
+    bar = tqdm(total=n_frames, initial=start, unit="frame", desc=name, file=sys.stderr,
+               disable=None if progress is None else not progress, dynamic_ncols=True)
+    t_loop = time.perf_counter()
+    try:
+        for k in range(start, n_frames):
+            t0 = time.perf_counter()
+            sim.advance_to(k / fps)
+            t_sim += time.perf_counter() - t0
+            img = renderer.render_frame()
+            if on_frame is not None:
+                on_frame(k, img)
+            writer.write(img)
+            if checkpoints.due(k, n_frames):
+                checkpoints.save(k, sim, renderer.rig)
+            bar.update(1)
+            if k == start:
+                t_first = time.perf_counter() - t_loop
+        ok = True
+    finally:
+        bar.close()
+        renderer.close()
+        video = writer.close(ok=ok)
+    return SimpleNamespace(video=video, replay_from=replay_from, t_sim=t_sim, t_first=t_first, t_replay=t_replay,
+                           t_loop=t_loop, encoding=writer.timings)
