@@ -138,9 +138,8 @@ def cmd_simulate(args) -> int:
     if out.exists() and out.is_dir():
         raise UsageError(f"{out}: is a directory, expected an .npz file name")
     frames, fps = _frames(scene, args)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    from .output.recording import record
     from .engine.simulation import Simulation
+    from .output.recording import record  # creates the missing folders of out, removed again on failure
 
     sim = Simulation(scene, arch=args.arch, seed=args.seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
@@ -187,7 +186,10 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
-# What each command imports, loaded up front while Ctrl-C is held back (see main).
+# What each command imports, loaded up front while Ctrl-C is held back (see main). The second group: what the
+# libraries import on first use (NumPy's memmap, tqdm's lock, Taichi's first kernel compilation, the ffmpeg
+# binary's lookup); a Ctrl-C that lands in such a late first import can be swallowed (CPython reports it as
+# "Exception ignored in: <function _get_module_lock.<locals>.cb ...>" and the run goes on). Imported if present.
 _PRELOAD = {
     "check": ("taichi_rocks.config.scene",),
     "schema": ("taichi_rocks.config.scene",),
@@ -196,6 +198,9 @@ _PRELOAD = {
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run"),
 }
+_LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
+_PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
+    "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers")}
 
 
 def _start(argv):
@@ -208,6 +213,11 @@ def _start(argv):
     args = _parser().parse_args(argv)
     for name in _PRELOAD[args.command]:
         importlib.import_module(name)
+    for name in _PRELOAD_IF_PRESENT.get(args.command, ()):
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
     if args.command in ("simulate", "render", "bench"):
         from .engine.runtime import init_taichi
 

@@ -9,8 +9,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _env():
-    return dict(os.environ, PYTHONPATH=str(ROOT))
+def _env(**extra):
+    return dict(os.environ, PYTHONPATH=str(ROOT), **{k: str(v) for k, v in extra.items()})
 
 
 def cli(*args, cwd=None, timeout=300):
@@ -19,9 +19,10 @@ def cli(*args, cwd=None, timeout=300):
                           capture_output=True, text=True, timeout=timeout)
 
 
-def start_cli(*args):
-    """Start ``taichi-rocks ARGS`` in the background (stdout and stderr piped, text)."""
-    return subprocess.Popen([sys.executable, "-m", "taichi_rocks", *map(str, args)], env=_env(),
+def start_cli(*args, env=None):
+    """Start ``taichi-rocks ARGS`` in the background (stdout and stderr piped, text); ``env``: more
+    environment variables."""
+    return subprocess.Popen([sys.executable, "-m", "taichi_rocks", *map(str, args)], env=_env(**(env or {})),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -315,6 +315,51 @@ def test_interrupted_render_resumes_to_the_same_frames(pipeline, minimal_scene, 
     assert sorted(os.listdir(tmp_path)) == ["frames", "minimal.mp4"]  # finished: nothing left to resume
 
 
+def test_render_failing_before_a_finished_frame_leaves_no_folder_it_made(pipeline, minimal_scene, tmp_path):
+    """Failed or interrupted before any frame is finished: the folders the render made (its output folder,
+    frames/, .resume/) are removed again; after finished frames they stay, with what --resume needs."""
+    def stop_at(n, exc):
+        def stop(k, img):
+            if k == n:
+                raise exc
+        return stop
+
+    out = tmp_path / "a" / "b"
+    for exc in (KeyboardInterrupt(), RuntimeError("failed")):
+        with pytest.raises(type(exc)):
+            pipeline.render_scene(minimal_scene, out_dir=out, frames=3, resolution=(W, H), progress=False,
+                                    on_frame=stop_at(0, exc), checkpoint_every=1)
+        assert os.listdir(tmp_path) == []
+    with pytest.raises(KeyboardInterrupt):
+        pipeline.render_scene(minimal_scene, out_dir=out, frames=3, resolution=(W, H), progress=False,
+                                on_frame=stop_at(2, KeyboardInterrupt()), checkpoint_every=1)
+    assert sorted(os.listdir(out)) == [".resume", "frames"]
+    assert sorted(os.listdir(out / "frames")) == ["frame_00000.png", "frame_00001.png"]
+    assert (out / ".resume" / "render.json").is_file() and len(list((out / ".resume").glob("frame_*.npz"))) == 2
+
+
+def test_saved_states_are_the_same_bytes(shared, tmp_path):
+    """A render's saved state is an .npz without time stamps: the same state gives the same bytes."""
+    import zipfile
+
+    from taichi_rocks.output.recording import ZIP_EPOCH
+    from taichi_rocks.output.resume import RenderCheckpoints
+
+    sim, r = shared
+    saved = []
+    for name in ("a", "b"):
+        checkpoints = RenderCheckpoints(tmp_path / name, "same render", every=1)
+        checkpoints.start(resume=False)
+        saved.append(checkpoints.save(7, sim, r.rig))
+    assert saved[0].read_bytes() == saved[1].read_bytes()
+    with zipfile.ZipFile(saved[0]) as z:
+        assert all(m.date_time == ZIP_EPOCH and m.compress_type == zipfile.ZIP_STORED for m in z.infolist())
+    data = checkpoints.latest_before(8)
+    assert int(data["frame"]) == 7 and str(data["fingerprint"]) == "same render"
+    for k, v in sim.checkpoint().items():
+        np.testing.assert_array_equal(data[k], v, err_msg=k)
+
+
 def test_bad_arguments(pipeline, minimal_scene, tmp_path):
     with pytest.raises(ValueError, match="even"):
         pipeline.render_scene(minimal_scene, out_dir=tmp_path, resolution=(161, 96), progress=False)

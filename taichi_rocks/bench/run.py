@@ -96,11 +96,17 @@ def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", p
 
     ``quick``: the CI smoke run (< 2 min on 2 cores); ``tiny``: the smallest sizes (tests); ``config``
     overrides both. ``progress``: True shows a tqdm bar on stderr, None only on a terminal, False never.
+    The missing folders of ``out_dir`` are created, and removed again if the run fails before writing into them.
     """
-    t_start = time.perf_counter()
-    cfg = config or make_config(quick=quick, tiny=tiny)
+    from ..output.recording import new_folders
+
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    with new_folders(out):
+        return _run_bench(out, config or make_config(quick=quick, tiny=tiny), arch, progress)
+
+
+def _run_bench(out: Path, cfg: "Config", arch: str, progress) -> dict:
+    t_start = time.perf_counter()
     used = init_taichi(arch)
     pin_sources()
     prog = Progress(count_tasks(cfg), progress)

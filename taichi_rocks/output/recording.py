@@ -5,13 +5,17 @@ Frame f is the state at time f / fps. Arrays: time (F,), positions (F, N, 3) flo
 velocities (F, N, 3) float32, phase (F, N) int8 (0 resting, 1 flying, 2 sliding), radii (N,),
 bed_center (F, 3), vehicle_positions (F, V, 3), vehicle_headings (F, V), vehicle_names (V,),
 launches (F,) = rocks launched since the previous frame, plus fps, dt, seed and scene name.
+
+The same scene, seed and arch give the same bytes: the zip members are stored (not compressed) in a fixed
+order with a fixed time stamp and fixed permissions (see :func:`write_npz`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
 import shutil
-import tempfile
 import zipfile
 from pathlib import Path
 
@@ -24,28 +28,83 @@ def _temp_prefix(final: Path) -> str:
     return f".{final.name}.{os.getpid()}."
 
 
-def atomic_path(final: Path) -> Path:
-    """A temporary file name next to ``final`` (same folder, so the rename is atomic)."""
+def _temp_name(final: Path, suffix: str = "") -> Path:
+    """A new temporary name next to ``final`` (same folder, so the rename is atomic). Nothing is created: the
+    writer knows the name before the file or folder exists, so a Ctrl-C at any moment can remove it."""
     final = Path(final)
-    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(final), suffix=".part", dir=final.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; the final file gets the usual permissions
-    return Path(tmp)
+    return final.parent / f"{_temp_prefix(final)}{secrets.token_hex(4)}{suffix}"
 
 
 def write_atomically(final: Path, write) -> None:
-    """Write ``final`` complete or not at all: ``write(f)`` fills a temporary file beside it (binary), which
-    is then renamed over ``final``; on any failure the temporary is removed."""
+    """Write ``final`` complete or not at all: ``write(f)`` fills a temporary file beside it (binary, the
+    usual permissions), which is then renamed over ``final``; on any failure the temporary is removed."""
     final = Path(final)
-    tmp = atomic_path(final)
+    tmp = _temp_name(final, ".part")
     try:
-        with open(tmp, "wb") as f:
+        with open(tmp, "xb") as f:
             write(f)
         os.replace(tmp, final)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def new_folders(*folders):
+    """Create ``folders`` and their missing parents for a writer; if the body raises (an error, Ctrl-C),
+    remove again, deepest first, those of them it created that are empty by then, so that a command that
+    fails or is interrupted leaves no folder of its own behind. Folders that existed before, and folders
+    holding finished output (a render's kept frames), stay. Yields the folders created, parents first."""
+    created: list = []
+    try:
+        for folder in folders:
+            missing = []
+            path = Path(folder)
+            while not path.is_dir():
+                missing.append(path)
+                path = path.parent
+            for path in reversed(missing):
+                created.append(path)  # before mkdir: a Ctrl-C right after it must still find it here
+                try:
+                    path.mkdir()
+                except FileExistsError:
+                    created.pop()  # made meanwhile by someone else: not ours to remove
+                    if not path.is_dir():
+                        raise
+        yield list(created)
+    except BaseException:
+        for path in sorted(set(created), key=lambda q: len(q.parts), reverse=True):
+            try:
+                path.rmdir()  # only when empty
+            except OSError:
+                pass
+        raise
+
+
+# Zip members written by write_npz: no time stamp (the zip epoch), a regular file rw-r--r-- made on Unix.
+ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+_COPY_CHUNK = 1 << 20
+
+
+def _zip_member(name: str) -> zipfile.ZipInfo:
+    info = zipfile.ZipInfo(name, date_time=ZIP_EPOCH)
+    info.compress_type = zipfile.ZIP_STORED
+    info.create_system = 3
+    info.external_attr = 0o100644 << 16
+    return info
+
+
+def write_npz(f, members: dict) -> None:
+    """Write an .npz (what ``np.load`` reads) into the binary file ``f``, the same bytes for the same arrays:
+    members ``NAME.npy`` in the order of ``members``, stored, with fixed time stamps and permissions. A
+    value is an array, or the Path of an .npy file, which is streamed (memory stays flat)."""
+    with zipfile.ZipFile(f, "w", zipfile.ZIP_STORED, allowZip64=True) as z:
+        for name, value in members.items():
+            with z.open(_zip_member(f"{name}.npy"), "w", force_zip64=True) as dst:
+                if isinstance(value, Path):
+                    with open(value, "rb") as src:
+                        shutil.copyfileobj(src, dst, _COPY_CHUNK)
+                else:
+                    np.lib.format.write_array(dst, np.asanyarray(value), allow_pickle=False)
 
 
 def _alive(pid: int) -> bool:
@@ -80,59 +139,60 @@ def remove_stale_temporaries(final: Path) -> list[Path]:
 
 
 def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True) -> dict:
-    """Run ``sim`` for ``frames`` frames and write ``out``. Returns a small summary.
+    """Run ``sim`` for ``frames`` frames and write ``out`` (its missing folders are created, and removed
+    again if the run fails or is interrupted). Returns a small summary.
 
     With ``guard``, the state is checked after every frame (see Simulation.check_health); on failure the
     HealthError propagates and nothing is written under ``out``.
     """
     out = Path(out)
-    n, v = sim.n_rocks, len(sim.fleet.names)
-    remove_stale_temporaries(out)
-    work = Path(tempfile.mkdtemp(prefix=_temp_prefix(out), dir=out.parent))
-    try:
-        shapes = {
-            "time": ((frames,), np.float64),
-            "positions": ((frames, n, 3), np.float64),
-            "velocities": ((frames, n, 3), sim.w.np_real()),
-            "phase": ((frames, n), np.int8),
-            "bed_center": ((frames, 3), np.float64),
-            "vehicle_positions": ((frames, v, 3), np.float64),
-            "vehicle_headings": ((frames, v), np.float64),
-            "launches": ((frames,), np.int64),
-        }
-        arrays = {k: np.lib.format.open_memmap(work / f"{k}.npy", mode="w+", dtype=dt, shape=shape)
-                  for k, (shape, dt) in shapes.items()}
-        previous = sim.launches_total
-        for f in range(frames):
-            sim.advance_to(f / fps)
-            if guard:
-                sim.check_health()
-            st = sim.state()
-            arrays["time"][f] = st["time"]
-            arrays["positions"][f] = st["positions"]
-            arrays["velocities"][f] = st["velocities"]
-            arrays["phase"][f] = st["phase"]
-            arrays["bed_center"][f] = st["bed_center"]
-            arrays["vehicle_positions"][f] = st["vehicle_positions"]
-            arrays["vehicle_headings"][f] = st["vehicle_headings"]
-            arrays["launches"][f] = st["launches_total"] - previous
-            previous = st["launches_total"]
-            if progress is not None:
-                progress.update(1)
-        for a in arrays.values():
-            a.flush()
-        del arrays
-        small = {"radii": st["radii"] if frames else sim.state()["radii"],
-                 "vehicle_names": np.array(sim.fleet.names), "fps": np.float64(fps), "dt": np.float64(sim.dt),
-                 "seed": np.int64(sim.scene.seed), "scene": np.array(sim.scene.name)}
-        for k, val in small.items():
-            np.save(work / f"{k}.npy", val)
-        def write_zip(f):
-            with zipfile.ZipFile(f, "w", zipfile.ZIP_STORED, allowZip64=True) as z:
-                for k in list(shapes) + list(small):
-                    z.write(work / f"{k}.npy", arcname=f"{k}.npy")
+    with new_folders(out.parent):
+        remove_stale_temporaries(out)
+        work = _temp_name(out)
+        try:
+            work.mkdir(mode=0o700)
+            names = _record_frames(sim, work, frames, fps, progress, guard)
+            write_atomically(out, lambda f: write_npz(f, {k: work / f"{k}.npy" for k in names}))
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+    return {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size}
 
-        write_atomically(out, write_zip)
-        return {"frames": frames, "rocks": n, "path": str(out), "bytes": out.stat().st_size}
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+
+def _record_frames(sim, work: Path, frames: int, fps: float, progress, guard: bool) -> list:
+    """Simulate into memory-mapped ``work/NAME.npy`` files; returns the names, in the order of the .npz."""
+    n, v = sim.n_rocks, len(sim.fleet.names)
+    shapes = {
+        "time": ((frames,), np.float64),
+        "positions": ((frames, n, 3), np.float64),
+        "velocities": ((frames, n, 3), sim.w.np_real()),
+        "phase": ((frames, n), np.int8),
+        "bed_center": ((frames, 3), np.float64),
+        "vehicle_positions": ((frames, v, 3), np.float64),
+        "vehicle_headings": ((frames, v), np.float64),
+        "launches": ((frames,), np.int64),
+    }
+    arrays = {k: np.lib.format.open_memmap(work / f"{k}.npy", mode="w+", dtype=dt, shape=shape)
+              for k, (shape, dt) in shapes.items()}
+    previous = sim.launches_total
+    st = None
+    for f in range(frames):
+        sim.advance_to(f / fps)
+        if guard:
+            sim.check_health()
+        st = sim.state()
+        for k in ("time", "positions", "velocities", "phase", "bed_center", "vehicle_positions",
+                  "vehicle_headings"):
+            arrays[k][f] = st[k]
+        arrays["launches"][f] = st["launches_total"] - previous
+        previous = st["launches_total"]
+        if progress is not None:
+            progress.update(1)
+    for a in arrays.values():
+        a.flush()
+    del arrays
+    small = {"radii": (st if st is not None else sim.state())["radii"], "vehicle_names": np.array(sim.fleet.names),
+             "fps": np.float64(fps), "dt": np.float64(sim.dt), "seed": np.int64(sim.scene.seed),
+             "scene": np.array(sim.scene.name)}
+    for k, val in small.items():
+        np.save(work / f"{k}.npy", val)
+    return list(shapes) + list(small)

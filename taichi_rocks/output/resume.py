@@ -4,8 +4,10 @@ A render writes ``out_dir/.resume/render.json`` (a fingerprint of what decides t
 frame rate, the resolution and the rock drawing mode) when it starts, and every ``every`` frames the state
 after frame k: ``out_dir/.resume/frame_0000k.npz`` = ``Simulation.checkpoint()`` + the chase camera's
 smoothed heading and clock. Each file is written under a temporary name and renamed, and the last two are
-kept (the newest may be ahead of the frames on disk: PNGs are encoded in a background thread). A render that
-finishes removes the folder.
+kept (the newest may be ahead of the frames on disk: PNGs are encoded in a background thread). The states are
+written without time stamps (recording.write_npz): the same state gives the same bytes. A render that
+finishes removes the folder, and so does one that fails or is interrupted before its first finished frame
+(there is nothing to resume).
 
 ``render --resume`` restores the newest state of a frame before the first missing one and simulates only
 from there (without it, from t = 0); the simulation and the camera are deterministic, so the frames equal an
@@ -19,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .recording import remove_stale_temporaries, write_atomically
+from .recording import remove_stale_temporaries, write_atomically, write_npz
 
 CHECKPOINT_EVERY = 30  # frames between saved states (~10 MB for 200,000 rocks, ~20 ms to write)
 KEEP = 2
@@ -85,7 +87,7 @@ class RenderCheckpoints:
         data.update(frame=np.int64(k), camera_heading=np.float64(rig.heading if rig.heading is not None else np.nan),
                     camera_t=np.float64(rig.t if rig.t is not None else np.nan), fingerprint=np.array(self.print))
         final = self.dir / f"frame_{k:05d}.npz"
-        write_atomically(final, lambda f: np.savez(f, **data))
+        write_atomically(final, lambda f: write_npz(f, data))  # the same state, the same bytes
         for old in self.saved()[:-KEEP]:
             old.unlink(missing_ok=True)
         return final

@@ -47,10 +47,31 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     resolution = _check_arguments(resolution, fps, frames, rocks)
     job = _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resume)
     run = _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume)
-    t_replay = _replay(job, run)
-    times = _frame_loop(job, run, progress, on_frame)
-    times.start, times.replay = t_start, t_replay
+    times = _draw(job, run, resume, progress, on_frame)
+    times.start = t_start
     return _report(job, run, times, profile)
+
+
+def _draw(job, run, resume, progress, on_frame) -> SimpleNamespace:
+    """Open the outputs (checkpoints, frame writer), replay to the first frame to draw and draw the rest. The
+    folders this creates are removed again if the render ends before its first finished frame (and then the
+    saved states too: there is nothing to resume from)."""
+    from ..output.recording import new_folders
+    from ..output.video import FrameWriter, finished_frames
+
+    with new_folders(job.paths["frames"]):
+        try:
+            run.checkpoints.start(resume, job.start)
+            run.writer = FrameWriter(job.out_dir, job.scene.name, job.video_fps, job.fmt, start=job.start)
+            t_replay = _replay(job, run)
+            times = _frame_loop(job, run, progress, on_frame)
+        except BaseException:
+            run.renderer.close()
+            if not finished_frames(job.paths["frames"]):
+                run.checkpoints.finish()
+            raise
+    times.replay = t_replay
+    return times
 
 
 def _check_arguments(resolution, fps, frames, rocks):
@@ -108,12 +129,11 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
 
 
 def _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume) -> SimpleNamespace:
-    """Taichi, the simulation, the renderer (its window), the checkpoints and the frame writer; the old outputs
-    are removed only once all of these stand."""
+    """Taichi, the simulation, the renderer (its window) and the checkpoints; the old outputs are removed only
+    once all of these stand."""
     from ..engine.runtime import init_taichi
     from ..engine.simulation import Simulation
     from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
-    from ..output.video import FrameWriter
 
     init_taichi(arch)
     sim = Simulation(job.scene, arch=arch)
@@ -129,9 +149,7 @@ def _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume)
             raise
     for f in job.old:  # only now: a failure above leaves the previous render untouched
         f.unlink()
-    checkpoints.start(resume, job.start)
-    writer = FrameWriter(job.out_dir, job.scene.name, job.video_fps, job.fmt, start=job.start)
-    return SimpleNamespace(sim=sim, renderer=renderer, checkpoints=checkpoints, writer=writer, replay_from=0)
+    return SimpleNamespace(sim=sim, renderer=renderer, checkpoints=checkpoints, writer=None, replay_from=0)
 
 
 def _replay(job, run) -> float:
