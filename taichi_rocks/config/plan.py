@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-ARCHES = ("cpu", "gpu", "cuda", "vulkan")  # Taichi backends a user can ask for
-
 
 @dataclass(frozen=True)
 class Plan:
