@@ -18,7 +18,6 @@ origin jumps (by multiples of 64 m) to stay near the bed, so f32 keeps sub-milli
 
 
 import math
-from pathlib import Path
 
 import numpy as np
 import taichi as ti
@@ -28,14 +27,19 @@ from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from ..config.plan import Plan
 from .runtime import init_taichi
-from .setup import drag_coefficients
+from .setup import hash_sizing, initial_rocks, scene_params
 from .timing import NO_TIMER
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
-from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
+from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, World, acquire
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
+
+
+def _snapped(xy: np.ndarray) -> np.ndarray:
+    """The origin nearest to ``xy`` (XY, m): whole multiples of ORIGIN_SNAP."""
+    return np.round(xy / ORIGIN_SNAP) * ORIGIN_SNAP
 
 
 @ti.kernel
@@ -177,117 +181,57 @@ class Simulation:
         if seed is not None:
             scene = scene_with(scene, {"seed": int(seed)})
         self.scene = scene
-        fx, sim, bed = scene.effects, scene.sim, scene.bed
-        self.real = ti.f64 if sim.precision == "f64" else ti.f32
-        self.n_rocks = n = int(bed.rocks)
-        self.dt = float(sim.dt)
+        self.real = ti.f64 if scene.sim.precision == "f64" else ti.f32
+        self.n_rocks = int(scene.bed.rocks)
+        self.dt = float(scene.sim.dt)
         self.fleet = Fleet(scene)
-        self.follow = scene.vehicle_index(bed.follow)
+        self.follow = scene.vehicle_index(scene.bed.follow)
         self.plan = plan = Plan.from_scene(scene)
-        splash, center = plan.splash, plan.center
-        r_min, r_max = (float(x) for x in bed.rock_radius)
         self.cell_size = plan.cell_size
-        rng = np.random.default_rng(scene.seed)
-        radius = rng.uniform(r_min, r_max, n) if r_max > r_min else np.full(n, r_min)
-        friction = rng.uniform(*bed.static_friction, n)
-        rho = np.sqrt(rng.uniform(0.0, 1.0, n))  # uniform over the disk's area
-        theta = rng.uniform(0.0, 2.0 * np.pi, n)
-
-        # hash table sizes
-        table = entries = 0
-        if splash:
-            if center:
-                entries = n
-                expected = n
-            else:
-                per_axis = np.floor(2.0 * radius / self.cell_size * (1.0 + 1e-5) + 1e-3).astype(np.int64) + 2
-                entries = int(np.sum(per_axis ** 3))
-                expected = int(np.sum((2.0 * radius / self.cell_size + 1.0) ** 3))
-        n_tires = 2 * len(self.fleet.splashing) if splash else 0
-        ray_len = max((v.tire_radius for v in scene.vehicles), default=1.0)
-        # scope "tires": rocks are hashed only on tiles of a coarse XY mask around the tires' queries
-        self.tile = max(0.5, 4.0 * self.cell_size)
-        self._margin = r_max + (dilation_cells(r_max, self.cell_size) + 1) * self.cell_size
-        half = bed.radius + 2.0 * self.tile
-        self._grid_half = half
-        tiles = None
-        if splash and not plan.scope_all:
-            side = int(math.ceil(2.0 * half / self.tile))
-            tiles = (side, side)
-            # expected hashed share of the bed: a tire's region is about (2 margin + tile + v dt)^2
-            reach = 2.0 * self._margin + 2.0 * self.tile + 60.0 * self.dt
-            share = min(1.0, n_tires * reach * reach / (math.pi * bed.radius ** 2))
-            expected = max(1, int(expected * share))
-        if splash:
-            ts = sim.hash.table_size
-            table = next_prime(max(expected, 1024 if tiles else 1)) if ts == "auto" else int(ts)
-        self.table_size = table
-        self.w = w = acquire(self, n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
-                           substeps=plan.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
-                           reorder=self.plan.reorder_every > 0, tiles=tiles, tile_size=self.tile)
-        self.world = w
-
-        # parameters
-        par = np.zeros(Par.COUNT)
-        wd = scene.world
-        par[Par.GRAVITY] = wd.gravity
-        par[Par.GROUND_Z] = 0.0  # set below, relative to the origin
-        par[Par.BED_RADIUS] = bed.radius
-        par[Par.RESTITUTION] = wd.restitution
-        par[Par.GROUND_FRICTION] = wd.ground_friction
-        par[Par.REST_SPEED] = wd.rest_speed
-        par[Par.CELL] = self.cell_size
-        par[Par.ANGLE_MIN], par[Par.ANGLE_MAX] = np.radians(scene.launch.release_angle)
-        par[Par.SPREAD] = np.radians(scene.launch.spread)
-        par[Par.LINEAR_DRAG], par[Par.QUAD_DRAG] = drag_coefficients(scene)
-        par[Par.R_MAX] = r_max
-        par[Par.TIE_EPS] = 1e-5
-        par[Par.MARGIN] = self._margin
-        ipar = np.zeros(IPar.COUNT, dtype=np.int64)
-        ipar[IPar.SEED] = scene.seed & 0x7FFFFFFF
-        ipar[IPar.DILATE] = dilation_cells(r_max, self.cell_size) if center else 0
-        ipar[IPar.N_ROCKS] = n
-
-        # clock, bed and origin
-        self.step_count = 0
-        self.time = 0.0
-        poses = self.fleet.poses(0.0)
-        self._poses = poses
-        c = poses[self.follow].position
-        self.bed_center = np.array([c[0], c[1], wd.ground_z])
-        self.origin = np.zeros(3)
-        if sim.origin == "floating":
-            self.origin[:2] = np.round(self.bed_center[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
-        par[Par.GROUND_Z] = wd.ground_z - self.origin[2]
-        w.set_params(par, ipar)
-        self._par = par
-
-        # rocks: uniform over the disk, resting on the ground
-        local = np.zeros((max(n, 1), 3))
-        local[:n, 0] = self.bed_center[0] - self.origin[0] + bed.radius * rho * np.cos(theta)
-        local[:n, 1] = self.bed_center[1] - self.origin[1] + bed.radius * rho * np.sin(theta)
-        local[:n, 2] = par[Par.GROUND_Z] + radius
-        pad = lambda a, fill=0: np.concatenate([a, np.full(max(n, 1) - n, fill, dtype=a.dtype)])
-        npr = w.np_real()
-        w.pos.from_numpy(local.astype(npr))
-        w.vel.from_numpy(np.zeros((max(n, 1), 3), npr))
-        w.radius.from_numpy(pad(radius.astype(npr), 1))
-        w.friction.from_numpy(pad(friction.astype(npr)))
-        w.rock_id.from_numpy(pad(np.arange(n, dtype=np.int32)))
-        w.phase.from_numpy(np.zeros(max(n, 1), np.int32))
-        if splash:
-            w.hit_step.from_numpy(np.full(max(n, 1), -1, np.int32))
-        self._tires_prev = self.fleet.rear_tires(poses)
+        rocks = initial_rocks(scene)
+        self.world = self._allocate(rocks.radius)
+        self.w = self.world
+        self._start_clock()
+        self._par, ipar = scene_params(scene, plan, self._sizing, ground_z=scene.world.ground_z - self.origin[2])
+        self.world.set_params(self._par, ipar)
+        centre = self.bed_center[:2] - self.origin[:2]
+        self.world.load_rocks(rocks.resting_positions(centre, scene.bed.radius, self._par[Par.GROUND_Z]),
+                              rocks.radius, rocks.friction)
+        self._tires_prev = self.fleet.rear_tires(self._poses)
         self._upload_rays(self._tires_prev, self._tires_prev)
-        self._lead = np.array([math.cos(poses[self.follow].heading), math.sin(poses[self.follow].heading)])
         self.last_launches = 0
-        if splash:
+        if plan.splash:
             self._initial_sort()
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
         self._no_rays = np.zeros((1, RAY_FIELDS))
         self.steps_coasted = 0
-        self._matter = sorted({self.follow, *(self.fleet.splashing if splash else ())})
+        self._matter = sorted({self.follow, *(self.fleet.splashing if plan.splash else ())})
+
+    def _allocate(self, radius: np.ndarray) -> World:
+        """The World of this scene's layout (a released one from the pool if there is one), sized for the
+        rocks' radii ``radius``; sets the hash sizes (``_sizing``, ``table_size``)."""
+        p = self.plan
+        n_tires = 2 * len(self.fleet.splashing) if p.splash else 0
+        self._sizing = s = hash_sizing(self.scene, p, radius, n_tires)
+        self.table_size = s.table
+        ray_len = max((v.tire_radius for v in self.scene.vehicles), default=1.0)
+        return acquire(self, self.n_rocks, self.real, hash_table=s.table, hash_entries=s.entries, n_tires=n_tires,
+                       substeps=p.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
+                       reorder=p.reorder_every > 0, tiles=s.tiles, tile_size=s.tile)
+
+    def _start_clock(self) -> None:
+        """Time 0: the vehicles' poses, the bed under the followed vehicle, facing its heading, and the
+        origin (with ``origin = "floating"``, the snapped point nearest the bed)."""
+        self.step_count = 0
+        self.time = 0.0
+        self._poses = poses = self.fleet.poses(0.0)
+        c = poses[self.follow].position
+        self.bed_center = np.array([c[0], c[1], self.scene.world.ground_z])
+        self.origin = np.zeros(3)
+        if self.scene.sim.origin == "floating":
+            self.origin[:2] = _snapped(self.bed_center[:2])
+        self._lead = np.array([math.cos(poses[self.follow].heading), math.sin(poses[self.follow].heading)])
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -331,7 +275,8 @@ class Simulation:
         return data
 
     def _grid_origin(self) -> np.ndarray:
-        return self.bed_center[:2] - self.origin[:2] - self._grid_half
+        """The corner of the tire mask's tiles (XY, local frame): the mask is centred on the bed."""
+        return self.bed_center[:2] - self.origin[:2] - self._sizing.grid_half
 
     def _initial_sort(self) -> None:
         """Sort the rocks in memory by slot once at the start (scope "all"), and clear the counts."""
@@ -347,7 +292,7 @@ class Simulation:
 
     def _hash_and_tires(self) -> int:
         """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs
-        by construction (World), so the scatter cannot lose a rock."""
+        by construction (engine/setup.py), so the scatter cannot lose a rock."""
         w, p = self.w, self.plan
         timer = self.timer
         if p.reorder_every and self.step_count % p.reorder_every == 0:
@@ -440,7 +385,7 @@ class Simulation:
         if np.hypot(*lead) > 1e-9:
             self._lead = lead / np.hypot(*lead)
         if self.scene.sim.origin == "floating" and np.max(np.abs(c[:2] - self.origin[:2])) > ORIGIN_RANGE:
-            new = np.round(c[:2] / ORIGIN_SNAP) * ORIGIN_SNAP
+            new = _snapped(c[:2])
             shift = new - self.origin[:2]
             if self.n_rocks:
                 with self.timer("origin shift"):
