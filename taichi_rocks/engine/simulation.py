@@ -8,7 +8,9 @@ One step of length dt:
      re-sorted in memory by slot, which keeps the next steps' scattered writes local);
   4. tire pass: ray cells, candidate rocks, segment-sphere test, launch.
 Passes nobody asked for are neither compiled nor called, and their fields are not allocated: no splashing
-tire -> no hash table, no tire pass and no flight (only launched rocks ever leave the ground).
+tire -> no hash table, no tire pass and no flight (only launched rocks ever leave the ground). The kernels
+(engine/kernels.py) read which passes run from the Plan; the set-up (initial rocks, hash sizes, parameters)
+is engine/setup.py.
 Coasting: once every vehicle that matters has stopped for good, no tire can launch and the bed stands
 still; the rocks are then independent and any number of steps runs as one ``coast_pass`` launch,
 bit-identical to stepping (``Simulation.coast = False`` turns it off).
@@ -23,15 +25,17 @@ import numpy as np
 import taichi as ti
 
 from . import hashgrid, tires
-from .bed import outside_bed, recycle_to_leading_edge
-from .flight import fly
 from ..config.plan import Plan
+from ..config.scene import load_scene, scene_with
+from ..motion.vehicles import Fleet
+from .kernels import (coast_pass, copy_field, gather_vec, hash_and_tires, health, identity_entries, rock_pass,
+                      shift_origin, switches)
 from .runtime import init_taichi
 from .setup import hash_sizing, initial_rocks, scene_params
 from .timing import NO_TIMER
-from ..config.scene import load_scene, scene_with
-from ..motion.vehicles import Fleet
-from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, World, acquire
+from .world import ACTIVE, RAY_FIELDS, Par, World, acquire
+
+__all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "HealthError", "Simulation", "shift_origin"]
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
@@ -40,128 +44,6 @@ ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than 
 def _snapped(xy: np.ndarray) -> np.ndarray:
     """The origin nearest to ``xy`` (XY, m): whole multiples of ORIGIN_SNAP."""
     return np.round(xy / ORIGIN_SNAP) * ORIGIN_SNAP
-
-
-@ti.kernel
-def rock_pass(w: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2), dt: ti.f64, cx: ti.f64, cy: ti.f64,
-              mx: ti.f64, my: ti.f64, lx: ti.f64, ly: ti.f64, gx: ti.f64, gy: ti.f64, step: ti.i32,
-              flight: ti.template(), recycle: ti.template(), count: ti.template(), center: ti.template(),
-              integrator: ti.template(), gravity: ti.template(), drag: ti.template(), ground: ti.template()):
-    """Pass 1 fused: flight, recycling, counting for the hash — one read of each rock per step. With
-    ``count`` it first takes the step's tire rays (``rays``, layout of World.ray, float64) into ``w.ray``:
-    passed as an argument, they cost no launch of their own."""
-    if ti.static(count):
-        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
-            w.ray[t, k] = ti.cast(rays[t, k], w.real)
-    h = ti.cast(dt, w.real)
-    centre = ti.Vector([ti.cast(cx, w.real), ti.cast(cy, w.real)])
-    move = ti.Vector([ti.cast(mx, w.real), ti.cast(my, w.real)])
-    lead = ti.Vector([ti.cast(lx, w.real), ti.cast(ly, w.real)])
-    grid = ti.Vector([ti.cast(gx, w.real), ti.cast(gy, w.real)])
-    if ti.static(count and w.masked):
-        hashgrid.mark_tire_tiles(w, grid)
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        if ti.static(flight):
-            fly(w, i, h, integrator, gravity, drag, ground)
-        if ti.static(recycle):
-            recycle_to_leading_edge(w, i, centre, move, lead, step)
-        if ti.static(count):
-            hashgrid.count_rock(w, i, center, grid)
-
-
-@ti.kernel
-def coast_pass(w: ti.template(), n: ti.i32, dt: ti.f64, cx: ti.f64, cy: ti.f64, lx: ti.f64, ly: ti.f64,
-          step0: ti.i32, flight: ti.template(), recycle: ti.template(), integrator: ti.template(),
-          gravity: ti.template(), drag: ti.template(), ground: ti.template()):
-    """``n`` steps of pass 1 in one launch, for when nothing outside a rock can change it: every vehicle that
-    matters stands still for good, so the bed does not move and no tire can launch (a still tread throws
-    nothing). Rocks are then independent: each thread takes its rock through the n steps doing exactly what
-    ``rock_pass`` does (same functions, same step numbers for the random streams), and stops early once the
-    rock rests inside the bed, where nothing can move it again. Bit-identical to n calls of ``step()``."""
-    h = ti.cast(dt, w.real)
-    centre = ti.Vector([ti.cast(cx, w.real), ti.cast(cy, w.real)])
-    move = ti.Vector([ti.cast(0.0, w.real), ti.cast(0.0, w.real)])
-    lead = ti.Vector([ti.cast(lx, w.real), ti.cast(ly, w.real)])
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        for s in range(n):
-            if ti.static(flight):
-                fly(w, i, h, integrator, gravity, drag, ground)
-            if ti.static(recycle):
-                recycle_to_leading_edge(w, i, centre, move, lead, step0 + s + 1)
-            if w.phase[i] == RESTING:
-                settled = True
-                if ti.static(recycle):
-                    settled = not outside_bed(w.pos[i], centre, w.par[Par.BED_RADIUS], w.par[Par.GROUND_Z])
-                if settled:
-                    break
-
-
-@ti.kernel
-def hash_and_tires(w: ti.template(), step: ti.i32, swept: ti.template(), center: ti.template(),
-                   ground: ti.template()) -> ti.i32:
-    """Passes after the rock pass, in one launch: scan, scatter, ray cells, tire pass, and clearing the
-    counts for the next step's rock pass. Returns the rocks launched."""
-    hashgrid.scan_counts(w)
-    hashgrid.scatter_all(w, center)
-    if ti.static(not swept):
-        tires.trace_all(w)
-    launched = tires.launch_all(w, step, swept, center, ground)
-    hashgrid.clear_all(w)
-    return launched
-
-
-@ti.kernel
-def shift_origin(w: ti.template(), dx: ti.f64, dy: ti.f64):
-    d = ti.Vector([ti.cast(dx, w.real), ti.cast(dy, w.real), 0.0])
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        w.pos[i] -= d
-
-
-@ti.kernel
-def gather_vec(w: ti.template(), src: ti.template(), dst: ti.template()):
-    for k in range(w.ipar[IPar.N_ROCKS]):
-        dst[k] = src[w.entries[k]]
-
-
-@ti.kernel
-def copy_field(w: ti.template(), src: ti.template(), dst: ti.template()):
-    for k in range(w.ipar[IPar.N_ROCKS]):
-        dst[k] = src[k]
-
-
-@ti.kernel
-def identity_entries(w: ti.template()):
-    for k in range(w.ipar[IPar.N_ROCKS]):
-        w.entries[k] = k
-
-
-@ti.kernel
-def health(w: ti.template(), cx: ti.f64, cy: ti.f64, slack: ti.f64, check_bed: ti.template(),
-           check_ground: ti.template(), out: ti.template()):
-    """Count bad rocks: non-finite state [0], outside the bed [1], below the ground [2]; the smallest
-    index of a bad rock of each kind goes to out[3..5] (as an index into the fields)."""
-    for k in ti.static(range(6)):
-        out[k] = 0 if k < 3 else 2147483647
-    radius = w.par[Par.BED_RADIUS] + ti.cast(slack, w.real)
-    ground = w.par[Par.GROUND_Z] - ti.cast(slack, w.real)
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        p, v = w.pos[i], w.vel[i]
-        finite = True
-        for a in ti.static(range(3)):
-            if not (ti.abs(p[a]) < 1e30 and ti.abs(v[a]) < 1e30):  # false for NaN too
-                finite = False
-        if not finite:
-            out[0] += 1
-            ti.atomic_min(out[3], i)
-        elif ti.static(check_bed):
-            d2 = (p[0] - cx) ** 2 + (p[1] - cy) ** 2
-            if d2 > radius * radius:
-                out[1] += 1
-                ti.atomic_min(out[4], i)
-        if ti.static(check_ground):
-            if finite and p[2] - w.radius[i] < ground:
-                out[2] += 1
-                ti.atomic_min(out[5], i)
 
 
 class HealthError(RuntimeError):
@@ -188,6 +70,7 @@ class Simulation:
         self.follow = scene.vehicle_index(scene.bed.follow)
         self.plan = plan = Plan.from_scene(scene)
         self.cell_size = plan.cell_size
+        self._switches = switches(plan)  # what each kernel reads from the plan (engine/kernels.py)
         rocks = initial_rocks(scene)
         self.world = self._allocate(rocks.radius)
         self.w = self.world
@@ -236,20 +119,20 @@ class Simulation:
     # ------------------------------------------------------------------------------------------------
     @property
     def launches_total(self) -> int:
-        return int(self.w.launches[None])
+        return int(self.world.launches[None])
 
     def vehicle_poses(self):
         return self._poses
 
     def _upload_rays(self, prev, cur, dt: float = 0.0) -> None:
-        if self.w.n_tires:
-            self.w.ray.from_numpy(self._ray_data(prev, cur, dt).astype(self.w.np_real()))
+        if self.world.n_tires:
+            self.world.ray.from_numpy(self._ray_data(prev, cur, dt).astype(self.world.np_real()))
 
     def _ray_data(self, prev, cur, dt: float = 0.0) -> np.ndarray:
         """The rays of every splashing rear tire, float64 (T, RAY_FIELDS) in the World.ray layout."""
-        w = self.w
-        data = np.zeros((max(w.n_tires, 1), RAY_FIELDS))
-        if w.n_tires == 0:
+        n_tires = self.world.n_tires
+        data = np.zeros((max(n_tires, 1), RAY_FIELDS))
+        if n_tires == 0:
             return data
         o = self.origin
         # a tire that moved much farther than its speed allows (a path that jumps, e.g. a looping arc) did
@@ -274,13 +157,17 @@ class Simulation:
         data[:, ACTIVE] = ~far
         return data
 
+    def _local_centre(self) -> np.ndarray:
+        """The bed centre (XY) in the kernels' local frame."""
+        return self.bed_center[:2] - self.origin[:2]
+
     def _grid_origin(self) -> np.ndarray:
         """The corner of the tire mask's tiles (XY, local frame): the mask is centred on the bed."""
         return self.bed_center[:2] - self.origin[:2] - self._sizing.grid_half
 
     def _initial_sort(self) -> None:
         """Sort the rocks in memory by slot once at the start (scope "all"), and clear the counts."""
-        w, p = self.w, self.plan
+        w, p = self.world, self.plan
         hashgrid.clear_counts(w)
         if p.reorder_every:
             g = self._grid_origin()
@@ -293,7 +180,7 @@ class Simulation:
     def _hash_and_tires(self) -> int:
         """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs
         by construction (engine/setup.py), so the scatter cannot lose a rock."""
-        w, p = self.w, self.plan
+        w, p = self.world, self.plan
         timer = self.timer
         if p.reorder_every and self.step_count % p.reorder_every == 0:
             with timer("hash scan"):
@@ -311,11 +198,11 @@ class Simulation:
                 hashgrid.clear_counts(w)
             return launched
         with timer("hash + tires"):
-            return hash_and_tires(w, self.step_count, p.swept, p.center, p.ground)
+            return hash_and_tires(w, self._switches["hash_and_tires"], self.step_count)
 
     def _reorder(self) -> None:
         """Re-sort the rocks in memory by slot (entries is then the identity)."""
-        w = self.w
+        w = self.world
         for f, tmp in ((w.pos, w.tmp_vec), (w.vel, w.tmp_vec), (w.radius, w.tmp_real),
                        (w.friction, w.tmp_real), (w.rock_id, w.tmp_int), (w.phase, w.tmp_int),
                        (w.hit_step, w.tmp_int), (w.slot, w.tmp_int)):
@@ -356,62 +243,66 @@ class Simulation:
                     and self.time >= self.fleet.still_after(self._matter))
 
     def _coast(self, n: int) -> None:
-        w, p = self.w, self.plan
         step0 = self.step_count
         for _ in range(n):  # the clock advances exactly as n calls of _step() advance it
             self.time += self.dt
         self.step_count += n
         self.steps_coasted += n
-        lc = self.bed_center[:2] - self.origin[:2]
         with self.timer("coast"):
             for s in range(0, n, 1 << 30):
-                coast_pass(w, min(n - s, 1 << 30), self.dt, float(lc[0]), float(lc[1]), float(self._lead[0]),
-                           float(self._lead[1]), step0 + s, p.flight, p.recycle, p.integrator, p.gravity,
-                           p.drag, p.ground)
+                coast_pass(self.world, self._switches["coast_pass"], min(n - s, 1 << 30), self.dt, self._local_centre(),
+                           self._lead, step0 + s)
         self._poses = self.fleet.poses(self.time)
         self._tires_prev = self.fleet.rear_tires(self._poses)
         self.last_launches = 0
 
     def _step(self, dt=None) -> None:
-        w, p = self.w, self.plan
+        p = self.plan
         dt = self.dt if dt is None else float(dt)
         self.step_count += 1
         self.time += dt
         poses = self.fleet.poses(self.time)
-        c = poses[self.follow].position
-        move = c[:2] - self.bed_center[:2]
-        self.bed_center = np.array([c[0], c[1], self.bed_center[2]])
-        lead = poses[self.follow].velocity[:2]
-        if np.hypot(*lead) > 1e-9:
-            self._lead = lead / np.hypot(*lead)
-        if self.scene.sim.origin == "floating" and np.max(np.abs(c[:2] - self.origin[:2])) > ORIGIN_RANGE:
-            new = _snapped(c[:2])
-            shift = new - self.origin[:2]
-            if self.n_rocks:
-                with self.timer("origin shift"):
-                    shift_origin(w, float(shift[0]), float(shift[1]))
-            self.origin[:2] = new
+        move = self._follow(poses[self.follow])
+        self._keep_origin_near(poses[self.follow].position)
         tires_now = self.fleet.rear_tires(poses)
         rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
         self._tires_prev = tires_now
         self._poses = poses
         if self.n_rocks and (p.flight or p.recycle or p.splash):
-            lc = self.bed_center[:2] - self.origin[:2]
-            g = self._grid_origin()
             with self.timer("rock pass"):
-                rock_pass(w, rays, dt, float(lc[0]), float(lc[1]), float(move[0]), float(move[1]),
-                          float(self._lead[0]), float(self._lead[1]), float(g[0]), float(g[1]), self.step_count,
-                          p.flight, p.recycle, p.splash, p.center, p.integrator, p.gravity, p.drag, p.ground)
+                rock_pass(self.world, self._switches["rock_pass"], rays, dt, self._local_centre(), move, self._lead,
+                          self._grid_origin(), self.step_count)
         if p.splash:
             self.last_launches = self._hash_and_tires()
+
+    def _follow(self, pose) -> np.ndarray:
+        """Move the bed under the followed vehicle (``pose``) and turn its leading edge to the vehicle's
+        travel (kept while the vehicle stands); return the bed's move (XY)."""
+        c = pose.position
+        move = c[:2] - self.bed_center[:2]
+        self.bed_center = np.array([c[0], c[1], self.bed_center[2]])
+        lead = pose.velocity[:2]
+        if np.hypot(*lead) > 1e-9:
+            self._lead = lead / np.hypot(*lead)
+        return move
+
+    def _keep_origin_near(self, c) -> None:
+        """With ``origin = "floating"``: once the bed centre ``c`` is farther than ORIGIN_RANGE from the
+        origin, snap the origin to it and move the rocks' local positions by the (exact) difference."""
+        if self.scene.sim.origin == "floating" and np.max(np.abs(c[:2] - self.origin[:2])) > ORIGIN_RANGE:
+            new = _snapped(c[:2])
+            if self.n_rocks:
+                with self.timer("origin shift"):
+                    shift_origin(self.world, new - self.origin[:2])
+            self.origin[:2] = new
 
     # ------------------------------------------------------------------------------------------------
     def state(self) -> dict:
         """The current state as NumPy arrays, rocks in their original order (by rock id)."""
-        w, n = self.w, self.n_rocks
+        w, n = self.world, self.n_rocks
         ids = w.rock_id.to_numpy()[:n]
         pos = np.empty((n, 3))
-        vel = np.empty((n, 3), self.w.np_real())
+        vel = np.empty((n, 3), w.np_real())
         radius = np.empty(n)
         phase = np.empty(n, np.int8)
         pos[ids] = w.pos.to_numpy()[:n].astype(np.float64) + self.origin
@@ -438,7 +329,7 @@ class Simulation:
 
     def checkpoint(self) -> dict:
         """Everything needed to continue bit-identically: rock fields in memory order, clock, origin."""
-        w = self.w
+        w = self.world
         data = {f"rock_{k}": getattr(w, k).to_numpy() for k in self._ROCK_FIELDS}
         if self.plan.splash:
             data["rock_hit_step"] = w.hit_step.to_numpy()
@@ -452,7 +343,7 @@ class Simulation:
         """Continue from a checkpoint() of a simulation of the same scene."""
         if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
             raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
-        w = self.w
+        w = self.world
         for k in self._ROCK_FIELDS:
             getattr(w, k).from_numpy(np.asarray(data[f"rock_{k}"]))
         if self.plan.splash:
@@ -476,20 +367,20 @@ class Simulation:
         non-finite, outside the bed (with recycling) or below the ground (with ground contact)."""
         if not self.n_rocks:
             return
-        lc = self.bed_center[:2] - self.origin[:2]
+        w = self.world
+        lc = self._local_centre()
         # 1 mm, or a few float spacings at the bed's distance from the kernel origin ("world" origin, f32)
-        eps = float(np.finfo(self.w.np_real()).eps)
+        eps = float(np.finfo(w.np_real()).eps)
         slack = 1e-3 + 8.0 * eps * (float(np.max(np.abs(lc))) + self.scene.bed.radius)
-        health(self.w, float(lc[0]), float(lc[1]), slack, self.plan.recycle, self.plan.ground != "none",
-               self.w.health_out)
-        out = self.w.health_out.to_numpy()
+        health(w, self._switches["health"], lc, slack)
+        out = w.health_out.to_numpy()
         if not out[:3].any():
             return
         kind = int(np.flatnonzero(out[:3])[0])
         i = int(out[3 + kind])
-        rid = int(self.w.rock_id[i])
-        p = self.w.pos[i].to_numpy().astype(np.float64) + self.origin
-        v = self.w.vel[i].to_numpy()
+        rid = int(w.rock_id[i])
+        p = w.pos[i].to_numpy().astype(np.float64) + self.origin
+        v = w.vel[i].to_numpy()
         what = ("non-finite state", "outside the bed", "below the ground")[kind]
         raise HealthError(
             f"step {self.step_count} (t = {self.time:.4f} s): {int(out[kind])} rock(s) {what}; "
@@ -501,7 +392,7 @@ class Simulation:
         return np.stack([t.center, t.bottom], axis=1) if len(t.spin) else np.zeros((0, 2, 3))
 
     def queried_cells(self) -> np.ndarray:
-        w = self.w
+        w = self.world
         if not self.plan.splash or self.plan.swept:
             return np.zeros((0, 3), np.int64)
         counts = w.ray_cell_count.to_numpy()
