@@ -73,7 +73,6 @@ class Simulation:
         self._switches = switches(plan)  # what each kernel reads from the plan (engine/kernels.py)
         rocks = initial_rocks(scene)
         self.world = self._allocate(rocks.radius)
-        self.w = self.world
         self._start_clock()
         self._par, ipar = scene_params(scene, plan, self._sizing, ground_z=scene.world.ground_z - self.origin[2])
         self.world.set_params(self._par, ipar)
