@@ -3,7 +3,10 @@
 Every kernel takes the World ``w`` and, where it has compile-time switches, the Plan's switches it reads
 (``plan``: a :class:`Switches`, one ``ti.template()`` argument) as ``ti.static(plan.flight)``: passes a plan
 leaves out are not compiled. Points and displacements in the bed's local frame (world = origin + local) come
-as 2-vectors of float64, cast to the World's precision.
+as 2-vectors of float64, cast to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
+``rock_pass``, launched every step, which takes its four as one array of 2-vectors (``frame``, rows CENTRE,
+MOVE, LEAD, GRID): Taichi 1.7.4 builds a Matrix in Python for every vector argument of a launch (~10 us
+each, ~4x two scalars), an array of them costs about what the scalars did.
 """
 
 
@@ -63,22 +66,26 @@ def switches(plan) -> dict:
     return {k: Switches(plan, names) for k, names in READS.items()}
 
 
+# Rows of rock_pass's ``frame`` (2-vectors, float64, local frame): the bed centre, how far it moved this
+# step, its leading direction (unit), and the corner of the tire mask's tiles.
+CENTRE, MOVE, LEAD, GRID = 0, 1, 2, 3
+
+
 @ti.kernel
-def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2), dt: ti.f64,
-              centre: vec2, move: vec2, lead: vec2, grid: vec2, step: ti.i32):
+def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
+              frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32):
     """Pass 1 fused: flight, recycling, counting for the hash (``plan.splash``), one read of each rock per
-    step. ``centre``: the bed centre; ``move``: how far it moved this step; ``lead``: the leading direction
-    (unit); ``grid``: origin of the tire mask's tiles. With the hash it first takes the step's tire rays
-    (``rays``, layout of World.ray, float64) into ``w.ray``: passed as an argument, they cost no launch of
-    their own."""
+    step; ``frame``: the bed's centre, move and leading direction and the mask's corner (rows above). With
+    the hash it first takes the step's tire rays (``rays``, layout of World.ray, float64) into ``w.ray``:
+    passed as an argument, they cost no launch of their own."""
     if ti.static(plan.splash):
         for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
             w.ray[t, k] = ti.cast(rays[t, k], w.real)
     h = ti.cast(dt, w.real)
-    c = ti.Vector([ti.cast(centre[0], w.real), ti.cast(centre[1], w.real)])
-    m = ti.Vector([ti.cast(move[0], w.real), ti.cast(move[1], w.real)])
-    d = ti.Vector([ti.cast(lead[0], w.real), ti.cast(lead[1], w.real)])
-    g = ti.Vector([ti.cast(grid[0], w.real), ti.cast(grid[1], w.real)])
+    c = ti.cast(frame[CENTRE], w.real)
+    m = ti.cast(frame[MOVE], w.real)
+    d = ti.cast(frame[LEAD], w.real)
+    g = ti.cast(frame[GRID], w.real)
     if ti.static(plan.splash and w.masked):
         hashgrid.mark_tire_tiles(w, g)
     for i in range(w.ipar[IPar.N_ROCKS]):

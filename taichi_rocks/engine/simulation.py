@@ -269,8 +269,8 @@ class Simulation:
         self._poses = poses
         if self.n_rocks and (p.flight or p.recycle or p.splash):
             with self.timer("rock pass"):
-                rock_pass(self.world, self._switches["rock_pass"], rays, dt, self._local_centre(), move, self._lead,
-                          self._grid_origin(), self.step_count)
+                frame = np.array([self._local_centre(), move, self._lead, self._grid_origin()])  # CENTRE..GRID
+                rock_pass(self.world, self._switches["rock_pass"], rays, frame, dt, self.step_count)
         if p.splash:
             self.last_launches = self._hash_and_tires()
 
