@@ -53,7 +53,7 @@ def _resolution(text: str) -> tuple[int, int]:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from .config.plan import ARCHES
+    from .config.arches import ARCHES
 
     p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -5,7 +5,8 @@ import numpy as np
 import taichi as ti
 
 from taichi_rocks.engine import hashgrid, tires
-from taichi_rocks.engine.world import RAY_FIELDS, IPar, Par, World, dilation_cells, next_prime
+from taichi_rocks.engine.setup import entry_capacity, pack_params
+from taichi_rocks.engine.world import RAY_FIELDS, World, next_prime
 
 P = np.array([73856093, 19349663, 83492791], dtype=np.uint64)
 
@@ -42,27 +43,15 @@ class Probe:
         n = len(pos)
         self.n, self.cell, self.center = n, cell, insert == "center"
         r_max = float(radius.max()) if n else cell
-        if self.center:
-            entries = n
-        else:
-            per_axis = np.floor(2 * radius / cell * (1 + 1e-5) + 1e-3).astype(np.int64) + 2
-            entries = int(np.sum(per_axis ** 3))
+        entries = entry_capacity(radius, cell, self.center)
         self.table = table or next_prime(max(entries, 1))
         rays = np.asarray(rays, np.float64).reshape(-1, 2, 3)
         self.swept = swept
         ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
         self.w = w = World(n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
                            ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
-        par = np.zeros(Par.COUNT)
-        par[Par.CELL] = cell
-        par[Par.REST_SPEED] = rest_speed
-        par[Par.R_MAX] = r_max
-        par[Par.TIE_EPS] = 1e-5
-        par[Par.ANGLE_MIN] = par[Par.ANGLE_MAX] = np.radians(30)
-        par[Par.GRAVITY] = 9.81
-        ipar = np.zeros(IPar.COUNT, np.int64)
-        ipar[IPar.DILATE] = dilation_cells(r_max, cell) if self.center else 0
-        ipar[IPar.N_ROCKS] = n
+        par, ipar = pack_params(n_rocks=n, cell=cell, r_max=r_max, center=self.center, rest_speed=rest_speed,
+                                gravity=9.81, release_angle=(30.0, 30.0))
         w.set_params(par, ipar)
         npr = w.np_real()
         cap = max(n, 1)

@@ -165,12 +165,12 @@ def test_ground_is_anchored_to_the_world(shared):
     sim, r = shared
     a = r.render_frame().copy()
     d = np.array([37.3, -21.7])
-    shift_origin(sim.world, float(d[0]), float(d[1]))
+    shift_origin(sim.world, d)
     sim.origin[:2] += d
     try:
         b = r.render_frame().copy()
     finally:
-        shift_origin(sim.world, float(-d[0]), float(-d[1]))
+        shift_origin(sim.world, -d)
         sim.origin[:2] -= d
     diff = np.abs(a.astype(int) - b.astype(int)).max(axis=2)
     assert (diff > 8).mean() < 0.01, (diff > 8).mean()

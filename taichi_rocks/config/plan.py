@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-ARCHES = ("cpu", "gpu", "cuda", "vulkan")  # Taichi backends a user can ask for
-
 
 @dataclass(frozen=True)
 class Plan:
     """Decided once from the scene. Only launched rocks ever leave the ground, so flight runs only with
-    splashing tires; the hash table exists only if a tire queries it."""
+    splashing tires; the hash table exists only if a tire queries it. The kernels read these switches at
+    compile time (each kernel the ones it needs: engine/kernels.py, Switches)."""
 
     splash: bool  # hash build + tire pass
     flight: bool

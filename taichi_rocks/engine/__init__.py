@@ -1,2 +1,3 @@
 """The simulation on Taichi: runtime start-up, the World (fields), the pass modules (bed, flight, hashgrid,
-tires) and their kernels, and Simulation, the step. The only package that writes fields."""
+tires), the kernels a step launches (kernels), the set-up from a Scene (setup) and Simulation, the step. The
+only package that writes fields."""

@@ -18,12 +18,13 @@ changed Scene (the World pool, engine/world.py ``acquire``, hands a released Wor
 from __future__ import annotations
 
 import contextlib
+from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
 
 from . import hashgrid, tires
-from .simulation import rock_pass
+from .kernels import READS, Switches, rock_pass
 from .world import FLYING, RAY_FIELDS, IPar
 
 
@@ -32,17 +33,21 @@ def _pass_args(sim) -> tuple:
     the rays (read back from the World, where the step's count put them), dt, the bed centre and its move in
     that step (the followed vehicle's, recomputed: equal up to rounding), the lead direction, the mask's grid
     origin, the step number."""
-    w = sim.w
+    w = sim.world
     rays = w.ray.to_numpy().astype(np.float64) if w.n_tires else np.zeros((1, RAY_FIELDS))
-    lc = sim.bed_center[:2] - sim.origin[:2]
     move = np.zeros(2)
     if sim.step_count > 0:
         before = sim.fleet.poses(sim.time - sim.dt)[sim.follow].position
         move = sim.bed_center[:2] - np.asarray(before[:2], float)
-    g = sim._grid_origin()
-    lead = sim._lead
-    return (rays, float(sim.dt), float(lc[0]), float(lc[1]), float(move[0]), float(move[1]), float(lead[0]),
-            float(lead[1]), float(g[0]), float(g[1]), int(sim.step_count))
+    frame = np.array([sim._local_centre(), move, sim._lead, sim._grid_origin()])  # kernels.CENTRE .. GRID
+    return rays, frame, float(sim.dt), int(sim.step_count)
+
+
+def _switches(flight, recycle, count, center, integrator, gravity, drag, ground) -> Switches:
+    """rock_pass's switches: which parts run (``count``: the hash count, the plan's ``splash``)."""
+    return Switches(SimpleNamespace(splash=count, flight=flight, recycle=recycle, center=center,
+                                    integrator=integrator, gravity=gravity, drag=drag, ground=ground),
+                    READS["rock_pass"])
 
 
 def rock_pass_call(sim, *, flight: bool = False, recycle: bool = False, count: bool = False, integrator=None,
@@ -51,14 +56,16 @@ def rock_pass_call(sim, *, flight: bool = False, recycle: bool = False, count: b
     hash) and the plan's switches unless given, with the arguments of the step just taken (bound now: a call
     costs one launch and nothing else). It holds the World, not the Simulation."""
     p = sim.plan
-    switches = (bool(flight), bool(recycle), bool(count), p.center, integrator or p.integrator,
-                p.gravity if gravity is None else bool(gravity), drag or p.drag, ground or p.ground)
-    return _bound_rock_pass(sim.w, _pass_args(sim), switches)
+    switches = _switches(bool(flight), bool(recycle), bool(count), p.center, integrator or p.integrator,
+                         p.gravity if gravity is None else bool(gravity), drag or p.drag, ground or p.ground)
+    return _bound_rock_pass(sim.world, _pass_args(sim), switches)
 
 
-def _bound_rock_pass(w, args: tuple, switches: tuple) -> Callable[[], None]:
+def _bound_rock_pass(w, args: tuple, switches: Switches) -> Callable[[], None]:
+    rays, frame, dt, step = args
+
     def call() -> None:
-        rock_pass(w, *args, *switches)
+        rock_pass(w, switches, rays, frame, dt, step)
 
     return call
 
@@ -68,11 +75,11 @@ def separate_passes(sim) -> list[tuple[str, Callable]]:
     "recycle" (parts of the rock pass), then "hash clear", "hash count" (the rock pass counting alone),
     "hash scan", "hash scatter", "trace rays" (single-ray detection) and "tire pass". Call them in this order
     (each needs the ones before it), then :func:`clear_hash`. Passes the plan does not run are left out."""
-    p, w = sim.plan, sim.w
+    p, w = sim.plan, sim.world
     args = _pass_args(sim)
     step = int(sim.step_count)
-    part = lambda flight, recycle, count: _bound_rock_pass(w, args, (flight, recycle, count, p.center, p.integrator,
-                                                                    p.gravity, p.drag, p.ground))
+    part = lambda flight, recycle, count: _bound_rock_pass(
+        w, args, _switches(flight, recycle, count, p.center, p.integrator, p.gravity, p.drag, p.ground))
     out = []
     if p.flight:
         out.append(("flight", part(True, False, False)))
@@ -92,7 +99,7 @@ def separate_passes(sim) -> list[tuple[str, Callable]]:
 def clear_hash(sim) -> None:
     """Clear the hash counts, as every step leaves them (nothing to do without a hash)."""
     if sim.plan.splash:
-        hashgrid.clear_counts(sim.w)
+        hashgrid.clear_counts(sim.world)
 
 
 def reorder(sim) -> None:
@@ -106,7 +113,7 @@ def reorder(sim) -> None:
 @contextlib.contextmanager
 def active_rocks(sim, n: int):
     """Inside the block the rock loops of every kernel run over the first ``n`` rock slots only."""
-    w = sim.w
+    w = sim.world
     saved = int(w.ipar[IPar.N_ROCKS])
     w.ipar[IPar.N_ROCKS] = int(n)
     try:
@@ -117,7 +124,7 @@ def active_rocks(sim, n: int):
 
 def set_flying(sim, velocities) -> None:
     """Every rock flying, with these velocities ((n_rocks, 3), m/s), from where it is."""
-    w, n = sim.w, sim.n_rocks
+    w, n = sim.world, sim.n_rocks
     vel = w.vel.to_numpy()
     vel[:n] = np.asarray(velocities, np.float64).astype(w.np_real())
     phase = w.phase.to_numpy()
@@ -135,7 +142,7 @@ def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integ
     no hash): rock slots 0..k-1 get these positions (local frame), velocities and radii, flying; ``steps``
     passes of ``dt`` run over those k slots only. The rock fields and the rock count are restored afterwards.
     Returns the local positions every ``every`` steps, float64, shape (k, steps // every, 3)."""
-    w = sim.w
+    w = sim.world
     k = len(x0_local)
     npr = w.np_real()
     saved = {f: getattr(w, f).to_numpy() for f in _ROCK}
@@ -146,13 +153,13 @@ def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integ
         a[:k] = test[f].astype(a.dtype if f == "phase" else npr)
         getattr(w, f).from_numpy(a)
     rays = np.zeros((1, RAY_FIELDS))
-    p = sim.plan
+    frame = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 0.0]])  # centre, move, lead, grid: unused
+    switches = _switches(True, False, False, sim.plan.center, integrator, bool(gravity), drag, "none")
     samples = []
     try:
         with active_rocks(sim, k):
             for s in range(1, steps + 1):
-                rock_pass(w, rays, float(dt), 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, s, True, False, False,
-                          p.center, integrator, bool(gravity), drag, "none")
+                rock_pass(w, switches, rays, frame, float(dt), s)
                 if s % every == 0:
                     samples.append(w.pos.to_numpy()[:k].astype(np.float64))
     finally:

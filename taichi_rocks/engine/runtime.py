@@ -13,7 +13,7 @@ import sys
 
 import taichi as ti
 
-from ..config.plan import ARCHES
+from ..config.arches import ARCHES
 
 _state: dict = {"arch": None}
 

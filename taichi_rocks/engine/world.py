@@ -186,6 +186,21 @@ class World:
     def np_real(self):
         return np.float64 if self.real == ti.f64 else np.float32
 
+    def load_rocks(self, pos: np.ndarray, radius: np.ndarray, friction: np.ndarray) -> None:
+        """Rocks 0..n-1 at rest at ``pos`` ((max(n, 1), 3), local frame), in id order, never launched
+        (hit step -1); the padding slot of an empty World gets radius 1."""
+        n, cap = len(radius), max(len(radius), 1)
+        pad = lambda a, fill=0: np.concatenate([a, np.full(cap - n, fill, dtype=a.dtype)])
+        npr = self.np_real()
+        self.pos.from_numpy(pos.astype(npr))
+        self.vel.from_numpy(np.zeros((cap, 3), npr))
+        self.radius.from_numpy(pad(radius.astype(npr), 1))
+        self.friction.from_numpy(pad(friction.astype(npr)))
+        self.rock_id.from_numpy(pad(np.arange(n, dtype=np.int32)))
+        self.phase.from_numpy(np.zeros(cap, np.int32))
+        if self.hashed:
+            self.hit_step.from_numpy(np.full(cap, -1, np.int32))
+
 
 @ti.kernel
 def _zero_fields(w: ti.template()):

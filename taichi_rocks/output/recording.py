@@ -164,7 +164,7 @@ def _record_frames(sim, work: Path, frames: int, fps: float, progress, guard: bo
     shapes = {
         "time": ((frames,), np.float64),
         "positions": ((frames, n, 3), np.float64),
-        "velocities": ((frames, n, 3), sim.w.np_real()),
+        "velocities": ((frames, n, 3), sim.world.np_real()),
         "phase": ((frames, n), np.int8),
         "bed_center": ((frames, 3), np.float64),
         "vehicle_positions": ((frames, v, 3), np.float64),

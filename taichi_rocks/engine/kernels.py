@@ -1,0 +1,192 @@
+"""The kernels a step launches, built from the pass modules (flight, bed, hashgrid, tires).
+
+Every kernel takes the World ``w`` and, where it has compile-time switches, the Plan's switches it reads
+(``plan``: a :class:`Switches`, one ``ti.template()`` argument) as ``ti.static(plan.flight)``: passes a plan
+leaves out are not compiled. Points and displacements in the bed's local frame (world = origin + local) come
+as 2-vectors of float64, cast to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
+``rock_pass``, launched every step, which takes its four as one array of 2-vectors (``frame``, rows CENTRE,
+MOVE, LEAD, GRID): Taichi 1.7.4 builds a Matrix in Python for every vector argument of a launch (~10 us
+each, ~4x two scalars), an array of them costs about what the scalars did.
+"""
+
+
+import taichi as ti
+
+from . import hashgrid, tires
+from .bed import outside_bed, recycle_to_leading_edge
+from .flight import fly
+from .world import RAY_FIELDS, RESTING, IPar, Par
+
+vec2 = ti.types.vector(2, ti.f64)
+
+
+class Switches:
+    """The switches of a Plan that one kernel reads, as that kernel's ``plan`` argument.
+
+    Taichi 1.7.4 keys a ``ti.template()`` argument that is neither a field nor a container by its value
+    (``hash`` and ``==``), so a kernel compiles once per World and distinct switches, and equal ones share the
+    compiled kernel. Holding only the switches its kernel reads (``READS``), a Switches keeps scenes that
+    differ elsewhere on one compiled kernel (a new integrator does not recompile the hash pass); reading a
+    switch that is not held fails when the kernel compiles."""
+
+    __slots__ = ("_items", "_hash")
+
+    def __init__(self, plan, names):
+        self._items = tuple((n, getattr(plan, n)) for n in names)
+        self._hash = hash(self._items)
+
+    def __getattr__(self, name):
+        if not name.startswith("_"):
+            for n, v in self._items:
+                if n == name:
+                    return v
+        raise AttributeError(f"kernel switch {name!r} is not among {[n for n, _ in self._items]}")
+
+    def __eq__(self, other):
+        return isinstance(other, Switches) and self._items == other._items
+
+    def __hash__(self):
+        return self._hash
+
+    def __repr__(self):
+        return "Switches(" + ", ".join(f"{n}={v!r}" for n, v in self._items) + ")"
+
+
+# The Plan's switches each kernel reads.
+READS = {
+    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground"),
+    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground"),
+    "hash_and_tires": ("center", "swept", "ground"),
+    "health": ("recycle", "ground"),
+}
+
+
+def switches(plan) -> dict:
+    """Kernel name -> the :class:`Switches` of ``plan`` it reads."""
+    return {k: Switches(plan, names) for k, names in READS.items()}
+
+
+# Rows of rock_pass's ``frame`` (2-vectors, float64, local frame): the bed centre, how far it moved this
+# step, its leading direction (unit), and the corner of the tire mask's tiles.
+CENTRE, MOVE, LEAD, GRID = 0, 1, 2, 3
+
+
+@ti.kernel
+def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
+              frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32):
+    """Pass 1 fused: flight, recycling, counting for the hash (``plan.splash``), one read of each rock per
+    step; ``frame``: the bed's centre, move and leading direction and the mask's corner (rows above). With
+    the hash it first takes the step's tire rays (``rays``, layout of World.ray, float64) into ``w.ray``:
+    passed as an argument, they cost no launch of their own."""
+    if ti.static(plan.splash):
+        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
+            w.ray[t, k] = ti.cast(rays[t, k], w.real)
+    h = ti.cast(dt, w.real)
+    c = ti.cast(frame[CENTRE], w.real)
+    m = ti.cast(frame[MOVE], w.real)
+    d = ti.cast(frame[LEAD], w.real)
+    g = ti.cast(frame[GRID], w.real)
+    if ti.static(plan.splash and w.masked):
+        hashgrid.mark_tire_tiles(w, g)
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        if ti.static(plan.flight):
+            fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+        if ti.static(plan.recycle):
+            recycle_to_leading_edge(w, i, c, m, d, step)
+        if ti.static(plan.splash):
+            hashgrid.count_rock(w, i, plan.center, g)
+
+
+@ti.kernel
+def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, centre: vec2, lead: vec2,
+               step0: ti.i32):
+    """``n`` steps of pass 1 in one launch, for when nothing outside a rock can change it: every vehicle that
+    matters stands still for good, so the bed does not move and no tire can launch (a still tread throws
+    nothing). Rocks are then independent: each thread takes its rock through the n steps doing exactly what
+    ``rock_pass`` does (same functions, same step numbers for the random streams), and stops early once the
+    rock rests inside the bed, where nothing can move it again. Bit-identical to n calls of ``step()``."""
+    h = ti.cast(dt, w.real)
+    c = ti.Vector([ti.cast(centre[0], w.real), ti.cast(centre[1], w.real)])
+    m = ti.Vector([ti.cast(0.0, w.real), ti.cast(0.0, w.real)])
+    d = ti.Vector([ti.cast(lead[0], w.real), ti.cast(lead[1], w.real)])
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        for s in range(n):
+            if ti.static(plan.flight):
+                fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+            if ti.static(plan.recycle):
+                recycle_to_leading_edge(w, i, c, m, d, step0 + s + 1)
+            if w.phase[i] == RESTING:
+                settled = True
+                if ti.static(plan.recycle):
+                    settled = not outside_bed(w.pos[i], c, w.par[Par.BED_RADIUS], w.par[Par.GROUND_Z])
+                if settled:
+                    break
+
+
+@ti.kernel
+def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32) -> ti.i32:
+    """Passes after the rock pass, in one launch: scan, scatter, ray cells, tire pass, and clearing the
+    counts for the next step's rock pass. Returns the rocks launched."""
+    hashgrid.scan_counts(w)
+    hashgrid.scatter_all(w, plan.center)
+    if ti.static(not plan.swept):
+        tires.trace_all(w)
+    launched = tires.launch_all(w, step, plan.swept, plan.center, plan.ground)
+    hashgrid.clear_all(w)
+    return launched
+
+
+@ti.kernel
+def shift_origin(w: ti.template(), shift: vec2):
+    """Move the local frame's origin by ``shift`` (XY): every rock's local position moves by -shift."""
+    d = ti.Vector([ti.cast(shift[0], w.real), ti.cast(shift[1], w.real), 0.0])
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        w.pos[i] -= d
+
+
+@ti.kernel
+def gather_vec(w: ti.template(), src: ti.template(), dst: ti.template()):
+    for k in range(w.ipar[IPar.N_ROCKS]):
+        dst[k] = src[w.entries[k]]
+
+
+@ti.kernel
+def copy_field(w: ti.template(), src: ti.template(), dst: ti.template()):
+    for k in range(w.ipar[IPar.N_ROCKS]):
+        dst[k] = src[k]
+
+
+@ti.kernel
+def identity_entries(w: ti.template()):
+    for k in range(w.ipar[IPar.N_ROCKS]):
+        w.entries[k] = k
+
+
+@ti.kernel
+def health(w: ti.template(), plan: ti.template(), centre: vec2, slack: ti.f64):
+    """Count bad rocks into ``w.health_out``: non-finite state [0], outside the bed [1] (checked with
+    recycling), below the ground [2] (checked with ground contact); the smallest index of a bad rock of each
+    kind goes to [3..5] (as an index into the fields). ``slack`` widens the bed and lowers the ground."""
+    out = ti.static(w.health_out)
+    for k in ti.static(range(6)):
+        out[k] = 0 if k < 3 else 2147483647
+    radius = w.par[Par.BED_RADIUS] + ti.cast(slack, w.real)
+    ground = w.par[Par.GROUND_Z] - ti.cast(slack, w.real)
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        p, v = w.pos[i], w.vel[i]
+        finite = True
+        for a in ti.static(range(3)):
+            if not (ti.abs(p[a]) < 1e30 and ti.abs(v[a]) < 1e30):  # false for NaN too
+                finite = False
+        if not finite:
+            out[0] += 1
+            ti.atomic_min(out[3], i)
+        elif ti.static(plan.recycle):
+            d2 = (p[0] - centre[0]) ** 2 + (p[1] - centre[1]) ** 2
+            if d2 > radius * radius:
+                out[1] += 1
+                ti.atomic_min(out[4], i)
+        if ti.static(plan.ground != "none"):
+            if finite and p[2] - w.radius[i] < ground:
+                out[2] += 1
+                ti.atomic_min(out[5], i)
