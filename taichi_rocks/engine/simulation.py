@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import taichi as ti
 
-from . import hashgrid, tires
+from . import hashgrid, patch, throw, tires
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from ..config.plan import Plan
@@ -32,7 +32,7 @@ from .setup import drag_coefficients
 from .timing import NO_TIMER
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
-from .world import ACTIVE, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
+from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, RESTING, IPar, Par, acquire, dilation_cells, next_prime
 
 ORIGIN_SNAP = 64.0  # m: origin moves in whole multiples of this, so the shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
@@ -208,6 +208,9 @@ class Simulation:
         # scope "tires": rocks are hashed only on tiles of a coarse XY mask around the tires' queries
         self.tile = max(0.5, 4.0 * self.cell_size)
         self._margin = r_max + (dilation_cells(r_max, self.cell_size) + 1) * self.cell_size
+        if plan.patch:  # the footprint reaches its half-diagonal beyond the ray
+            self._margin += max((math.hypot(0.5 * v.tire_width, 0.5 * v.contact_length) for v in scene.vehicles
+                                 if v.splash), default=0.0)
         half = bed.radius + 2.0 * self.tile
         self._grid_half = half
         tiles = None
@@ -224,7 +227,8 @@ class Simulation:
         self.table_size = table
         self.w = w = acquire(self, n, self.real, hash_table=table, hash_entries=entries, n_tires=n_tires,
                            substeps=plan.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
-                           reorder=self.plan.reorder_every > 0, tiles=tiles, tile_size=self.tile)
+                           reorder=self.plan.reorder_every > 0, tiles=tiles, tile_size=self.tile,
+                           patch=plan.patch, throw=plan.throw, fenders=plan.fenders)
         self.world = w
 
         # parameters
@@ -243,6 +247,10 @@ class Simulation:
         par[Par.R_MAX] = r_max
         par[Par.TIE_EPS] = 1e-5
         par[Par.MARGIN] = self._margin
+        for k, value in throw.tread_params(scene).items():
+            par[k] = value
+        # a rock resting on the ground: its bottom is the ground's height up to a few float spacings
+        par[Par.PATCH_TOL] = 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * abs(wd.ground_z)
         ipar = np.zeros(IPar.COUNT, dtype=np.int64)
         ipar[IPar.SEED] = scene.seed & 0x7FFFFFFF
         ipar[IPar.DILATE] = dilation_cells(r_max, self.cell_size) if center else 0
@@ -320,12 +328,14 @@ class Simulation:
         data[:, 12:15] = cur.velocity
         data[:, 15:17] = cur.forward
         data[:, 17] = cur.spin
+        data[:, HALF_W:] = patch.tread_columns(prev, cur, ~jumped, o)
         # tires far from the bed cannot touch a rock: park their rays, degenerate, high above the bed
         reach = self.scene.bed.radius + 2.0 * float(self.scene.bed.rock_radius[1]) + 2.0
         far = np.hypot(cur.center[:, 0] - self.bed_center[0], cur.center[:, 1] - self.bed_center[1]) > reach
         if far.any():
             park = self.bed_center - o + np.array([0.0, 0.0, 1000.0])
             data[far, 0:12] = np.tile(park, 4)
+            data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
             data[far, 17] = 0.0
         data[:, ACTIVE] = ~far
         return data
