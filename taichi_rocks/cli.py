@@ -89,6 +89,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
     b.add_argument("--out", type=Path, default=Path("renders/bench"))
     b.add_argument("--arch", choices=ARCHES, default="cpu")
+    b.add_argument("--only", choices=("launch",), help="run one study only: launch (what the tread throws)")
     return p
 
 
@@ -180,6 +181,11 @@ def cmd_render(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    if args.only == "launch":
+        from .bench.launch import run_launch_study
+        info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        print(f"wrote {info['report']}")
+        return EXIT_OK
     from .bench import run_bench
     info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
     print(f"wrote {info.get('report', args.out)}")
@@ -196,7 +202,8 @@ _PRELOAD = {
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
     "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
-    "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run"),
+    "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
+              "taichi_rocks.bench.launch"),
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
 _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (

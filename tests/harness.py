@@ -6,7 +6,7 @@ import taichi as ti
 
 from taichi_rocks.engine import hashgrid, tires
 from taichi_rocks.engine.setup import entry_capacity, pack_params
-from taichi_rocks.engine.world import RAY_FIELDS, World, next_prime
+from taichi_rocks.engine.world import HALF_W, RAY_FIELDS, World, next_prime
 
 P = np.array([73856093, 19349663, 83492791], dtype=np.uint64)
 
@@ -37,7 +37,7 @@ class Probe:
     """A World holding given rocks, a hash built in a given mode, and rays."""
 
     def __init__(self, pos, radius, *, cell, insert="center", table=None, rays=(), real=ti.f32,
-                 swept=False, rest_speed=1e-6):
+                 swept=False, rest_speed=1e-6, patch=False, throw="uniform", fenders=False):
         pos = np.asarray(pos, np.float64).reshape(-1, 3)
         radius = np.asarray(radius, np.float64).reshape(-1)
         n = len(pos)
@@ -49,7 +49,8 @@ class Probe:
         self.swept = swept
         ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
         self.w = w = World(n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
-                           ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
+                           ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8, patch=patch, throw=throw,
+                           fenders=fenders)
         par, ipar = pack_params(n_rocks=n, cell=cell, r_max=r_max, center=self.center, rest_speed=rest_speed,
                                 gravity=9.81, release_angle=(30.0, 30.0))
         w.set_params(par, ipar)
@@ -69,9 +70,12 @@ class Probe:
         self.total = hashgrid.inclusive_scan(w)
         hashgrid.scatter(w, self.center)
 
-    def set_rays(self, prev, cur, spin=10.0):
+    def set_rays(self, prev, cur, spin=10.0, tread=None):
+        """Rays prev -> cur; ``tread``: the columns from HALF_W on (engine.patch.tread_columns), or zeros."""
         w = self.w
         data = np.zeros((w.n_tires, RAY_FIELDS))
+        if tread is not None:
+            data[:, HALF_W:] = tread
         data[:, 0:3], data[:, 3:6] = prev[:, 0], prev[:, 1]
         data[:, 6:9], data[:, 9:12] = cur[:, 0], cur[:, 1]
         data[:, 15] = 1.0
@@ -79,11 +83,11 @@ class Probe:
         data[:, 18] = 1.0  # active
         w.ray.from_numpy(data.astype(w.np_real()))
 
-    def hits(self, step=1, prev=None):
+    def hits(self, step=1, prev=None, tread=None):
         """Indices of rocks the rays hit (launched at `step`)."""
         w = self.w
         cur = self.rays
-        self.set_rays(cur if prev is None else prev, cur)
+        self.set_rays(cur if prev is None else prev, cur, tread=tread)
         w.phase.from_numpy(np.zeros(max(self.n, 1), np.int32))
         if not self.swept:
             tires.trace_rays(w)

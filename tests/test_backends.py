@@ -32,12 +32,13 @@ def _edited(text: str, edits) -> str:
 # name: (scene file, frames, fps, edits of its text). Small: a few seconds per backend (Vulkan on lavapipe
 # costs tens of milliseconds a step, launching kernels), so a short stretch of a denser bed.
 CASES = {
-    # one car, ray detection, rocks hashed near the tires (scope "tires"): the default passes
+    # one car, patch detection and the tread model with fenders (the shipped scenes'), rocks hashed near the
+    # tires (scope "tires"): the default passes
     "minimal": ("minimal.toml", 16, 60, [("rocks = 2000\n", "rocks = 8000\n")]),
     # swept detection and every rock hashed with re-sorting (tire_pass runs as a kernel of its own)
     "minimal-swept-all": ("minimal.toml", 16, 60, [
-        ("rocks = 2000\n", "rocks = 8000\n"),
-        ("dt = 0.004\n", 'dt = 0.004\ndetection = "swept"\n\n[sim.hash]\nscope = "all"\nreorder_every = 8\n')]),
+        ("rocks = 2000\n", "rocks = 8000\n"), ('detection = "patch"', 'detection = "swept"'),
+        ("dt = 0.004\n", 'dt = 0.004\n\n[sim.hash]\nscope = "all"\nreorder_every = 8\n')]),
     # two splashing vehicles in tight curves (four rear tires), fewer rocks than the scene's
     "slalom": ("slalom.toml", 11, 100, [("rocks = 100000\n", "rocks = 30000\n")]),
 }

@@ -16,7 +16,10 @@ class Plan:
     recycle: bool
     center: bool  # centre insert (else AABB)
     scope_all: bool  # hash every rock (else only those near a tire's query region)
-    swept: bool
+    swept: bool  # a swept query box, no ray cells ("swept" and "patch" detection)
+    patch: bool  # the tread's swept footprint counts ("patch" detection)
+    throw: str  # launch model: "tread" | "uniform"
+    fenders: bool  # fender and mud-flap test (tread model)
     substeps: int
     reorder_every: int
     integrator: str
@@ -34,7 +37,9 @@ class Plan:
         scope_all = sim.hash.scope == "all"
         return cls(splash=splash, flight=splash, recycle=bool(fx.recycle and n > 0), center=center,
                    scope_all=scope_all,
-                   swept=sim.detection == "swept", substeps=int(sim.substeps) if sim.detection == "ray" else 1,
+                   swept=sim.detection in ("swept", "patch"), patch=sim.detection == "patch",
+                   throw=scene.launch.model, fenders=bool(fx.fenders and scene.launch.model == "tread"),
+                   substeps=int(sim.substeps) if sim.detection == "ray" else 1,
                    reorder_every=int(sim.hash.reorder_every) if (splash and center and scope_all) else 0,
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
                    cell_size=cell_size(scene))
@@ -49,7 +54,9 @@ class Plan:
         if self.splash:
             out.append(f"hash build ({'centre' if self.center else 'aabb'} insert, cell {self.cell_size:g} m, "
                        f"{'every rock' if self.scope_all else 'rocks near tires'})")
-            out.append("tire pass (" + ("swept" if self.swept else f"ray x{self.substeps}") + ")")
+            how = "patch" if self.patch else ("swept" if self.swept else f"ray x{self.substeps}")
+            throw = self.throw + (" model, fenders" if self.fenders else " model")
+            out.append(f"tire pass ({how}, {throw})")
         return out
 
 

@@ -116,6 +116,8 @@ class World(_Table):
     restitution: Float = _f(0.35, "ground bounce coefficient, in [0, 1]", ge=0, le=1)
     ground_friction: Float = _f(0.6, "Coulomb friction rock-ground (bounce and sliding)", ge=0)
     rest_speed: Float = _f(0.05, "m/s: a rock touching the ground slower than this comes to rest", gt=0)
+    wetness: Float = _f(0.0, "ground wetness in [0, 1]: 1 = a soaked film that makes stones stick to the tread",
+                        ge=0, le=1)
 
 
 class Bed(_Table):
@@ -130,7 +132,15 @@ class Bed(_Table):
 
 
 class Launch(_Table):
-    """How the rear tires throw rocks."""
+    """How the rear tires throw rocks (README, "The throw")."""
+    model: Literal["tread", "uniform"] = _f("tread", "tread: capture and force balance; uniform: release "
+                                                     "angle uniform in release_angle")
+    groove: Float = _f(0.012, "m, stone radius the tread's grooves hold (tread)", gt=0)
+    grip: Float = _f(2.0e5, "Pa, clamp stress of the tread on a carried stone (tread)", ge=0)
+    grip_relax: Float = _f(12.0, "deg, angle over which the clamp relaxes after the contact patch (tread)", gt=0)
+    grip_spread: Float = _f(0.3, "log-spread of the clamp from stone to stone (tread)", ge=0)
+    adhesion: Float = _f(3.0e4, "Pa, adhesion stress of a soaked film at wetness 1 (tread)", ge=0)
+    transfer: Float = _f(1.0, "launch velocity factor k = min(1, transfer * friction) (tread)", ge=0)
     release_angle: Range(ge=0, le=90) = _f((10.0, 35.0), "deg, [min, max] angle up the back of the tire, "
                                                          "0 <= min <= max <= 90")
     spread: Float = _f(8.0, "deg, lateral scatter half-angle, in [0, 90]", ge=0, le=90)
@@ -143,6 +153,7 @@ class Effects(_Table):
     gravity: Bool = _f(True, "gravity acts on flying rocks")
     drag: Literal["none", "linear", "quadratic"] = _f("quadratic", "air drag model")
     ground: Literal["none", "stop", "bounce"] = _f("bounce", "what flying rocks do when they reach the ground")
+    fenders: Bool = _f(True, "fenders (and mud flaps) stop stones thrown into them (tread model)")
 
 
 class Hash(_Table):
@@ -173,7 +184,8 @@ class Sim(_Table):
         "custom", "preset of dt, integrator, detection and precision (keys set in the file win)")
     dt: Float = _f(0.002, "s, time step, in (0, 0.1]", gt=0, le=0.1)
     integrator: Literal["symplectic_euler", "heun", "rk4"] = _f("symplectic_euler", "integrator of flying rocks")
-    detection: Literal["ray", "swept"] = _f("ray", "how tires find the rocks they touch")
+    detection: Literal["ray", "swept", "patch"] = _f("ray", "how tires find the rocks they touch (patch: the "
+                                                            "tread's swept footprint)")
     substeps: Int = _f(1, "tire-ray evaluations per step (ray detection)", ge=1)
     precision: Literal["f32", "f64"] = _f("f32", "floating-point precision of the simulation")
     origin: Literal["floating", "world"] = _f("floating", "floating keeps kernel coordinates near the bed")
@@ -226,7 +238,8 @@ PATH_KINDS = {"waypoints": WaypointPath, "circle": CirclePath}
 _FITS = {"wheelbase": [("length", 1, "")], "track": [("width", 1, "")],
          "tire_radius": [("height", 2, "the tire fits in the vehicle's height"),
                          ("wheelbase", 2, "the front and rear tires do not overlap")],
-         "tire_width": [("track", 1, "the left and right tires do not overlap")]}
+         "tire_width": [("track", 1, "the left and right tires do not overlap")],
+         "contact_length": [("tire_radius", 0.5, "")]}
 # Bounds above the largest wheeled vehicles (haul trucks ~8 m tall, ~10 m wide, tires ~4 m across): wrong units
 MAX_BODY, MAX_TIRE_RADIUS = 100.0, 3.0
 _FIT = dict(gt=0, validate_default=True)   # a size that must fit in others: its default is checked too
@@ -243,6 +256,10 @@ class Vehicle(_Table):
     tire_radius: Float = _f(0.33, "m, in (0, 3]; the diameter is <= height and <= wheelbase", le=MAX_TIRE_RADIUS,
                             **_FIT)
     tire_width: Float = _f(0.22, "m, > 0, <= track", le=MAX_BODY, **_FIT)
+    contact_length: Float = _f(0.12, "m, > 0, <= 2 tire_radius: length of the contact patch", **_FIT)
+    fender_angle: Float = _f(50.0, "deg up the back of the tire above which stones hit the fender", ge=0, le=180)
+    mud_flaps: Bool = _f(False, "mud flaps 1.1 tire_radius behind the rear axles")
+    mud_flap_clearance: Float = _f(0.10, "m, height of the mud flaps' lower edge", ge=0)
     color: Color = _f((0.8, 0.2, 0.1), 'RGB in [0, 1], or "#rrggbb"')
     splash: Bool = _f(True, "its rear tires launch rocks")
     slip: Float = _f(0.15, "wheel spin = speed / tire_radius * (1 + slip)", ge=0)
@@ -258,7 +275,8 @@ class Vehicle(_Table):
     def _fits(cls, value: float, info: ValidationInfo) -> float:
         for limit, share, why in _FITS[info.field_name]:
             if limit in info.data and value > info.data[limit] / share:
-                bound = limit + (f" / {share}" if share > 1 else "") + f" ({info.data[limit] / share:g})"
+                scale = f" / {share:g}" if share > 1 else (f" * {1 / share:g}" if share < 1 else "")
+                bound = limit + scale + f" ({info.data[limit] / share:g})"
                 default = " (the default)" if value == cls.model_fields[info.field_name].default else ""
                 raise ValueError(f"must be <= {bound}" + (f" so that {why}" if why else "") + f", got {value:g}"
                                  + default)

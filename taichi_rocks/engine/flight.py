@@ -83,7 +83,9 @@ def ground_contact(w: ti.template(), i, x, v, r, dt, ground: ti.template(), grav
                 if g > 0.0 and disc >= 0.0:
                     tau = (-vz - ti.sqrt(disc)) / g
                 tau = ti.min(tau, dt)
-                v_impact = vz + g * tau  # negative
+                # negative; a rock that left the ground slower than the step resolves can give vz + g tau > 0
+                # (the integrator's path is not the parabola): it touched down with no normal speed
+                v_impact = ti.min(vz + g * tau, 0.0)
                 v_out = -e * v_impact
                 vt = ti.Vector([v[0], v[1]])
                 vt_norm = vt.norm()

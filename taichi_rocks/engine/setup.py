@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .throw import tread_params
 from .world import IPar, Par, dilation_cells, next_prime
 
 
@@ -110,6 +111,9 @@ def hash_sizing(scene, plan, radius, n_tires: int) -> HashSizing:
     bed, cell = scene.bed, plan.cell_size
     tile = max(0.5, 4.0 * cell)
     margin = tire_reach(float(bed.rock_radius[1]), cell)
+    if plan.patch:  # the tread's footprint reaches its half-diagonal beyond the ray
+        margin += max((math.hypot(0.5 * v.tire_width, 0.5 * v.contact_length) for v in scene.vehicles if v.splash),
+                      default=0.0)
     half = bed.radius + 2.0 * tile
     if not plan.splash:
         return HashSizing(table=0, entries=0, tiles=None, tile=tile, margin=margin, grid_half=half)
@@ -160,8 +164,14 @@ def pack_params(*, n_rocks: int, cell: float, r_max: float, center: bool, gravit
 def scene_params(scene, plan, sizing: HashSizing, ground_z: float):
     """:func:`pack_params` of a scene: ``ground_z`` is the ground's height in the kernels' local frame."""
     wd, bed = scene.world, scene.bed
-    return pack_params(n_rocks=int(bed.rocks), cell=plan.cell_size, r_max=float(bed.rock_radius[1]),
-                       center=plan.center, gravity=wd.gravity, ground_z=ground_z, bed_radius=bed.radius,
-                       restitution=wd.restitution, ground_friction=wd.ground_friction, rest_speed=wd.rest_speed,
-                       release_angle=scene.launch.release_angle, spread=scene.launch.spread,
-                       drag=drag_coefficients(scene), margin=sizing.margin, seed=scene.seed)
+    par, ipar = pack_params(n_rocks=int(bed.rocks), cell=plan.cell_size, r_max=float(bed.rock_radius[1]),
+                            center=plan.center, gravity=wd.gravity, ground_z=ground_z, bed_radius=bed.radius,
+                            restitution=wd.restitution, ground_friction=wd.ground_friction,
+                            rest_speed=wd.rest_speed, release_angle=scene.launch.release_angle,
+                            spread=scene.launch.spread, drag=drag_coefficients(scene), margin=sizing.margin,
+                            seed=scene.seed)
+    for k, value in tread_params(scene).items():
+        par[k] = value
+    # a rock resting on the ground: its bottom is the ground's height up to a few float spacings
+    par[Par.PATCH_TOL] = 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * abs(wd.ground_z)
+    return par, ipar

@@ -31,7 +31,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from . import hashgrid, tires
+from . import hashgrid, patch, tires
 from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
@@ -40,7 +40,7 @@ from .kernels import (coast_pass, copy_field, gather_vec, hash_and_tires, health
 from .runtime import init_taichi
 from .setup import hash_sizing, initial_rocks, scene_params
 from .timing import NO_TIMER
-from .world import ACTIVE, RAY_FIELDS, Par, World, acquire
+from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, Par, World, acquire
 
 __all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "HealthError", "Simulation", "shift_origin"]
 
@@ -106,7 +106,8 @@ class Simulation:
         ray_len = max((v.tire_radius for v in self.scene.vehicles), default=1.0)
         return acquire(self, self.n_rocks, self.real, hash_table=s.table, hash_entries=s.entries, n_tires=n_tires,
                        substeps=p.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
-                       reorder=p.reorder_every > 0, tiles=s.tiles, tile_size=s.tile)
+                       reorder=p.reorder_every > 0, tiles=s.tiles, tile_size=s.tile,
+                       patch=p.patch, throw=p.throw, fenders=p.fenders)
 
     def _start_clock(self) -> None:
         """Time 0: the vehicles' poses, the bed under the followed vehicle, facing its heading, and the
@@ -170,6 +171,8 @@ class Simulation:
         data[:, 12:15] = cur.velocity
         data[:, 15:17] = cur.forward
         data[:, 17] = cur.spin
+        data[:, HALF_W:] = patch.tread_columns(prev, cur, ~jumped, o)
+        data[:, HALF_W:] = patch.tread_columns(prev, cur, ~jumped, o)
         # tires far from the bed cannot touch a rock: park their rays, degenerate, high above the bed
         reach = self.scene.bed.radius + 2.0 * float(self.scene.bed.rock_radius[1]) + 2.0
         far = np.hypot(cur.center[:, 0] - self._bed_rel[0], cur.center[:, 1] - self._bed_rel[1]) > reach
@@ -177,6 +180,8 @@ class Simulation:
             lc = self._local_centre()
             park = np.array([lc[0], lc[1], self.bed_center[2] - self.origin[2] + 1000.0])
             data[far, 0:12] = np.tile(park, 4)
+            data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
+            data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
             data[far, 17] = 0.0
         data[:, ACTIVE] = ~far
         return data

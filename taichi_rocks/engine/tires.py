@@ -15,15 +15,22 @@ A rock caught by the tread leaves with
                                                             of a turning vehicle slide outwards)
     v_z  = mu_s |omega R| sin(alpha)                        (lift needs grip: static friction mu_s)
 with alpha uniform in the release-angle range and beta uniform in [-spread, spread]. Relative to the wheel
-the rock always leaves backwards (against the wheel's travel, also when reversing). A rock is launched at
-most once per step, by the first ray (in tire order) that finds it; flying rocks are not re-launched.
+the rock always leaves backwards (against the wheel's travel, also when reversing). This is [launch]
+model = "uniform"; the default, "tread", is engine/throw.py (capture, force balance, fenders). A rock is
+launched at most once per step, by the first ray (in tire order) that finds it; flying rocks are not
+re-launched.
+
+"patch" detection (engine/patch.py) adds the tread's swept footprint to the swept test: a rock on the ground
+anywhere under the tread is run over. The query box is then the union of the swept ray's box and the
+footprint's XY box. Tire model and detection are compile-time switches of the World (from the Plan).
 """
 
 import taichi as ti
 
+from . import patch, throw
 from .hashgrid import cell_of, hash_cell, segment_cells
 from .randomness import uniform01
-from .world import A0, A1, B0, B1, FLYING, FWD, SLIDING, SPIN, VEL, IPar, Par
+from .world import A0, A1, ACTIVE, B0, B1, FLYING, FWD, HALF_L, HALF_W, SLIDING, SPIN, VEL, IPar, Par
 
 
 
@@ -106,9 +113,13 @@ def try_launch(w: ti.template(), i, t, step, ground: ti.template()):
     """Launch rock i by tire t unless already launched this step or flying; returns 1 if launched."""
     launched = 0
     if w.hit_step[i] != step and w.phase[i] != FLYING:
-        forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
-        v = launch_velocity(w, ray_vec(w, t, VEL), forward, w.ray[t, SPIN], w.friction[i],
-                            w.ipar[IPar.SEED], w.rock_id[i], step)
+        v = ray_vec(w, t, VEL)
+        if ti.static(w.throw == "uniform"):
+            forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
+            v = launch_velocity(w, ray_vec(w, t, VEL), forward, w.ray[t, SPIN], w.friction[i],
+                                w.ipar[IPar.SEED], w.rock_id[i], step)
+        else:
+            v = throw.throw_velocity(w, t, w.radius[i], w.friction[i], w.rock_id[i], step, w.fenders)
         if v.norm() > w.par[Par.REST_SPEED]:
             w.hit_step[i] = step
             w.vel[i] = v
@@ -147,6 +158,15 @@ def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template
             e2 = b0 - a0  # the ray
             lo = ti.min(ti.min(a0, b0), ti.min(a1, a1 + e2))
             hi = ti.max(ti.max(a0, b0), ti.max(a1, a1 + e2))
+            tread = False  # patch: the footprint counts (an active tire with a footprint of some size)
+            floor = b0[2]  # patch: the highest a run-over rock's bottom may be
+            if ti.static(w.patch):
+                tread = w.ray[t, ACTIVE] != 0.0 and (w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0)
+                floor = ti.min(b0[2], w.ray[t, B1 + 2]) + w.par[Par.PATCH_TOL]
+                if tread:
+                    f_lo, f_hi = patch.footprint_box(w, t)
+                    lo = ti.Vector([ti.min(lo[0], f_lo[0]), ti.min(lo[1], f_lo[1]), lo[2]])
+                    hi = ti.Vector([ti.max(hi[0], f_hi[0]), ti.max(hi[1], f_hi[1]), hi[2]])
             cell = w.par[Par.CELL]
             c_lo = cell_of(lo, cell) - dil
             c_hi = cell_of(hi, cell) + dil
@@ -154,7 +174,12 @@ def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template
                 start, end = slot_range(w, ti.Vector([cx, cy, cz]))
                 for e in range(start, end):
                     i = w.entries[e]
-                    if parallelogram_dist2(a0, e1, e2, w.pos[i]) <= w.radius[i] * w.radius[i]:
+                    r2 = w.radius[i] * w.radius[i]
+                    hit = parallelogram_dist2(a0, e1, e2, w.pos[i]) <= r2
+                    if ti.static(w.patch):
+                        if tread and not hit and w.pos[i][2] - w.radius[i] <= floor:
+                            hit = patch.footprint_dist2(w, t, ti.Vector([w.pos[i][0], w.pos[i][1]])) <= r2
+                    if hit:
                         launched += try_launch(w, i, t, step, ground)
         else:
             for s in range(w.substeps):

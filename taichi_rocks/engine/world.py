@@ -24,9 +24,13 @@ P1, P2, P3 = 73856093, 19349663, 83492791
 
 # Layout of World.ray[t, :], one row per splashing rear tire: the ray (tire centre a, bottom b) at the
 # previous step and now, the wheel's velocity, its heading, its tread speed omega * R, and 1 if the tire is
-# near the bed (0: parked far away, its rays degenerate and high above the bed).
+# near the bed (0: parked far away, its rays degenerate and high above the bed). Then the tread: half its
+# width and half the contact patch's length, the tire radius, the fender angle (rad), the mud flap's lower
+# edge (m; < 0: none) and the swept footprint's convex hull (engine/patch.py: 8 XY vertices, counter-clockwise).
 A0, B0, A1, B1, VEL, FWD, SPIN, ACTIVE = 0, 3, 6, 9, 12, 15, 17, 18
-RAY_FIELDS = 19
+HALF_W, HALF_L, TIRE_R, FENDER, FLAP, HULL = 19, 20, 21, 22, 23, 24
+HULL_VERTICES = 8
+RAY_FIELDS = HULL + 2 * HULL_VERTICES
 
 
 class Par:
@@ -47,7 +51,16 @@ class Par:
     R_MAX = 12
     TIE_EPS = 13
     MARGIN = 14  # reach of a tire's query beyond its ray in XY (scope "tires" mask)
-    COUNT = 15
+    DENSITY = 15  # rock density, kg/m^3 (the tread model's centrifugal pull)
+    WETNESS = 16
+    GROOVE = 17  # the tread model (engine/throw.py): groove size, m
+    GRIP = 18  # clamp stress, Pa
+    GRIP_RELAX = 19  # relaxation angle of the clamp, rad
+    GRIP_SPREAD = 20
+    ADHESION = 21  # adhesion stress of a soaked film, Pa
+    TRANSFER = 22
+    PATCH_TOL = 23  # m: how far above the tire's bottom a rock's bottom may be and still be run over
+    COUNT = 24
 
 
 class IPar:
@@ -121,8 +134,10 @@ class World:
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
-                 tile_size: float = 1.0):
+                 tile_size: float = 1.0, patch: bool = False, throw: str = "uniform", fenders: bool = False):
         self.n = n
+        # compile-time switches of the tire pass, from the Plan (part of the layout: see acquire)
+        self.patch, self.throw, self.fenders = bool(patch), str(throw), bool(fenders)
         self.real = real
         cap = max(n, 1)  # Taichi fields cannot be empty
         trees = _Trees()

@@ -42,6 +42,11 @@ class RearTires:
     velocity: np.ndarray  # (T, 3)
     forward: np.ndarray  # (T, 2) unit heading
     spin: np.ndarray  # (T,) omega * R, signed
+    half_width: np.ndarray  # (T,) half the tread's width, m
+    half_length: np.ndarray  # (T,) half the contact patch's length, m
+    radius: np.ndarray  # (T,) tire radius, m
+    fender: np.ndarray  # (T,) fender angle, rad up the back of the tire
+    flap: np.ndarray  # (T,) mud flap's lower edge above the ground, m; -1: no mud flap
 
 
 def _path_kwargs(path) -> dict:
@@ -60,6 +65,9 @@ class Fleet:
             kind, kwargs = _path_kwargs(v.path)
             self.paths.append(path_from_spec(kind, **kwargs))
         self.splashing = [i for i, v in enumerate(self.specs) if v.splash]
+        # per vehicle: half tread width, half contact length, tire radius, fender angle (rad), flap edge
+        self._tread = [(0.5 * v.tire_width, 0.5 * v.contact_length, v.tire_radius, math.radians(v.fender_angle),
+                        v.mud_flap_clearance if v.mud_flaps else -1.0) for v in self.specs]
         self.anchor = np.zeros(2)  # world XY point that ``VehiclePose.rel`` is measured from
 
     def reference_point(self, i: int) -> np.ndarray:
@@ -104,8 +112,8 @@ class Fleet:
                 centre = np.array([base[0] + r[0], base[1] + r[1], self.ground_z + spec.tire_radius])
                 spin = float(vel @ fwd) * (1.0 + spec.slip)
                 rows.append((centre, np.array([centre[0], centre[1], self.ground_z]),
-                             np.array([vel[0], vel[1], 0.0]), fwd, spin))
+                             np.array([vel[0], vel[1], 0.0]), fwd, spin, *self._tread[i]))
         if not rows:
-            z = np.zeros((0, 3))
-            return RearTires(z, z, z, np.zeros((0, 2)), np.zeros(0))
-        return RearTires(*(np.array([row[k] for row in rows]) for k in range(5)))
+            z, e = np.zeros((0, 3)), np.zeros(0)
+            return RearTires(z, z, z, np.zeros((0, 2)), e, e, e, e, e, e)
+        return RearTires(*(np.array([row[k] for row in rows]) for k in range(10)))

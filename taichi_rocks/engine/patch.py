@@ -1,0 +1,133 @@
+"""The tread's footprint ("patch" detection): every rock under the tread is run over, not only the one under
+the tire's centre line.
+
+The footprint of a tire is the rectangle tire_width x contact_length centred on the tire's bottom point b and
+oriented along its heading f (half sizes hw, hl; left l = (-f_y, f_x)): corners b +- hl f +- hw l. Over a step
+the tire moves from (b0, f0) to (b1, f1); the swept footprint is the convex hull of the 8 corners of the two
+rectangles. With f0 = f1 this is exactly the Minkowski sum of the rectangle and the motion segment (the
+convex hull of two translates of a convex set); with a turning tire it is the hull of the two rectangles,
+which contains every position of a rectangle turning and moving linearly in between up to the chord error of
+the turn (of order the step's heading change squared times the half-diagonal: micrometres at dt = 2 ms).
+
+A rock (centre c, radius r) is run over when the XY distance from c to the swept footprint is <= r and its
+bottom c_z - r is at most the tire's bottom + PATCH_TOL (a rock on the ground, not one flying over it).
+
+The hull is computed once per tire and step on the host (Andrew's monotone chain, float64) and passed in the
+tire's ray row (world.HULL: 8 vertices counter-clockwise, padded by repeating the last one). The kernel's
+distance: c is inside iff it lies left of (or on) every edge and the hull has an area; otherwise the distance
+is that to the nearest edge (the closest point of a convex polygon to an outside point is on its boundary). A
+degenerate hull (zero area: a zero-width footprint that does not move sideways) is a segment or a point, and
+only the edge distances count.
+"""
+
+import numpy as np
+import taichi as ti
+
+from .world import HULL, HULL_VERTICES
+
+
+# ------------------------------------------------------------------------------------------------ host side
+def footprint_corners(bottom: np.ndarray, forward: np.ndarray, half_width: np.ndarray,
+                      half_length: np.ndarray) -> np.ndarray:
+    """(T, 4, 2) corners of the footprint rectangles (XY)."""
+    f = np.asarray(forward, np.float64)[:, :2]
+    left = np.column_stack([-f[:, 1], f[:, 0]])
+    b = np.asarray(bottom, np.float64)[:, :2]
+    hw = np.broadcast_to(np.asarray(half_width, np.float64), len(b))[:, None]
+    hl = np.broadcast_to(np.asarray(half_length, np.float64), len(b))[:, None]
+    return np.stack([b + sl * hl * f + sw * hw * left for sl, sw in ((1, 1), (-1, 1), (-1, -1), (1, -1))], axis=1)
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull, counter-clockwise, without repeated or collinear vertices (monotone chain)."""
+    pts = sorted({(float(x), float(y)) for x, y in points})
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def swept_footprint_hulls(b0, f0, b1, f1, half_width, half_length) -> np.ndarray:
+    """(T, HULL_VERTICES, 2) hull of the footprints at the previous and the current step, per tire, padded by
+    repeating its last vertex (a zero-length edge changes neither the inside test nor the distance)."""
+    corners = np.concatenate([footprint_corners(b0, f0, half_width, half_length),
+                              footprint_corners(b1, f1, half_width, half_length)], axis=1)
+    out = np.zeros((len(corners), HULL_VERTICES, 2))
+    for t, pts in enumerate(corners):
+        h = _hull(pts)
+        out[t, :len(h)] = h
+        out[t, len(h):] = h[-1]
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ kernels
+@ti.func
+def hull_vertex(w: ti.template(), t, k: ti.template()):
+    return ti.Vector([w.ray[t, HULL + 2 * k], w.ray[t, HULL + 2 * k + 1]])
+
+
+@ti.func
+def _segment_dist2(a, b, c):
+    d = b - a
+    dd = d.dot(d)
+    s = 0.0 * dd
+    if dd > 0.0:
+        s = ti.min(ti.max((c - a).dot(d) / dd, 0.0), 1.0)
+    return (c - a - s * d).norm_sqr()
+
+
+@ti.func
+def footprint_dist2(w: ti.template(), t, c):
+    """Squared XY distance from the point c (XY) to tire t's swept footprint (0 inside)."""
+    best = ti.cast(3.0e38, w.real)
+    inside = True
+    area = 0.0 * best
+    for k in ti.static(range(HULL_VERTICES)):
+        a = hull_vertex(w, t, k)
+        b = hull_vertex(w, t, (k + 1) % HULL_VERTICES)
+        e = b - a
+        q = c - a
+        if e[0] * q[1] - e[1] * q[0] < 0.0:
+            inside = False
+        area += a[0] * b[1] - a[1] * b[0]
+        best = ti.min(best, _segment_dist2(a, b, c))
+    if inside and area > 0.0:
+        best = 0.0 * best
+    return best
+
+
+@ti.func
+def footprint_box(w: ti.template(), t):
+    """XY bounding box (lo, hi) of tire t's swept footprint."""
+    lo = hull_vertex(w, t, 0)
+    hi = lo
+    for k in ti.static(range(1, HULL_VERTICES)):
+        v = hull_vertex(w, t, k)
+        lo = ti.min(lo, v)
+        hi = ti.max(hi, v)
+    return lo, hi
+
+
+def tread_columns(prev, cur, keep_prev: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """World.ray columns HALF_W .. the end (tread sizes, fender, flap, footprint hull in the local frame) of
+    the rear tires ``prev`` -> ``cur`` (motion.vehicles.RearTires); where ``keep_prev`` is False the previous
+    pose is taken to be the current one (a path that jumped)."""
+    jump = ~np.asarray(keep_prev, bool)
+    b0 = np.where(jump[:, None], cur.bottom, prev.bottom)
+    f0 = np.where(jump[:, None], cur.forward, prev.forward)
+    hulls = swept_footprint_hulls(b0, f0, cur.bottom, cur.forward, cur.half_width, cur.half_length)
+    hulls -= np.asarray(origin, np.float64)[:2]
+    head = np.column_stack([cur.half_width, cur.half_length, cur.radius, cur.fender, cur.flap])
+    return np.concatenate([head, hulls.reshape(len(hulls), -1)], axis=1)
