@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import difflib
 import json
-import math
 import os
 import re
 from pathlib import Path
@@ -19,8 +18,8 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
                       ValidationError, ValidationInfo, field_validator, model_validator)
 from pydantic_core import PydanticCustomError
 
-from .plan import Plan
 from .resolution import MIN_SIDE, SIDE_MULTIPLE
+from .summary import estimate_memory, physical_memory, summarise
 from .tomltext import TomlTextError, loads as toml_loads
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
@@ -449,13 +448,6 @@ def _line(source: str, loc: tuple, msg: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- loading
-def _physical_memory() -> Optional[int]:
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
 def _with_defaults(data: dict, default_name: str) -> dict:
     """Fill in the defaults that depend on other keys: name, bed.follow, camera.follow, accuracy presets."""
     data = {"name": default_name, **data}
@@ -508,7 +500,7 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
     except RecursionError:   # not seen: validating goes as deep as the models, _show as deep as it prints
         raise SceneError([f"{source}: lists and tables nested too deeply to check"]) from None
     if scene is not None:
-        need, have = estimate_memory(scene), _physical_memory()
+        need, have = estimate_memory(scene), physical_memory()
         if have and need > have:
             problems.append((("bed", "rocks"), f"needs about {need / 1e9:.1f} GB of memory, more than this machine "
                                                f"has ({have / 1e9:.1f} GB), got {scene.bed.rocks}"))
@@ -578,51 +570,3 @@ def scene_json_schema() -> dict:
     schema = Scene.model_json_schema(by_alias=True)
     schema.pop("title", None)
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "taichi-rocks scene", **schema}
-
-
-def estimate_memory(scene: Scene) -> int:
-    """Bytes the simulation allocates, roughly. The one place this estimate lives:
-
-    * per rock, 8 reals (position 3, velocity 3, radius, friction; 4 bytes in f32, 8 in f64) and 4 int32
-      (id, phase, slot, scratch), plus a second copy of the reals as the reorder double buffer;
-    * the spatial hash: one int32 entry per (rock, cell) pair, ~1 per rock with insert = "center" and ~60 with
-      "aabb"; and a table of 2 int32 per slot, with as many slots as entries unless sim.hash.table_size is set.
-    """
-    rocks, real = scene.bed.rocks, 4 if scene.sim.precision == "f32" else 8
-    entries = rocks * (1 if scene.sim.hash.insert == "center" else 60)
-    table = scene.sim.hash.table_size
-    slots = table if isinstance(table, int) else entries
-    return rocks * (2 * 8 * real + 4 * 4) + 4 * entries + 2 * 4 * slots
-
-
-def _speed(path: Path_) -> str:
-    if isinstance(path.speed, tuple):
-        return f"{min(path.speed):g}-{max(path.speed):g} m/s (per point)"
-    return f"{path.speed:g} m/s"
-
-
-def summarise(scene: Scene) -> str:
-    """A few lines describing the scene and what the simulation will do (``taichi-rocks check``)."""
-    e, sim, h, bed = scene.effects, scene.sim, scene.sim.hash, scene.bed
-    on = {True: "on", False: "off"}
-    passes = Plan.from_scene(scene).passes()
-    width = max(len(v.name) for v in scene.vehicles)
-    lines = [
-        f"scene {scene.name!r} ({scene.source}): {scene.duration:g} s, seed {scene.seed}",
-        f"bed: {bed.rocks} rocks, radius {bed.radius:g} m, rock radius {bed.rock_radius[0]:g}-{bed.rock_radius[1]:g} m,"
-        f" follows {bed.follow!r}",
-        f"vehicles ({len(scene.vehicles)}):",
-        *(f"  {v.name:<{width}}  {v.path.kind:<9}  {_speed(v.path):<14}  {'splash' if v.splash else 'no splash'}"
-          for v in scene.vehicles),
-        f"effects: splash {on[e.splash]}, recycle {on[e.recycle]}, gravity {on[e.gravity]}, drag {e.drag},"
-        f" ground {e.ground}",
-        "passes per step: " + (", ".join(passes) or "none"),
-        f"time: dt {sim.dt:g} s, {math.ceil(round(scene.duration / sim.dt, 6))} steps, integrator {sim.integrator},"
-        f" detection {sim.detection} (substeps {sim.substeps}), precision {sim.precision}, origin {sim.origin}",
-        f"hash: insert {h.insert}, cell size {h.cell_size}, table size {h.table_size},"
-        + (f" reorder every {h.reorder_every} steps" if h.reorder_every else " never reordered"),
-        f"camera: follows {scene.camera.follow!r}, {scene.render.resolution[0]}x{scene.render.resolution[1]}"
-        f" at {scene.render.fps:g} fps",
-        f"memory: about {estimate_memory(scene) / 1e6:.1f} MB (estimate)",
-    ]
-    return "\n".join(lines)
