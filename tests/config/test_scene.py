@@ -14,9 +14,9 @@ import pytest
 from taichi_rocks.config.scene import (Scene, SceneError, estimate_memory, load_scene, parse_scene, scene_json_schema,
                                 scene_to_dict, scene_with, summarise)
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
-BAD = sorted((Path(__file__).parent / "bad_scenes").glob("*.toml"))
+BAD = sorted((ROOT / "tests" / "bad_scenes").glob("*.toml"))
 CAR = {"name": "car"}
 
 
