@@ -13,7 +13,7 @@ A frame is made of two layers:
    vehicles, the splatted rocks, haze. Everything GGUI draws lies above the ground plane, so drawing the
    ground and what lies on it *behind* the 3D scene is exact (up to a rock touching a tire's contact patch).
 2. the GGUI 3D scene: vehicles (body, cabin or cargo box, bumpers, lights, four tire cylinders each, one
-   ``scene.mesh``), the *flying* rocks as ``scene.particles`` from compact f32 fields (atomic-counter
+   mesh instance), the *flying* rocks as ``scene.particles`` from compact f32 fields (atomic-counter
    compaction in the same pass, ``index_count`` = the count, power-of-two buckets), debug overlays
    (``render.bed_edge``, ``render.tire_rays``, ``render.hash_cells``) as ``scene.lines``.
 
@@ -33,7 +33,11 @@ GGUI 1.7.4 quirks handled here:
   fov, then its y again by the aspect ratio): radii are multiplied by height / width;
 * ``mesh_instance`` lights the *untransformed* mesh (Mesh_vk.vert forwards the model-space position and
   normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one: vehicles are one
-  ``scene.mesh`` whose vertices and normals are transformed on the host each frame;
+  mesh whose vertices and normals are transformed on the host each frame;
+* yet a plain ``scene.mesh`` now and then vanishes from a frame, and often again when drawn again:
+  Mesh_vk.vert takes model = I * (1 - a) + M * a with a = 0 and M read from a buffer GGUI never fills without
+  transforms, and NaN or Inf left in that memory survives the ``* 0``. So the vehicles' mesh is a
+  ``mesh_instance`` with one explicit identity matrix (``_v_model``);
 * (``/work/shared/TAICHI-NOTES.md``) never ``window.show()`` on a hidden window (segfault); the image comes
   back (W, H, 4) float and y-flipped (:func:`_to_u8`); capture exactly once per frame; a 3D scene leaks
   ~0.3 MB per captured frame on lavapipe: the window is recreated every ``window_every`` frames (the camera
@@ -747,6 +751,9 @@ class Renderer:
         self._v_cols.from_numpy(cs.astype(np.float32))
         self._v_idx = ti.field(ti.i32, len(ids))
         self._v_idx.from_numpy(ids.astype(np.int32))
+        # one instance with an identity model matrix, not a plain mesh (see "GGUI 1.7.4 quirks" above)
+        self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
+        self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
 
         # debug overlays
         self._bed_lines = self._ray_lines = self._cell_lines = None
@@ -888,9 +895,9 @@ class Renderer:
 
         drawn = self._draw_ggui(eye, target, sd, origin, poses)
         for _ in range(GLITCH_RETRIES):
-            # GGUI 1.7.4 on lavapipe now and then loses a whole renderable (seen: the vehicles' mesh) in one
-            # frame: a collapse of the pixels GGUI drew, or a vehicle in view that hardly covers its screen box
-            # (_vehicle_lost), is that, not the scene: draw the 3D layer again
+            # a safety net: a renderable GGUI lost (the one cause seen, the mesh's unfilled model matrix, is
+            # avoided: see the module docstring) shows as a collapse of the pixels GGUI drew, or a vehicle in
+            # view that hardly covers its screen box (_vehicle_lost): draw the 3D layer again
             if drawn >= GLITCH_DROP * self._prev_drawn and not self._vehicle_lost(eye, fwd, right, up):
                 break
             self.redraws += 1
@@ -995,8 +1002,8 @@ class Renderer:
         self._v_verts.from_numpy(out_v.astype(np.float32))
         self._v_norms.from_numpy(out_n.astype(np.float32))
         # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows
-        scene.mesh(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols,
-                   show_wireframe=self.flags.tire_rays or self.flags.hash_cells)
+        scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols,
+                            transforms=self._v_model, show_wireframe=self.flags.tire_rays or self.flags.hash_cells)
 
     def _draw_overlays(self, scene, origin) -> None:
         sim = self.sim
