@@ -6,7 +6,7 @@ Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidd
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;
 2. the GGUI 3D scene: vehicles (body, cabin or cargo box, bumpers, lights, four tire cylinders each, one
-   ``scene.mesh``, :mod:`.meshes`), the *flying* rocks as ``scene.particles`` from compact f32 fields
+   mesh instance, :mod:`.meshes`), the *flying* rocks as ``scene.particles`` from compact f32 fields
    (atomic-counter compaction in the same pass, ``index_count`` = the count, power-of-two buckets), debug
    overlays (:mod:`.overlays`) as ``scene.lines``;
 
@@ -23,12 +23,16 @@ GGUI 1.7.4 quirks handled here (see also :mod:`.window`):
   fov, then its y again by the aspect ratio): radii are multiplied by height / width;
 * ``mesh_instance`` lights the *untransformed* mesh (Mesh_vk.vert forwards the model-space position and
   normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one: vehicles are one
-  ``scene.mesh`` whose vertices and normals are transformed on the host each frame;
+  mesh whose vertices and normals are transformed on the host each frame;
 * the image comes back (W, H, 4) float and y-flipped
   (:func:`.kernels.to_u8`); capture exactly once per frame; a 3D scene leaks ~0.3 MB per captured frame on
   lavapipe: the window is recreated every ``window_every`` frames (the camera state lives in
   :class:`.camera.CameraRig` and carries over);
-* now and then a whole renderable (seen: the vehicles' mesh) is lost from one frame: it is drawn again.
+* a plain ``scene.mesh`` now and then vanishes from a frame, and often again when drawn again: Mesh_vk.vert
+  takes model = I * (1 - a) + M * a with a = 0 and M read from a buffer GGUI never fills without transforms, and
+  NaN or Inf left in that memory survives the ``* 0``. So the vehicles' mesh is a ``mesh_instance`` with one
+  explicit identity matrix (``_v_model``); the lost-renderable guard (a frame whose vehicles are missing is
+  drawn again) stays as a safety net.
 """
 
 import math
@@ -153,6 +157,9 @@ class Renderer:
         self._v_cols.from_numpy(cs.astype(np.float32))
         self._v_idx = ti.field(ti.i32, len(ids))
         self._v_idx.from_numpy(ids.astype(np.int32))
+        # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
+        self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
+        self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
 
     def close(self) -> None:
         """Release the window (the fields stay until Taichi is reset) and the imgui.ini GGUI left behind."""
@@ -353,5 +360,6 @@ class Renderer:
         self._v_verts.from_numpy(out_v.astype(np.float32))
         self._v_norms.from_numpy(out_n.astype(np.float32))
         # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows
-        scene.mesh(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols,
-                   show_wireframe=self.flags.tire_rays or self.flags.hash_cells)
+        scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
+                            per_vertex_color=self._v_cols, transforms=self._v_model,
+                            show_wireframe=self.flags.tire_rays or self.flags.hash_cells)

@@ -188,10 +188,39 @@ def test_deterministic_frames_and_window_recycling(pipeline, minimal_scene, mp4_
         r.close()
 
 
+def test_vehicle_mesh_is_declared_with_an_identity_model_matrix(shared):
+    """GGUI 1.7.4 draws a plain ``scene.mesh`` with model = I * (1 - a) + M * a, a = 0 and M from a buffer it
+    never fills: NaN or Inf left there removes the whole mesh from the frame (now and then, and often again on
+    a redraw). So the vehicles go through ``mesh_instance`` with one explicit identity matrix, and the frame is
+    the same as before."""
+    sim, r = shared
+    reference = r.render_frame().copy()  # (re)opens the window: r._win.scene is the one drawn below
+    scene = r._win.scene
+    calls = []
+    real_instance = scene.mesh_instance
+
+    def spy_instance(*args, **kw):
+        calls.append(kw.get("transforms"))
+        return real_instance(*args, **kw)
+
+    def plain_mesh(*args, **kw):
+        raise AssertionError("the vehicles were declared as a plain mesh (GGUI reads an unfilled model matrix)")
+
+    scene.mesh_instance, scene.mesh = spy_instance, plain_mesh
+    try:
+        img = r.render_frame().copy()
+    finally:
+        del scene.mesh_instance, scene.mesh
+    assert len(calls) == 1 and calls[0] is not None
+    np.testing.assert_array_equal(calls[0].to_numpy(), np.eye(4, dtype=np.float32)[None])
+    np.testing.assert_array_equal(img, reference)
+
+
 def test_a_lost_vehicle_mesh_is_drawn_again(shared):
-    """GGUI on lavapipe now and then drops the vehicles' mesh from a frame. Simulated here by skipping it in
-    the first draw, with the pixel-count guard out of play: the screen-box check sees the vehicle in view
-    with no pixel drawn, draws again, and the frame equals a normal one. Normal frames are drawn once."""
+    """The safety net for GGUI losing the vehicles' mesh from a frame (see the test above). Simulated here by
+    skipping it in the first draw, with the pixel-count guard out of play: the screen-box check sees the
+    vehicle in view with no pixel drawn, draws again, and the frame equals a normal one. Normal frames are
+    drawn once."""
     sim, r = shared
     reference = r.render_frame().copy()
     redraws = r.redraws
