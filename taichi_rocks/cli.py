@@ -71,9 +71,20 @@ def _parser() -> argparse.ArgumentParser:
         q.add_argument("--seed", type=int, help="override the scene's seed")
         q.add_argument("--overwrite", action="store_true", help="replace existing outputs")
 
+    def selection_args(q, only_default, only_help):
+        q.add_argument("--only", choices=("flying", "all"), default=None,
+                       help=f"{only_help} (default: {only_default})")
+        q.add_argument("--crop", type=_positive_float, metavar="RADIUS",
+                       help="keep only the rocks within RADIUS m of the camera's followed vehicle")
+
     s = sub.add_parser("simulate", help="run headless and write an .npz of the rock states")
     engine_args(s)
     s.add_argument("--out", type=Path, help="output .npz (default: renders/<scene>/<scene>.npz)")
+    s.add_argument("--layout", choices=("light", "full"), default="light",
+                   help="light: rows of the rocks that changed, relative to the floating origin; full: every "
+                        "rock of every frame, float64 world (default: light; taichi_rocks.load_run reads both)")
+    selection_args(s, "flying", "light layout: write the rocks that changed (flying; the others are unchanged) "
+                                "or every rock every frame (all)")
 
     r = sub.add_parser("render", help="render frames (PNG) and a video with the offscreen GGUI renderer")
     engine_args(r)
@@ -133,6 +144,8 @@ def cmd_simulate(args) -> int:
 
     scene = load_scene(args.scene)
     out = args.out or Path("renders") / scene.name / f"{scene.name}.npz"
+    if args.layout == "full" and (args.only or args.crop):
+        raise UsageError("--only and --crop need --layout light (the full layout holds every rock)")
     if out.exists() and not args.overwrite:
         raise UsageError(f"{out}: exists; pass --overwrite to replace it")
     if out.exists() and out.is_dir():
@@ -143,7 +156,8 @@ def cmd_simulate(args) -> int:
 
     sim = Simulation(scene, arch=args.arch, seed=args.seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
-        info = record(sim, out, frames, fps, progress=bar)
+        info = record(sim, out, frames, fps, progress=bar, layout=args.layout, only=args.only or "flying",
+                      crop=args.crop)
     print(f"wrote {info['path']}: {frames} frames of {info['rocks']} rocks, "
           f"{sim.launches_total} launches, {info['bytes'] / 1e6:.1f} MB")
     return EXIT_OK
