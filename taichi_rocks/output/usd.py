@@ -26,7 +26,8 @@ motion blur from velocities would smear resting rocks along the bed's motion). W
 between frames f - 1 and f, the frame is also written at time code f - STEP_HOLD relative to the old
 origin (the Bed translate holding the old value): a tool interpolating the samples linearly then composes
 the interpolated world positions, and one extrapolating from a sample with its velocities (motion blur)
-stays in that sample's frame, instead of sliding the rocks across the step (64 m or more) in between.
+stays in that sample's frame, instead of sliding the rocks across the step (64 m or more) in between (only
+extrapolation from the extra sample, within STEP_HOLD of the step, still sees the slide).
 
 The layer is saved after every frame: a crate (.usdc) file saved again to the same file appends the new time
 samples, and the samples already written are no longer held in memory, so memory stays flat.
