@@ -7,6 +7,9 @@ The public API, imported lazily so that ``import taichi_rocks`` stays cheap (no 
     sim = Simulation(load_scene("scenes/minimal.toml"))
     sim.step(100)
     state = sim.state()
+
+A run file written by ``taichi-rocks simulate`` (either layout) reads back as the full arrays with
+``load_run("run.npz")["positions"]``.
 """
 
 import importlib as _importlib
@@ -21,7 +24,8 @@ _API = {
     "Scene": "config.scene", "SceneError": "config.scene", "load_scene": "config.scene",
     "parse_scene": "config.scene", "scene_with": "config.scene", "Plan": "config.plan",
     "Simulation": "engine.simulation", "HealthError": "engine.simulation", "init_taichi": "engine.runtime",
-    "record": "output.recording", "render_scene": "render.pipeline", "Renderer": "render.renderer",
+    "record": "output.recording", "load_run": "output.runs", "render_scene": "render.pipeline",
+    "Renderer": "render.renderer",
     "run_bench": "bench.run",
 }
 __all__ = sorted(_API)

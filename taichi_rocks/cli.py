@@ -1,4 +1,4 @@
-"""Command line: ``taichi-rocks check | schema | simulate | render | bench``.
+"""Command line: ``taichi-rocks check | schema | simulate | export | render | bench``.
 
 Exit status: 0 success; 1 the simulation went wrong (runtime guard); 2 bad input (scene, arguments,
 existing outputs, missing Vulkan); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
@@ -71,9 +71,28 @@ def _parser() -> argparse.ArgumentParser:
         q.add_argument("--seed", type=int, help="override the scene's seed")
         q.add_argument("--overwrite", action="store_true", help="replace existing outputs")
 
+    def selection_args(q, only_default, only_help):
+        q.add_argument("--only", choices=("flying", "all"), default=None,
+                       help=f"{only_help} (default: {only_default})")
+        q.add_argument("--crop", type=_positive_float, metavar="RADIUS",
+                       help="keep only the rocks within RADIUS m of the camera's followed vehicle")
+
     s = sub.add_parser("simulate", help="run headless and write an .npz of the rock states")
     engine_args(s)
     s.add_argument("--out", type=Path, help="output .npz (default: renders/<scene>/<scene>.npz)")
+    s.add_argument("--layout", choices=("light", "full"), default="light",
+                   help="light: rows of the rocks that changed, relative to the floating origin; full: every "
+                        "rock of every frame, float64 world (default: light; taichi_rocks.load_run reads both)")
+    selection_args(s, "flying", "light layout: write the rocks that changed (flying; the others are unchanged) "
+                                "or every rock every frame (all)")
+
+    e = sub.add_parser("export", help="write the run for other tools: USD (Houdini, Omniverse, Unreal, Blender) "
+                                      "or PLY point files")
+    engine_args(e)
+    e.add_argument("--format", choices=("usd", "ply"), default="usd")
+    e.add_argument("--out", type=Path, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
+                                            "or renders/<scene>/ply/)")
+    selection_args(e, "all", "flying: only the rocks in the air or that moved this frame; all: every rock")
 
     r = sub.add_parser("render", help="render frames (PNG) and a video with the offscreen GGUI renderer")
     engine_args(r)
@@ -134,6 +153,8 @@ def cmd_simulate(args) -> int:
 
     scene = load_scene(args.scene)
     out = args.out or Path("renders") / scene.name / f"{scene.name}.npz"
+    if args.layout == "full" and (args.only or args.crop):
+        raise UsageError("--only and --crop need --layout light (the full layout holds every rock)")
     if out.exists() and not args.overwrite:
         raise UsageError(f"{out}: exists; pass --overwrite to replace it")
     if out.exists() and out.is_dir():
@@ -144,9 +165,36 @@ def cmd_simulate(args) -> int:
 
     sim = Simulation(scene, arch=args.arch, seed=args.seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
-        info = record(sim, out, frames, fps, progress=bar)
+        info = record(sim, out, frames, fps, progress=bar, layout=args.layout, only=args.only or "flying",
+                      crop=args.crop)
     print(f"wrote {info['path']}: {frames} frames of {info['rocks']} rocks, "
           f"{sim.launches_total} launches, {info['bytes'] / 1e6:.1f} MB")
+    return EXIT_OK
+
+
+def cmd_export(args) -> int:
+    from tqdm import tqdm
+
+    from .config.scene import load_scene
+
+    scene = load_scene(args.scene)
+    from .output.export import check_target, export_run, require_pxr
+
+    default = f"{scene.name}.usdc" if args.format == "usd" else "ply"
+    out = args.out or Path("renders") / scene.name / default
+    if args.format == "usd":
+        require_pxr()
+    check_target(out, args.format, args.overwrite)
+    frames, fps = _frames(scene, args)
+    from .engine.simulation import Simulation
+
+    sim = Simulation(scene, arch=args.arch, seed=args.seed)
+    with tqdm(total=frames, unit="frame", desc=f"export {scene.name}", disable=None, file=sys.stderr) as bar:
+        info = export_run(sim, out, frames, fps, fmt=args.format, only=args.only or "all", crop=args.crop,
+                          progress=bar)
+    print(f"wrote {info['path']}: {frames} frames, {info['rocks_mean']:.0f} rocks per frame on average "
+          f"(at most {info['rocks_max']}), {info['bytes'] / 1e6:.1f} MB, "
+          f"{info['bytes'] / 1e6 / max(frames, 1):.2f} MB per frame")
     return EXIT_OK
 
 
@@ -200,6 +248,7 @@ _PRELOAD = {
     "check": ("taichi_rocks.config.scene",),
     "schema": ("taichi_rocks.config.scene",),
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
+    "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.export", "tqdm"),
     "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
@@ -207,7 +256,8 @@ _PRELOAD = {
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
 _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
-    "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers")}
+    "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers"),
+    "export": _LATE + ("pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "pxr.Gf", "pxr.Sdf", "pxr.Tf")}
 
 
 def _start(argv):
@@ -225,7 +275,7 @@ def _start(argv):
             importlib.import_module(name)
         except ImportError:
             pass
-    if args.command in ("simulate", "render", "bench"):
+    if args.command in ("simulate", "export", "render", "bench"):
         from .engine.runtime import init_taichi
 
         init_taichi(args.arch)
@@ -248,8 +298,8 @@ def main(argv=None, *, held=None, restore=None) -> int:
         signal.signal(signal.SIGINT, restore)
     from .config.scene import SceneError
 
-    handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "render": cmd_render,
-               "bench": cmd_bench}[args.command]
+    handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
+               "render": cmd_render, "bench": cmd_bench}[args.command]
     try:
         if held:
             raise KeyboardInterrupt

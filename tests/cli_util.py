@@ -37,3 +37,24 @@ def wait_for(condition, proc, timeout=180.0, poll=0.01):
             proc.kill()
             raise AssertionError("timed out waiting")
         time.sleep(poll)
+
+
+def run_all(*commands, timeout=600):
+    """Run several ``taichi-rocks`` commands (argument tuples), two at a time (the machine may have only two
+    cores); fail naming the command if one fails."""
+    for i in range(0, len(commands), 2):
+        batch = commands[i:i + 2]
+        procs = [start_cli(*c) for c in batch]
+        for c, p in zip(batch, procs):
+            _, err = p.communicate(timeout=timeout)
+            assert p.returncode == 0, f"{' '.join(map(str, c))}: status {p.returncode}\n{err}"
+
+
+def refused(r, *words) -> str:
+    """A run refused as bad input: exit status 2, one line on stderr holding ``words``, no traceback."""
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    for w in words:
+        assert w in lines[0], lines[0]
+    return lines[0]

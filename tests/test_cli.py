@@ -81,8 +81,10 @@ def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(tmp_path):
     r = cli("simulate", scene, "--out", a, "--frames", "12")
     assert r.returncode == 0, r.stderr
     assert cli("simulate", scene, "--out", b, "--frames", "12").returncode == 0
+    from taichi_rocks import load_run
+
     da, db = np.load(a), np.load(b)
-    assert da["positions"].shape == (12, 2000, 3) and da["positions"].dtype == np.float64
+    assert load_run(a)["positions"].shape == (12, 2000, 3) and load_run(a)["positions"].dtype == np.float64
     assert da["vehicle_positions"].shape == (12, 1, 3) and list(da["vehicle_names"]) == ["car"]
     np.testing.assert_allclose(da["time"], np.arange(12) / 30.0)
     for k in da.files:
@@ -101,7 +103,7 @@ def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(tmp_path):
     assert r.returncode == 2 and "--overwrite" in r.stderr and "Traceback" not in r.stderr
     assert a.read_bytes() == before
     assert cli("simulate", scene, "--out", a, "--frames", "3", "--overwrite").returncode == 0
-    assert np.load(a)["positions"].shape[0] == 3
+    assert load_run(a)["positions"].shape[0] == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "b.npz"]  # no temporaries left
 
 
@@ -172,7 +174,7 @@ def test_ctrl_c_while_simulating_removes_the_folder_it_made(tmp_path, until):
 def test_ctrl_c_while_writing_the_npz_removes_the_folder_it_made(tmp_path):
     """Ctrl-C while the .npz is being assembled (its .part temporary exists, ~110 MB): nothing left."""
     out = tmp_path / "out"
-    p = _start("simulate", out, "--frames", 1500, "--fps", 250)
+    p = _start("simulate", out, "--frames", 1500, "--fps", 250, "--layout", "full")
     wait_for(lambda: _entries(out, lambda q: q.name.endswith(".part")), p, poll=0.002)
     _interrupt(p)
     assert list(tmp_path.iterdir()) == []
@@ -239,7 +241,8 @@ def test_killed_simulate_leaves_no_final_file_and_the_next_run_cleans_up(tmp_pat
     """kill -9 while the .npz is being assembled (its temporary exists, ~110 MB): nothing appears under the
     final name; the next run removes the dead writer's temporaries and writes a complete file."""
     out = tmp_path / "k.npz"
-    p = start_cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", out, "--frames", "1500", "--fps", "250")
+    p = start_cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", out, "--frames", "1500", "--fps", "250",
+                  "--layout", "full")
     wait_for(lambda: any(q.name.endswith(".part") for q in tmp_path.iterdir()), p, poll=0.002)
     p.kill()
     p.communicate(timeout=60)
@@ -255,7 +258,9 @@ def test_killed_simulate_leaves_no_final_file_and_the_next_run_cleans_up(tmp_pat
     r = cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", out, "--frames", "3", "--overwrite")
     assert r.returncode == 0, r.stderr
     assert sorted(q.name for q in tmp_path.iterdir()) == sorted(["k.npz", live.name])
-    assert np.load(out)["positions"].shape == (3, 2000, 3)
+    from taichi_rocks import load_run
+
+    assert load_run(out)["positions"].shape == (3, 2000, 3)
 
 
 def test_gpu_falls_back_to_cpu_with_one_warning(tmp_path):

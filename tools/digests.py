@@ -5,7 +5,7 @@
     diff before.json after.json                # identical: same arrays, same frames
 
 Runs the command line (the stable interface) on every scene in scenes/: ``simulate`` for a few frames
-(SHA-256 of every array of the .npz) and ``render`` of a few PNG frames (SHA-256 of the decoded pixels).
+(SHA-256 of every array of the .npz, in the full layout: every rock of every frame as the engine gives it) and ``render`` of a few PNG frames (SHA-256 of the decoded pixels).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for scene in args.scenes:
             npz = Path(tmp) / f"{scene.stem}.npz"
-            _run("simulate", scene, "--frames", args.frames, "--out", npz)
+            _run("simulate", scene, "--frames", args.frames, "--layout", "full", "--out", npz)
             with np.load(npz) as d:
                 out[f"{scene.stem}.npz"] = {k: _sha(d[k]) for k in sorted(d.files)}
             if args.render_frames:

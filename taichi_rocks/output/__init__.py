@@ -1,1 +1,2 @@
-"""Files: the one atomic-write helper, recording of runs (.npz), video and frame writing, render resume."""
+"""Files: the one atomic-write helper, run files (.npz: recording, the light layout, load_run), export for
+other tools (USD, PLY), video and frame writing, render resume."""

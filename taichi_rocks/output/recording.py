@@ -1,10 +1,13 @@
 """Headless recording of a simulation into an .npz, streamed through memory-mapped files so that a long run
 of many rocks never holds all frames in memory, and written atomically (temporary name, then rename).
 
-Frame f is the state at time f / fps. Arrays: time (F,), positions (F, N, 3) float64 world metres,
-velocities (F, N, 3) float32, phase (F, N) int8 (0 resting, 1 flying, 2 sliding), radii (N,),
-bed_center (F, 3), vehicle_positions (F, V, 3), vehicle_headings (F, V), vehicle_names (V,),
-launches (F,) = rocks launched since the previous frame, plus fps, dt, seed and scene name.
+Two layouts (README, "Run files"). ``layout="full"``: every rock of every frame, as the engine gives it. Frame
+f is the state at time f / fps. Arrays: time (F,), positions (F, N, 3) float64 world metres, velocities
+(F, N, 3) float32, phase (F, N) int8 (0 resting, 1 flying, 2 sliding), radii (N,), bed_center (F, 3),
+vehicle_positions (F, V, 3), vehicle_headings (F, V), vehicle_names (V,), launches (F,) = rocks launched
+since the previous frame, plus fps, dt, seed and scene name. ``layout="light"`` (the default of ``simulate``):
+rows of the rocks that changed, positions relative to the floating origin (output/runs.py, which also holds
+:func:`~taichi_rocks.output.runs.load_run`, the one loader of both).
 
 The same scene, seed and arch give the same bytes: the zip members are stored (not compressed) in a fixed
 order with a fixed time stamp and fixed permissions (see :func:`write_npz`).
@@ -17,6 +20,7 @@ import os
 import secrets
 import shutil
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,17 +39,27 @@ def _temp_name(final: Path, suffix: str = "") -> Path:
     return final.parent / f"{_temp_prefix(final)}{secrets.token_hex(4)}{suffix}"
 
 
-def write_atomically(final: Path, write) -> None:
-    """Write ``final`` complete or not at all: ``write(f)`` fills a temporary file beside it (binary, the
-    usual permissions), which is then renamed over ``final``; on any failure the temporary is removed."""
+@contextlib.contextmanager
+def atomic_path(final: Path, suffix: str = ".part"):
+    """For writers that open files by name (a library's own writer): yields a new temporary name beside
+    ``final`` (same folder; nothing is created), ending in ``suffix`` (a library may pick the format by
+    extension). When the body returns, the temporary is renamed over ``final``; on any failure (or Ctrl-C) it
+    is removed. Temporaries left by a killed writer are removed by :func:`remove_stale_temporaries`."""
     final = Path(final)
-    tmp = _temp_name(final, ".part")
+    tmp = _temp_name(final, suffix)
     try:
-        with open(tmp, "xb") as f:
-            write(f)
+        yield tmp
         os.replace(tmp, final)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def write_atomically(final: Path, write) -> None:
+    """Write ``final`` complete or not at all: ``write(f)`` fills a temporary file beside it (binary, the
+    usual permissions), which is then renamed over ``final``; on any failure the temporary is removed."""
+    with atomic_path(final) as tmp:
+        with open(tmp, "xb") as f:
+            write(f)
 
 
 @contextlib.contextmanager
@@ -93,15 +107,30 @@ def _zip_member(name: str) -> zipfile.ZipInfo:
     return info
 
 
+@dataclass(frozen=True)
+class Raw:
+    """An array kept as bare bytes in a file (C order, no header), e.g. rows appended frame by frame; its
+    dtype and shape are known only at the end. write_npz streams it behind an .npy header."""
+
+    path: Path
+    dtype: np.dtype
+    shape: tuple
+
+
 def write_npz(f, members: dict) -> None:
     """Write an .npz (what ``np.load`` reads) into the binary file ``f``, the same bytes for the same arrays:
     members ``NAME.npy`` in the order of ``members``, stored, with fixed time stamps and permissions. A
-    value is an array, or the Path of an .npy file, which is streamed (memory stays flat)."""
+    value is an array, the Path of an .npy file or a :class:`Raw` file; files are streamed (memory stays
+    flat)."""
     with zipfile.ZipFile(f, "w", zipfile.ZIP_STORED, allowZip64=True) as z:
         for name, value in members.items():
             with z.open(_zip_member(f"{name}.npy"), "w", force_zip64=True) as dst:
-                if isinstance(value, Path):
-                    with open(value, "rb") as src:
+                if isinstance(value, Raw):
+                    header = {"descr": np.lib.format.dtype_to_descr(np.dtype(value.dtype)),
+                              "fortran_order": False, "shape": tuple(int(n) for n in value.shape)}
+                    np.lib.format.write_array_header_1_0(dst, header)
+                if isinstance(value, (Path, Raw)):
+                    with open(value if isinstance(value, Path) else value.path, "rb") as src:
                         shutil.copyfileobj(src, dst, _COPY_CHUNK)
                 else:
                     np.lib.format.write_array(dst, np.asanyarray(value), allow_pickle=False)
@@ -138,24 +167,36 @@ def remove_stale_temporaries(final: Path) -> list[Path]:
     return removed
 
 
-def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True) -> dict:
+def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True, layout: str = "light",
+           only: str = "flying", crop=None) -> dict:
     """Run ``sim`` for ``frames`` frames and write ``out`` (its missing folders are created, and removed
     again if the run fails or is interrupted). Returns a small summary.
 
-    With ``guard``, the state is checked after every frame (see Simulation.check_health); on failure the
-    HealthError propagates and nothing is written under ``out``.
+    ``layout``: "full" (every rock of every frame, float64 world positions) or "light" (output/runs.py; with
+    ``only`` "flying" or "all" and ``crop`` a radius in metres or None). With ``guard``, the state is checked
+    after every frame (see Simulation.check_health); on failure the HealthError propagates and nothing is
+    written under ``out``.
     """
     out = Path(out)
+    if layout not in ("full", "light"):
+        raise ValueError(f"layout must be full or light, got {layout!r}")
     with new_folders(out.parent):
         remove_stale_temporaries(out)
         work = _temp_name(out)
         try:
             work.mkdir(mode=0o700)
-            names = _record_frames(sim, work, frames, fps, progress, guard)
-            write_atomically(out, lambda f: write_npz(f, {k: work / f"{k}.npy" for k in names}))
+            if layout == "full":
+                names = _record_frames(sim, work, frames, fps, progress, guard)
+                members = {k: work / f"{k}.npy" for k in names}
+            else:
+                from .runs import record_light
+
+                members = record_light(sim, work, frames, fps, progress, guard, only=only, crop=crop)
+            write_atomically(out, lambda f: write_npz(f, members))
         finally:
             shutil.rmtree(work, ignore_errors=True)
-    return {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size}
+    return {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size,
+            "layout": layout}
 
 
 def _record_frames(sim, work: Path, frames: int, fps: float, progress, guard: bool) -> list:

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from cli_util import _env, start_cli
+from taichi_rocks import load_run
 
 RESTING = 0
 F32_EPS = float(np.finfo(np.float32).eps)
@@ -69,8 +70,7 @@ def _run_both(scene, frames, fps, tmp_path) -> dict:
     for arch, stdout in _finish(procs).items():
         m = re.search(r"(\d+) launches", stdout)
         assert m, stdout
-        with np.load(tmp_path / f"{arch}.npz") as z:
-            out[arch] = {k: z[k] for k in z.files}
+        out[arch] = load_run(tmp_path / f"{arch}.npz")
         out[arch]["launches_total"] = int(m.group(1))
     return out
 

@@ -1,0 +1,56 @@
+"""PLY export: one binary little-endian point file per frame, ``DIR/frame_00000.ply``, ...
+
+Each vertex is a rock written in that frame: ``double x, y, z`` (world metres: doubles keep millimetres and
+better at any distance), ``float radius``, ``float vx, vy, vz`` (m/s) and ``uint id`` (the export's instance
+id, output/instances.py: new after a recycle). Comments in the header give the frame, its time and the scene.
+Houdini (File SOP), Blender (File > Import > Stanford PLY), MeshLab and NumPy read it; with NumPy::
+
+    header, _, body = data.partition(b"end_header\\n")
+    rocks = np.frombuffer(body, dtype=VERTEX)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PlyWriter", "VERTEX", "ply_name"]
+
+VERTEX = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("radius", "<f4"), ("vx", "<f4"), ("vy", "<f4"),
+                   ("vz", "<f4"), ("id", "<u4")])
+_TYPES = {"<f8": "double", "<f4": "float", "<u4": "uint"}
+
+
+def ply_name(frame: int) -> str:
+    return f"frame_{frame:05d}.ply"
+
+
+class PlyWriter:
+    """Writes the frames into the folder ``path`` (which exists: the export's temporary folder)."""
+
+    def __init__(self, path, scene_name: str):
+        self.dir = Path(path)
+        self.scene = " ".join(str(scene_name).split()).encode("ascii", "backslashreplace").decode("ascii")
+
+    def write(self, fr: dict) -> None:
+        ids = np.asarray(fr["ids"], np.int64)
+        if len(ids) and int(ids.max()) >= 2 ** 32:
+            raise ValueError(f"frame {fr['frame']}: rock id {int(ids.max())} does not fit the PLY id (uint32)")
+        rows = np.empty(len(ids), VERTEX)
+        for axis, key in enumerate("xyz"):
+            rows[key] = fr["world"][:, axis]
+        rows["radius"] = fr["radii"]
+        for axis, key in enumerate(("vx", "vy", "vz")):
+            rows[key] = fr["velocities"][:, axis]
+        rows["id"] = ids
+        props = "".join(f"property {_TYPES[VERTEX[k].str]} {k}\n" for k in VERTEX.names)
+        header = (f"ply\nformat binary_little_endian 1.0\ncomment taichi-rocks scene {self.scene}\n"
+                  f"comment frame {fr['frame']} time {fr['time']!r} s\nelement vertex {len(rows)}\n{props}"
+                  "end_header\n")
+        with open(self.dir / ply_name(fr["frame"]), "xb") as f:
+            f.write(header.encode("ascii"))
+            f.write(rows.tobytes())
+
+    def close(self) -> None:
+        pass

@@ -1,0 +1,165 @@
+"""Geometry and motion for exported scenes, host side (NumPy only): rock prototypes, vehicle boxes and wheel
+cylinders, quaternions, per-id random numbers, the follow camera.
+
+Meshes are (points (P, 3) float32, face_vertex_counts (F,) int32, face_vertex_indices (I,) int32), faces
+counter-clockwise seen from outside (USD's right-handed default).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["rock_prototype", "box_mesh", "cylinder_mesh", "uniforms", "random_quaternions", "axis_angle",
+           "quat_mul", "FollowCamera", "camera_matrix"]
+
+_GOLDEN = (1.0 + 5.0 ** 0.5) / 2.0
+_ICOSAHEDRON_FACES = np.array([
+    [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6],
+    [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+    [8, 6, 7], [9, 8, 1]])
+
+
+def _icosphere() -> tuple[np.ndarray, np.ndarray]:
+    """The unit icosahedron subdivided once: 42 points, 80 triangles."""
+    g = _GOLDEN
+    v = [(-1, g, 0), (1, g, 0), (-1, -g, 0), (1, -g, 0), (0, -1, g), (0, 1, g), (0, -1, -g), (0, 1, -g),
+         (g, 0, -1), (g, 0, 1), (-g, 0, -1), (-g, 0, 1)]
+    pts = [np.array(p, np.float64) / np.linalg.norm(p) for p in v]
+    mid: dict = {}
+
+    def middle(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in mid:
+            m = pts[a] + pts[b]
+            pts.append(m / np.linalg.norm(m))
+            mid[key] = len(pts) - 1
+        return mid[key]
+
+    faces = []
+    for a, b, c in _ICOSAHEDRON_FACES:
+        ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+        faces += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+    return np.array(pts), np.array(faces)
+
+
+def rock_prototype(variant: int):
+    """An irregular rock of mean radius ~1 (a bumpy, slightly flattened icosphere), the same for the same
+    ``variant``: scaled by a rock's radius it stands for the simulation's sphere."""
+    pts, faces = _icosphere()
+    rng = np.random.default_rng(9173 + int(variant))
+    dirs = rng.normal(size=(4, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    bumps = (pts @ dirs.T) ** 2 @ rng.uniform(-0.35, 0.35, 4)  # smooth, low-frequency radial relief
+    r = 1.0 + bumps + rng.uniform(-0.06, 0.06, len(pts))
+    p = pts * r[:, None] * np.array([1.0, rng.uniform(0.8, 1.0), rng.uniform(0.6, 0.85)])
+    p /= np.mean(np.linalg.norm(p, axis=1))
+    return (p.astype(np.float32), np.full(len(faces), 3, np.int32), faces.reshape(-1).astype(np.int32))
+
+
+def box_mesh(center, size):
+    """An axis-aligned box: 8 points, 6 quads."""
+    c, h = np.asarray(center, np.float64), np.asarray(size, np.float64) / 2.0
+    corners = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], np.float64)
+    quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]]
+    return ((c + corners * h).astype(np.float32), np.full(6, 4, np.int32), np.array(quads, np.int32).reshape(-1))
+
+
+def cylinder_mesh(radius: float, width: float, segments: int = 16):
+    """A cylinder about the y axis (a wheel on its axle), centred at the origin: tread quads and two caps."""
+    th = 2.0 * np.pi * np.arange(segments) / segments
+    ring = np.stack([radius * np.cos(th), np.zeros(segments), radius * np.sin(th)], axis=1)
+    left, right = ring + [0.0, width / 2, 0.0], ring + [0.0, -width / 2, 0.0]
+    pts = np.concatenate([left, right])
+    k = np.arange(segments)
+    k2 = (k + 1) % segments
+    tread = np.stack([k, k2, segments + k2, segments + k], axis=1)
+    caps = [k[::-1], segments + k]  # +y cap seen from +y, -y cap seen from -y: both counter-clockwise
+    counts = np.array([4] * segments + [segments, segments], np.int32)
+    indices = np.concatenate([tread.reshape(-1), *caps]).astype(np.int32)
+    return pts.astype(np.float32), counts, indices
+
+
+# ------------------------------------------------------------------------------------------ per-id numbers
+_M64 = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+
+def _splitmix64(x: np.ndarray) -> np.ndarray:
+    x = (x + np.uint64(0x9E3779B97F4A7C15)) & _M64
+    x = ((x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)) & _M64
+    x = ((x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)) & _M64
+    return x ^ (x >> np.uint64(31))
+
+
+def uniforms(ids, stream: int) -> np.ndarray:
+    """Uniform numbers in [0, 1), one per id, a function of (id, stream) only (reproducible anywhere)."""
+    x = np.asarray(ids, np.int64).astype(np.uint64) * np.uint64(0x100000001B3) + np.uint64(stream)
+    with np.errstate(over="ignore"):
+        return (_splitmix64(_splitmix64(x)) >> np.uint64(11)).astype(np.float64) / float(1 << 53)
+
+
+def random_quaternions(ids, stream: int) -> np.ndarray:
+    """Uniformly distributed unit quaternions (x, y, z, w), one per id (Shoemake's method)."""
+    u1, u2, u3 = (uniforms(ids, stream + k) for k in range(3))
+    a, b = np.sqrt(1.0 - u1), np.sqrt(u1)
+    return np.stack([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2), b * np.sin(2 * np.pi * u3),
+                     b * np.cos(2 * np.pi * u3)], axis=1)
+
+
+def axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Quaternions (x, y, z, w) of rotations by ``angle`` (rad) about unit ``axis`` (K, 3)."""
+    h = 0.5 * np.asarray(angle, np.float64)
+    return np.concatenate([axis * np.sin(h)[:, None], np.cos(h)[:, None]], axis=1)
+
+
+def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products a * b of quaternions (x, y, z, w): rotate by b, then by a."""
+    ax, ay, az, aw = a.T
+    bx, by, bz, bw = b.T
+    return np.stack([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz], axis=1)
+
+
+# ------------------------------------------------------------------------------------------ camera
+class FollowCamera:
+    """The chase camera of [camera], as the renderer frames it: the eye at ``offset`` in the followed
+    vehicle's frame (x forward, y left, z up), looking at the point ``look_ahead`` metres ahead of it; the
+    frame's heading follows the vehicle's through a first-order low-pass of time constant ``smoothing`` s
+    (alpha = 1 - exp(-dt / smoothing)); the first frame snaps."""
+
+    def __init__(self, offset, look_ahead: float, smoothing: float):
+        self.offset = np.asarray(offset, np.float64)
+        self.look_ahead, self.smoothing = float(look_ahead), float(smoothing)
+        self.heading = self.t = None
+
+    def update(self, position, heading: float, t: float):
+        """(eye, target) in world coordinates, float64, at time ``t``."""
+        if self.heading is None or self.smoothing <= 0.0:
+            self.heading = float(heading)
+        else:
+            alpha = 1.0 - math.exp(-max(0.0, float(t) - self.t) / self.smoothing)
+            self.heading += alpha * math.remainder(float(heading) - self.heading, 2.0 * math.pi)
+        self.t = float(t)
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        p = np.asarray(position, np.float64)
+        eye, target = p + rot @ self.offset, p + rot @ np.array([self.look_ahead, 0.0, 0.0])
+        if np.linalg.norm(target - eye) < 1e-6:
+            target = eye + rot @ np.array([1.0, 0.0, 0.0])
+        return eye, target
+
+
+def camera_matrix(eye, target) -> np.ndarray:
+    """The 4x4 transform (row vectors, as USD composes them) of a camera at ``eye`` looking at ``target``,
+    Z up, no roll: rows right, up, back (the camera looks along its -Z), eye."""
+    fwd = np.asarray(target, np.float64) - np.asarray(eye, np.float64)
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, [0.0, 0.0, 1.0])
+    if np.linalg.norm(right) < 1e-9:  # straight down or up
+        right = np.array([1.0, 0.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3], m[3, :3] = right, up, -fwd, eye
+    return m

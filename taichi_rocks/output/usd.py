@@ -1,0 +1,200 @@
+"""USD export (usd-core's ``pxr``): a stage that Houdini, Omniverse, Unreal and Blender (4.4+) open.
+
+Stage: Z up, 1 metre per unit, timeCodesPerSecond = framesPerSecond = fps, time codes 0 .. frames - 1 (time
+code f is frame f, t = f / fps). Prims::
+
+    /World                          Xform, the default prim
+      Ground/Plane                  Mesh: a rectangle around every vehicle's path (its Xform: double translate)
+      Bed                           Xform, xformOp:translate double, time-sampled: the floating origin
+        Rocks                       PointInstancer, positions float32 relative to Bed
+          Prototypes/rock_0..2      Mesh: low-poly rocks of mean radius 1 (drawn only as instances)
+      Vehicles/<name>               Xform: translate (double, world) and rotateZ (heading, deg), time-sampled
+        Body                        Mesh: a box
+        Wheel_<FL|FR|RL|RR>         Xform: translate, rotateY (spin, deg, time-sampled); its Tire: a cylinder
+      Camera                        Camera: xformOp:transform (double), time-sampled; the [camera] follow rig
+
+Per frame the PointInstancer has protoIndices, ids (int64), positions, orientations (quath), scales
+(the rock radius on each axis), velocities (m/s, for motion blur) and angularVelocities (deg/s) of the
+rocks written in that frame, and an extent.
+
+Precision. float32 positions far from the world origin would be coarse (8 mm at 100 km), so they are local
+to the Bed Xform, whose translate (double) is the engine's floating origin: the origin the engine computes
+in, within 128 m of the bed and moving in exact 64 m steps. A local position is then the engine's own float32
+value, and Bed.translate + local is the simulated world position. Because the origin is still between its
+steps, a rock's local velocity is its world velocity (a frame following the bed centre would move, and
+motion blur from velocities would smear resting rocks along the bed's motion). Where the origin steps
+between frames f - 1 and f, the frame is also written at time code f - STEP_HOLD relative to the old
+origin (the Bed translate holding the old value): a tool interpolating the samples linearly then composes
+the interpolated world positions, and one extrapolating from a sample with its velocities (motion blur)
+stays in that sample's frame, instead of sliding the rocks across the step (64 m or more) in between (only
+extrapolation from the extra sample, within STEP_HOLD of the step, still sees the slide).
+
+The layer is saved after every frame: a crate (.usdc) file saved again to the same file appends the new time
+samples, and the samples already written are no longer held in memory, so memory stays flat.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+
+from .instances import PROTOTYPES
+from .shapes import box_mesh, camera_matrix, cylinder_mesh, rock_prototype
+
+__all__ = ["UsdWriter", "STEP_HOLD"]
+
+STEP_HOLD = 1e-4  # time codes before a step of the origin at which the old origin is held
+ROCK_COLORS = ((0.42, 0.39, 0.35), (0.50, 0.46, 0.40), (0.35, 0.33, 0.31))
+GROUND_COLOR = (0.45, 0.40, 0.33)
+TIRE_COLOR = (0.08, 0.08, 0.08)
+WHEELS = (("FL", 0.5, 0.5), ("FR", 0.5, -0.5), ("RL", -0.5, 0.5), ("RR", -0.5, -0.5))
+
+
+def _mesh(stage, path: str, mesh, color) -> UsdGeom.Mesh:
+    points, counts, indices = mesh
+    m = UsdGeom.Mesh.Define(stage, path)
+    m.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, np.float32)))
+    m.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(counts, np.int32)))
+    m.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(indices, np.int32)))
+    m.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    m.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
+    m.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, color))]))
+    return m
+
+
+def _prim_names(names) -> list:
+    """Valid, unique prim names for the scene's vehicle names."""
+    out = []
+    for name in names:
+        base = Tf.MakeValidIdentifier(str(name))
+        candidate, k = base, 1
+        while candidate in out:
+            candidate, k = f"{base}_{k}", k + 1
+        out.append(candidate)
+    return out
+
+
+class UsdWriter:
+    """Writes one stage to ``path`` (a temporary name ending in .usdc; see the module docstring)."""
+
+    def __init__(self, path, scene, fps: float, frames: int, ground: tuple, info: dict):
+        self.layer = Sdf.Layer.CreateNew(str(path))
+        self.stage = stage = Usd.Stage.Open(self.layer)
+        stage.SetMetadata("comment", f"taichi-rocks export of scene {scene.name!r}")
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+        stage.SetTimeCodesPerSecond(float(fps))
+        stage.SetFramesPerSecond(float(fps))
+        stage.SetStartTimeCode(0.0)
+        stage.SetEndTimeCode(float(max(frames - 1, 0)))
+        world = UsdGeom.Xform.Define(stage, "/World")
+        stage.SetDefaultPrim(world.GetPrim())
+        self.layer.customLayerData = {k: v for k, v in info.items()}
+        self._ground(scene, *ground)
+        bed = UsdGeom.Xform.Define(stage, "/World/Bed")
+        self.origin_op = bed.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
+        self._rocks()
+        self._vehicles(scene)
+        self._camera(scene)
+        self.last_origin = None
+        self.layer.Save()
+
+    # -------------------------------------------------------------------------------------- static parts
+    def _ground(self, scene, center, half) -> None:
+        xf = UsdGeom.Xform.Define(self.stage, "/World/Ground")
+        xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(float(center[0]), float(center[1]),
+                                                                        float(scene.world.ground_z)))
+        hx, hy = (float(h) for h in half)
+        quad = (np.array([[-hx, -hy, 0.0], [hx, -hy, 0.0], [hx, hy, 0.0], [-hx, hy, 0.0]], np.float32),
+                np.array([4], np.int32), np.array([0, 1, 2, 3], np.int32))
+        _mesh(self.stage, "/World/Ground/Plane", quad, GROUND_COLOR)
+
+    def _rocks(self) -> None:
+        pi = UsdGeom.PointInstancer.Define(self.stage, "/World/Bed/Rocks")
+        UsdGeom.Scope.Define(self.stage, "/World/Bed/Rocks/Prototypes")
+        protos = [_mesh(self.stage, f"/World/Bed/Rocks/Prototypes/rock_{k}", rock_prototype(k), ROCK_COLORS[k])
+                  for k in range(PROTOTYPES)]
+        pi.CreatePrototypesRel().SetTargets([p.GetPath() for p in protos])
+        self.attrs = {"proto": pi.CreateProtoIndicesAttr(), "ids": pi.CreateIdsAttr(),
+                      "positions": pi.CreatePositionsAttr(), "orientations": pi.CreateOrientationsAttr(),
+                      "scales": pi.CreateScalesAttr(), "velocities": pi.CreateVelocitiesAttr(),
+                      "angular": pi.CreateAngularVelocitiesAttr(), "extent": pi.CreateExtentAttr()}
+
+    def _vehicles(self, scene) -> None:
+        self.vehicle_ops = []
+        UsdGeom.Scope.Define(self.stage, "/World/Vehicles")
+        for spec, name in zip(scene.vehicles, _prim_names(v.name for v in scene.vehicles)):
+            root = f"/World/Vehicles/{name}"
+            xf = UsdGeom.Xform.Define(self.stage, root)
+            xf.GetPrim().SetCustomDataByKey("taichi_rocks:name", str(spec.name))
+            ops = [xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble),
+                   xf.AddRotateZOp(UsdGeom.XformOp.PrecisionDouble)]
+            r, z0 = float(spec.tire_radius), 0.8 * float(spec.tire_radius)
+            body = box_mesh((0.0, 0.0, z0 + spec.height / 2), (spec.length, spec.width, spec.height))
+            _mesh(self.stage, f"{root}/Body", body, spec.color)
+            tire = cylinder_mesh(r, float(spec.tire_width))
+            for label, sx, sy in WHEELS:
+                wheel = UsdGeom.Xform.Define(self.stage, f"{root}/Wheel_{label}")
+                wheel.AddTranslateOp().Set(Gf.Vec3f(sx * spec.wheelbase, sy * spec.track, r))
+                ops.append(wheel.AddRotateYOp(UsdGeom.XformOp.PrecisionDouble))
+                _mesh(self.stage, f"{root}/Wheel_{label}/Tire", tire, TIRE_COLOR)
+            self.vehicle_ops.append(ops)
+
+    def _camera(self, scene) -> None:
+        cam = UsdGeom.Camera.Define(self.stage, "/World/Camera")
+        w, h = scene.render.resolution
+        focal = 35.0  # the field of view depends only on aperture / focal length (same units)
+        vertical = 2.0 * focal * math.tan(math.radians(scene.camera.fov) / 2.0)
+        cam.CreateFocalLengthAttr(focal)
+        cam.CreateVerticalApertureAttr(vertical)
+        cam.CreateHorizontalApertureAttr(vertical * w / h)
+        cam.CreateClippingRangeAttr(Gf.Vec2f(0.05, max(1000.0, 10.0 * float(scene.render.draw_distance))))
+        self.camera_op = cam.AddTransformOp()
+
+    # -------------------------------------------------------------------------------------- per frame
+    def write(self, fr: dict) -> None:
+        """One frame (output/export.py: _run); saved to disk before returning."""
+        t = float(fr["frame"])
+        origin = Gf.Vec3d(*map(float, fr["origin"]))
+        if self.last_origin is not None and origin != self.last_origin:  # the origin steps: hold it (see above)
+            old = np.array(self.last_origin, np.float64)
+            self.origin_op.Set(self.last_origin, t - STEP_HOLD)
+            self._rock_samples(fr, (fr["world"] - old).astype(np.float32), t - STEP_HOLD)
+        self.origin_op.Set(origin, t)
+        self.last_origin = origin
+        self._rock_samples(fr, fr["local"], t)
+        veh = fr["vehicles"]
+        for i, ops in enumerate(self.vehicle_ops):
+            ops[0].Set(Gf.Vec3d(*map(float, veh["positions"][i])), t)
+            ops[1].Set(math.degrees(float(veh["headings"][i])), t)
+            for j, (label, sx, _) in enumerate(WHEELS):
+                ops[2 + j].Set(math.degrees(float(veh["front" if sx > 0 else "rear"][i])), t)
+        self.camera_op.Set(Gf.Matrix4d(*map(float, camera_matrix(*fr["camera"]).reshape(-1))), t)
+        self.layer.Save()
+
+    def _rock_samples(self, fr: dict, local: np.ndarray, t: float) -> None:
+        """The PointInstancer's samples at time code ``t``: the rocks of ``fr`` at ``local`` positions."""
+        a = self.attrs
+        a["proto"].Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(fr["proto"], np.int32)), t)
+        a["ids"].Set(Vt.Int64Array.FromNumpy(np.ascontiguousarray(fr["ids"], np.int64)), t)
+        a["positions"].Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)), t)
+        a["orientations"].Set(Vt.QuathArray.FromNumpy(np.ascontiguousarray(fr["orientations"], np.float16)), t)
+        scales = np.repeat(np.asarray(fr["radii"], np.float32)[:, None], 3, axis=1)
+        a["scales"].Set(Vt.Vec3fArray.FromNumpy(scales), t)
+        a["velocities"].Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(fr["velocities"], np.float32)), t)
+        omega = np.degrees(np.asarray(fr["angular_velocities"], np.float64)).astype(np.float32)
+        a["angular"].Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(omega)), t)
+        if len(local):
+            r = 1.3 * float(np.max(fr["radii"]))  # the prototypes reach a little beyond radius 1
+            lo, hi = local.min(axis=0) - r, local.max(axis=0) + r
+        else:
+            lo = hi = np.zeros(3)
+        a["extent"].Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), t)
+
+    def close(self) -> None:
+        self.layer.Save()
+        self.stage = None
+        self.layer = None

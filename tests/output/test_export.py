@@ -1,0 +1,380 @@
+"""Export for other tools (USD, PLY) and the light run files: read back as those tools would, compared with
+what `simulate` writes for the same scene."""
+
+import math
+import os
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cli_util import ROOT, _env, cli, refused, run_all, start_cli, wait_for
+from taichi_rocks import load_run
+
+MINIMAL = ROOT / "scenes" / "minimal.toml"
+FRAMES, FPS = 16, 8.0  # 2 s of the minimal scene: rocks are launched, land and are recycled
+FAR = 100_000.0  # m: the "far" scene is the minimal one moved this far along x and y
+
+
+def _far_scene(folder):
+    """The minimal scene 100 km from the world origin (x and y)."""
+    text = MINIMAL.read_text().replace("points = [[0.0, 0.0], [40.0, 0.0]]",
+                                       f"points = [[{FAR}, {FAR}], [{FAR + 40.0}, {FAR}]]")
+    assert str(FAR) in text
+    path = folder / "far.toml"
+    path.write_text(text)
+    return path
+
+
+def _fast_scene(folder):
+    """The minimal scene at 80 m/s: the bed travels 160 m in 2 s, so the floating origin steps (by 128 m)."""
+    text = MINIMAL.read_text().replace("points = [[0.0, 0.0], [40.0, 0.0]], speed = 10.0",
+                                       "points = [[0.0, 0.0], [400.0, 0.0]], speed = 80.0")
+    assert "80.0" in text
+    path = folder / "fast.toml"
+    path.write_text(text)
+    return path
+
+
+def _ok(r):
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """USD exports (every rock, only the flying ones), a PLY export and the full .npz of the same frames,
+    for the minimal scene and for it 100 km away."""
+    d = tmp_path_factory.mktemp("export")
+    far, fast = _far_scene(d), _fast_scene(d)
+    common = ("--frames", FRAMES, "--fps", FPS)
+    run_all(("export", MINIMAL, "--out", d / "all.usdc", *common),
+             ("simulate", MINIMAL, "--out", d / "run.npz", "--layout", "full", *common),
+             ("export", MINIMAL, "--out", d / "flying.usdc", "--only", "flying", *common),
+             ("export", MINIMAL, "--format", "ply", "--out", d / "ply", "--crop", "5", *common),
+             ("export", far, "--out", d / "far.usdc", *common),
+             ("simulate", far, "--out", d / "far.npz", "--layout", "full", *common),
+             ("export", fast, "--out", d / "fast.usdc", *common),
+             ("simulate", fast, "--out", d / "fast.npz", "--layout", "full", *common))
+    return d
+
+
+def _stage(path):
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    assert stage, path
+    return stage
+
+
+def _rocks(stage, frame):
+    """(ids, world positions float64, velocities, local positions) of the instances at time code ``frame``:
+    the PointInstancer's local positions through its parent transform, composed in double precision."""
+    from pxr import UsdGeom
+
+    pi = UsdGeom.PointInstancer(stage.GetPrimAtPath("/World/Bed/Rocks"))
+    local = np.asarray(pi.GetPositionsAttr().Get(frame), np.float64).reshape(-1, 3)
+    ids = np.asarray(pi.GetIdsAttr().Get(frame), np.int64)
+    vel = np.asarray(pi.GetVelocitiesAttr().Get(frame), np.float64).reshape(-1, 3)
+    m = np.array(UsdGeom.Xformable(pi).ComputeLocalToWorldTransform(frame), np.float64)
+    return ids, local @ m[:3, :3] + m[3, :3], vel, local
+
+
+def test_usd_stage_metadata_and_time_samples(runs):
+    from pxr import UsdGeom
+
+    stage = _stage(runs / "all.usdc")
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == FPS
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, FRAMES - 1.0)
+    assert stage.GetDefaultPrim().GetPath() == "/World"
+    pi = UsdGeom.PointInstancer(stage.GetPrimAtPath("/World/Bed/Rocks"))
+    for attr in (pi.GetPositionsAttr(), pi.GetIdsAttr(), pi.GetProtoIndicesAttr(), pi.GetOrientationsAttr(),
+                 pi.GetScalesAttr(), pi.GetVelocitiesAttr()):
+        assert attr.GetTimeSamples() == [float(f) for f in range(FRAMES)], attr.GetName()
+    assert len(pi.GetPrototypesRel().GetTargets()) == 3
+    car = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Vehicles/car"))
+    assert len(car.GetOrderedXformOps()[0].GetTimeSamples()) == FRAMES
+    cam = UsdGeom.Camera(stage.GetPrimAtPath("/World/Camera"))
+    assert len(cam.GetPrim().GetAttribute("xformOp:transform").GetTimeSamples()) == FRAMES
+    fov = 2 * math.degrees(math.atan(cam.GetVerticalApertureAttr().Get() / 2 / cam.GetFocalLengthAttr().Get()))
+    assert fov == pytest.approx(50.0)  # the default [camera] fov
+
+
+@pytest.mark.parametrize("name", ["all", "far"])
+def test_usd_world_positions_equal_the_run(runs, name):
+    """Bed transform x local position = the .npz's world position, within 1e-5 m, at the first, middle and
+    last frame; near the world origin and 100 km from it (where float32 world coordinates would be off by
+    millimetres)."""
+    stage = _stage(runs / f"{name}.usdc")
+    run = load_run(runs / ("run.npz" if name == "all" else "far.npz"))
+    n = len(run["radii"])
+    for f in (0, FRAMES // 2, FRAMES - 1):
+        ids, world, vel, local = _rocks(stage, f)
+        assert len(np.unique(ids)) == len(ids) == n  # every rock, each id once
+        rock = ids % n
+        np.testing.assert_array_equal(np.sort(rock), np.arange(n))
+        err = np.max(np.abs(world - run["positions"][f][rock]))
+        assert err <= 1e-5, f"frame {f}: {err:.3g} m"
+        np.testing.assert_allclose(vel, run["velocities"][f][rock], rtol=0, atol=1e-6)
+        assert np.max(np.abs(local)) < 1000.0  # float32 stays near the bed; the Xform carries the distance
+    if name == "far":
+        assert np.min(np.abs(run["positions"][..., :2])) > FAR - 100.0
+
+
+def test_usd_origin_steps_without_sliding_the_rocks(runs):
+    """Where the floating origin steps (the bed travelled 128 m), the frame is also written just before the
+    step relative to the old origin: world positions are right at every frame and at the extra sample, and
+    linearly interpolated samples give the interpolated world positions, not a 64 m slide."""
+    from taichi_rocks.output.usd import STEP_HOLD
+
+    stage = _stage(runs / "fast.usdc")
+    run = load_run(runs / "fast.npz")
+    n = len(run["radii"])
+    translate = stage.GetPrimAtPath("/World/Bed").GetAttribute("xformOp:translate")
+    origins = {t: np.array(translate.Get(t)) for t in translate.GetTimeSamples()}
+    steps = [f for f in range(1, FRAMES) if not np.array_equal(origins[f], origins[f - 1])]
+    assert len(steps) == 1 and np.linalg.norm(origins[steps[0]] - origins[steps[0] - 1]) >= 64.0
+    f = steps[0]
+    assert sorted(origins) == sorted([float(k) for k in range(FRAMES)] + [f - STEP_HOLD])
+    for t in range(FRAMES):
+        ids, world, _, _ = _rocks(stage, t)
+        assert np.max(np.abs(world - run["positions"][t][ids % n])) <= 1e-5, t
+    ids0, w0, _, _ = _rocks(stage, f - 1)
+    ids1, w1, _, _ = _rocks(stage, f)
+    ids_h, w_h, _, _ = _rocks(stage, f - STEP_HOLD)
+    np.testing.assert_array_equal(ids_h, ids1)
+    assert np.max(np.abs(w_h - w1)) <= 1e-5
+    same = ids0 == ids1  # plain interpolation goes by array index: a recycled rock would move anyway
+    for t in (f - 0.5, f - STEP_HOLD / 2):
+        _, w, _, _ = _rocks(stage, t)
+        a = min(1.0, (t - (f - 1)) / (1.0 - STEP_HOLD))
+        expect = w0 + a * (w1 - w0) if t < f - STEP_HOLD else w1
+        assert np.max(np.abs(w - expect)[same]) <= 1e-3, t
+
+
+def test_usd_ids_unique_per_frame_and_new_after_a_recycle(runs):
+    """No id continues across a jump its speed cannot explain (a recycle across the bed), and recycled rocks
+    do get new ids (index + N x generation)."""
+    stage = _stage(runs / "all.usdc")
+    n = len(load_run(runs / "run.npz")["radii"])
+    g = 9.81
+    prev = None
+    renamed = 0
+    for f in range(FRAMES):
+        ids, world, vel, _ = _rocks(stage, f)
+        assert len(np.unique(ids)) == len(ids)
+        order = np.argsort(ids % n)
+        ids, world, vel = ids[order], world[order], vel[order]
+        if prev is not None:
+            p_ids, p_world, p_vel = prev
+            same = ids == p_ids
+            jump = np.linalg.norm(world - p_world, axis=1)
+            speed = np.maximum(np.linalg.norm(vel, axis=1), np.linalg.norm(p_vel, axis=1))
+            bound = (speed + g / FPS) / FPS + 1e-3
+            assert np.all(jump[same] <= bound[same]), f"frame {f}: an id jumped {np.max(jump[same] - bound[same])} m"
+            new = ~same
+            assert np.all(ids[new] // n == p_ids[new] // n + 1)  # the next generation of that rock
+            assert np.all(jump[new] > bound[new])
+            renamed += int(new.sum())
+        prev = ids, world, vel
+    assert renamed > 0  # the scene recycles rocks: the check above was exercised
+
+
+def test_only_flying_is_far_smaller_and_keeps_what_moves(runs):
+    stage_all, stage_fly = _stage(runs / "all.usdc"), _stage(runs / "flying.usdc")
+    size_all, size_fly = (runs / "all.usdc").stat().st_size, (runs / "flying.usdc").stat().st_size
+    assert size_fly < 0.2 * size_all, (size_fly, size_all)
+    run = load_run(runs / "run.npz")
+    n = len(run["radii"])
+    kept = 0
+    for f in range(1, FRAMES):
+        ids, world, _, _ = _rocks(stage_fly, f)
+        moved = (run["positions"][f] != run["positions"][f - 1]).any(axis=1)
+        moving = (run["velocities"][f] != 0).any(axis=1)
+        np.testing.assert_array_equal(np.sort(ids % n), np.flatnonzero(moved | moving))
+        a_ids, a_world, _, _ = _rocks(stage_all, f)
+        where = {i: k for k, i in enumerate(a_ids)}
+        np.testing.assert_array_equal(world, a_world[[where[i] for i in ids]])  # the same instances
+        kept += len(ids)
+    assert kept > 0
+
+
+def _within(run, f, radius):
+    """The rocks of frame f within ``radius`` of the car, horizontally (compared as squares, as the export does)."""
+    d = run["positions"][f][:, :2] - run["vehicle_positions"][f][0][:2]
+    return d[:, 0] ** 2 + d[:, 1] ** 2 <= radius ** 2
+
+
+def _read_ply(path):
+    data = path.read_bytes()
+    header, _, body = data.partition(b"end_header\n")
+    lines = header.decode("ascii").splitlines()
+    assert lines[:2] == ["ply", "format binary_little_endian 1.0"]
+    count = int(next(x for x in lines if x.startswith("element vertex")).split()[2])
+    types = {"double": "<f8", "float": "<f4", "uint": "<u4"}
+    props = [x.split()[1:] for x in lines if x.startswith("property")]
+    dtype = np.dtype([(name, types[t]) for t, name in props])
+    assert [name for _, name in props] == ["x", "y", "z", "radius", "vx", "vy", "vz", "id"]
+    assert len(body) == count * dtype.itemsize
+    return np.frombuffer(body, dtype=dtype)
+
+
+def test_ply_frames_read_back_with_numpy(runs):
+    """One binary PLY per frame: world positions (double) and velocities as in the run, radii, unique ids,
+    and --crop 5 keeps exactly the rocks within 5 m of the followed car."""
+    files = sorted((runs / "ply").iterdir())
+    assert [p.name for p in files] == [f"frame_{f:05d}.ply" for f in range(FRAMES)]
+    run = load_run(runs / "run.npz")
+    n = len(run["radii"])
+    for f, path in enumerate(files):
+        rows = _read_ply(path)
+        rock = rows["id"].astype(np.int64) % n
+        assert len(np.unique(rows["id"])) == len(rows)
+        world = np.stack([rows["x"], rows["y"], rows["z"]], axis=1)
+        np.testing.assert_array_equal(world, run["positions"][f][rock])
+        np.testing.assert_array_equal(rows["radius"], run["radii"][rock].astype(np.float32))
+        np.testing.assert_array_equal(np.stack([rows["vx"], rows["vy"], rows["vz"]], axis=1),
+                                      run["velocities"][f][rock])
+        np.testing.assert_array_equal(np.sort(rock), np.flatnonzero(_within(run, f, 5.0)))
+
+
+def test_export_refuses_to_overwrite_and_bad_input(tmp_path):
+    out = tmp_path / "x.usdc"
+    out.write_bytes(b"mine")
+    refused(cli("export", MINIMAL, "--out", out, "--frames", 2), "--overwrite")
+    assert out.read_bytes() == b"mine"
+    refused(cli("export", MINIMAL, "--out", tmp_path / "x.obj", "--frames", 2), ".usdc")
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    (folder / "frame_00000.ply").write_bytes(b"old")
+    refused(cli("export", MINIMAL, "--format", "ply", "--out", folder, "--frames", 2), "--overwrite")
+    (folder / "notes.txt").write_bytes(b"keep")
+    refused(cli("export", MINIMAL, "--format", "ply", "--out", folder, "--frames", 2, "--overwrite"),
+            "notes.txt")
+    r = cli("export", MINIMAL, "--out", tmp_path / "y.usdc", "--crop", "-1")  # argparse: usage, then the error
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "--crop" in r.stderr.strip().splitlines()[-1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames", "x.usdc"]
+    assert sorted(p.name for p in folder.iterdir()) == ["frame_00000.ply", "notes.txt"]
+    (folder / "notes.txt").unlink()
+    _ok(cli("export", MINIMAL, "--format", "ply", "--out", folder, "--frames", 2, "--overwrite"))
+    assert sorted(p.name for p in folder.iterdir()) == ["frame_00000.ply", "frame_00001.ply"]
+    assert _read_ply(folder / "frame_00000.ply").size == 2000
+    _ok(cli("export", MINIMAL, "--out", out, "--frames", 2, "--overwrite"))
+    assert _stage(out).GetEndTimeCode() == 1.0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames", "x.usdc"]  # no temporaries left
+
+
+def test_export_usd_without_pxr_is_one_line(tmp_path):
+    """Without usd-core: exit 2, one line naming the package, nothing written."""
+    hide = tmp_path / "hide"
+    (hide / "pxr").mkdir(parents=True)
+    (hide / "pxr" / "__init__.py").write_text("raise ImportError('No module named pxr')\n")
+    env = _env()
+    env["PYTHONPATH"] = f"{hide}{os.pathsep}{ROOT}"
+    r = subprocess.run([sys.executable, "-m", "taichi_rocks", "export", MINIMAL, "--out", tmp_path / "o" / "x.usdc"],
+                       env=env, capture_output=True, text=True, timeout=300)
+    refused(r, "usd-core")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hide"]
+
+
+def test_export_streams_to_disk_and_ctrl_c_leaves_nothing(tmp_path):
+    """The .usdc grows while simulating (each frame is saved as it is made), under a temporary name; Ctrl-C
+    removes it and the folder the export made."""
+    out = tmp_path / "out" / "x.usdc"
+    p = start_cli("export", MINIMAL, "--out", out, "--frames", 100000, "--fps", 240)
+    grown = lambda: any(q.name.startswith(".x.usdc.") and q.stat().st_size > 3_000_000
+                        for q in (out.parent.iterdir() if out.parent.is_dir() else ()))
+    wait_for(grown, p, poll=0.05)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def _face_normals(points, counts, indices):
+    """Newell normals of the faces, and their centres."""
+    normals, centres, k = [], [], 0
+    for c in counts:
+        p = points[indices[k:k + c]].astype(np.float64)
+        q = np.roll(p, -1, axis=0)
+        normals.append(np.stack([np.sum((p[:, 1] - q[:, 1]) * (p[:, 2] + q[:, 2])),
+                                 np.sum((p[:, 2] - q[:, 2]) * (p[:, 0] + q[:, 0])),
+                                 np.sum((p[:, 0] - q[:, 0]) * (p[:, 1] + q[:, 1]))]))
+        centres.append(p.mean(axis=0))
+        k += c
+    return np.array(normals), np.array(centres)
+
+
+def test_meshes_are_closed_outward_and_reproducible():
+    """Rock prototypes (deterministic, distinct, mean radius 1), the box and the wheel cylinder: faces
+    counter-clockwise seen from outside, every edge shared by exactly two faces."""
+    from taichi_rocks.output.shapes import box_mesh, cylinder_mesh, rock_prototype
+
+    rocks = [rock_prototype(k) for k in range(3)]
+    for a, b in zip(rocks, [rock_prototype(k) for k in range(3)]):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+    assert not np.array_equal(rocks[0][0], rocks[1][0])
+    for mesh in rocks + [box_mesh((0.0, 0.0, 1.0), (4.0, 2.0, 1.5)), cylinder_mesh(0.3, 0.2)]:
+        points, counts, indices = mesh
+        normals, centres = _face_normals(*mesh)
+        inner = points.mean(axis=0)
+        assert np.all(np.sum(normals * (centres - inner), axis=1) > 0)
+        edges, k = {}, 0
+        for c in counts:
+            f = indices[k:k + c]
+            for a, b in zip(f, np.roll(f, -1)):
+                edges[(min(a, b), max(a, b))] = edges.get((min(a, b), max(a, b)), 0) + 1
+            k += c
+        assert set(edges.values()) == {2}
+    for points, _, _ in rocks:
+        assert np.mean(np.linalg.norm(points, axis=1)) == pytest.approx(1.0, rel=1e-6)
+
+
+def test_follow_camera_frames_like_the_renderer():
+    """The export's camera (output/ cannot import render/) follows the same rule as the render's rig."""
+    from taichi_rocks.output.shapes import FollowCamera, camera_matrix
+    from taichi_rocks.render.camera import CameraRig
+
+    ours, theirs = FollowCamera((-9.0, 0.5, 3.5), 6.0, 0.3), CameraRig((-9.0, 0.5, 3.5), 6.0, 0.3)
+    rng = np.random.default_rng(1)
+    for k in range(40):
+        p, h, t = rng.normal(size=3) * 100.0, float(rng.uniform(-np.pi, np.pi)), k / 12.0
+        eye, target = ours.update(p, h, t)
+        e2, t2, _ = theirs.update(p, h, t)
+        np.testing.assert_allclose(eye, e2, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(target, t2, rtol=0, atol=1e-12)
+        m = camera_matrix(eye, target)
+        np.testing.assert_allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-12)  # a rotation, no roll:
+        assert abs(m[0, 2]) < 1e-12  # the camera's right axis stays horizontal
+        look = -m[2, :3]
+        np.testing.assert_allclose(look, (target - eye) / np.linalg.norm(target - eye), atol=1e-12)
+
+
+def test_tumble_orientations_are_unit_and_turn_only_while_moving():
+    from taichi_rocks.output.instances import RockTracker
+
+    n = 50
+    pos = np.zeros((n, 3))
+    pos[:, 0] = np.arange(n)
+    vel = np.zeros((n, 3), np.float32)
+    tracker = RockTracker(n, 9.81, 10.0)
+    st = {"positions": pos, "velocities": vel, "recycles_total": 0}
+    first = tracker.update(st)
+    vel2 = vel.copy()
+    vel2[:10, 0] = 2.0  # rocks 0-9 fly
+    pos2 = pos.copy()
+    pos2[:10, 0] += 0.2
+    pos2[10, 0] += 30.0  # rock 10 recycled across the bed
+    second = tracker.update({"positions": pos2, "velocities": vel2, "recycles_total": 1})
+    np.testing.assert_allclose(np.linalg.norm(second["orientations"], axis=1), 1.0, atol=1e-12)
+    assert np.flatnonzero(second["recycled"]).tolist() == [10]
+    assert second["ids"][10] == 10 + n and np.array_equal(np.delete(second["ids"], 10), np.delete(first["ids"], 10))
+    turned = ~np.isclose(np.abs(np.sum(second["orientations"] * first["orientations"], axis=1)), 1.0)
+    assert turned[:10].all() and not turned[11:].any()
+    assert np.all(np.linalg.norm(second["angular_velocities"][:10], axis=1) >= 3.0)
+    assert not second["angular_velocities"][10:].any()
