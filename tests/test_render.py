@@ -427,6 +427,136 @@ def test_camera_snaps_then_smooths_independently_of_frame_rate():
     assert abs(math.remainder(h - (-math.pi + 0.1), 2 * math.pi)) < 1e-6
 
 
+def _ray_hits(eye, target, tris):
+    """Distance (in units of |target - eye|) along the segment eye -> target to each triangle it crosses (inf: none);
+    Moller-Trumbore, vectorised. tris: (T, 3, 3)."""
+    d = np.asarray(target, float) - eye
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    pv = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, pv)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    tv = eye - a
+    u = np.einsum("ij,ij->i", tv, pv) * inv
+    qv = np.cross(tv, e1)
+    v = (qv @ d) * inv
+    t = np.einsum("ij,ij->i", e2, qv) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9) & (t < 1.0)
+    return np.where(hit, t, np.inf)
+
+
+def _first_hit(eye, target, posed, meshes):
+    """(vehicle, wheel or -1, distance fraction) of the first vehicle triangle on the segment eye -> target."""
+    best = (None, None, np.inf)
+    for i, ((v, _), m) in enumerate(zip(posed, meshes)):
+        t = _ray_hits(eye, target, v[m.idx.reshape(-1, 3)])
+        k = int(np.argmin(t))
+        if t[k] < best[2]:
+            best = (i, int(m.triangle_owner()[k]), float(t[k]))
+    return best
+
+
+def _in_frame(view, tan_x, tan_y, p, margin=0.05):
+    d = np.asarray(p, float) - view.eye
+    z = d @ view.fwd
+    x, y = (d @ view.right) / (z * tan_x), (d @ view.up) / (z * tan_y)
+    return z > 0.5 and abs(x) < 1 - 2 * margin and abs(y) < 1 - 2 * margin
+
+
+def _framed_points(scene, i, pose, mesh, eye):
+    """The points a view of vehicle i must show: each rear tire (1 cm inside its outer face; the one facing the eye
+    first) and the spray as it leaves the body (0.5 m behind the rear bumper, 0.5 m up)."""
+    from taichi_rocks.render.meshes import pose_mesh
+
+    spec = scene.vehicles[i]
+    c, s = math.cos(pose.heading), math.sin(pose.heading)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    tires = []
+    for k in np.nonzero(mesh.rear)[0]:
+        out = np.sign(mesh.centres[k, 1])  # the tire's outer side, body frame
+        face = pose.position + rot @ (mesh.centres[k] + [0.0, out * (spec.tire_width / 2 - 0.01), 0.0])
+        tires.append((float((eye - face) @ (rot @ [0.0, out, 0.0])), int(k), face))
+    tires.sort(reverse=True)  # the tire whose outer face looks at the eye most, first
+    spray = pose.position + rot @ np.array([-spec.length / 2 - 0.5, 0.0, 0.5])
+    return tires, spray
+
+
+@pytest.mark.parametrize("name", ["convoy", "circle", "slalom"])
+def test_view_preset_shows_the_target_rear_tires_unoccluded(scenes_dir, name):
+    """The shipped scenes' camera (a side/low view of a splashing vehicle) keeps, at every half second of the
+    scene, both rear tires of its target and the start of the spray inside the frame, and a ray from the eye
+    to the outer face of the tire nearest to it meets that tire before any other vehicle triangle (the
+    vehicles' meshes as the renderer poses them; the camera stepped at the scene's frame rate)."""
+    from taichi_rocks.config.scene import load_scene
+    from taichi_rocks.motion.vehicles import Fleet
+    from taichi_rocks.render.camera import Lens, camera_of, look
+    from taichi_rocks.render.meshes import pose_mesh, vehicle_mesh
+
+    scene = load_scene(scenes_dir / f"{name}.toml")
+    assert scene.camera.view in ("side", "low") and scene.vehicles[scene.vehicle_index(scene.camera.target)].splash
+    rig, ride, target = camera_of(scene)
+    fleet = Fleet(scene)
+    meshes = [vehicle_mesh(v) for v in scene.vehicles]
+    tan_x, tan_y, _ = Lens.of(scene.camera.fov, *scene.render.resolution)
+    fps = scene.render.fps
+    checked = 0
+    for k in range(int(scene.duration * fps) + 1):
+        t = k / fps
+        poses = fleet.poses(t)
+        view = look(rig, poses[ride].position, poses[ride].heading, t, np.zeros(3))
+        if k % int(fps / 2):
+            continue
+        posed = [pose_mesh(m, p.position, p.heading) for m, p in zip(meshes, poses)]
+        tires, spray = _framed_points(scene, target, poses[target], meshes[target], view.eye)
+        for _, _, face in tires:
+            assert _in_frame(view, tan_x, tan_y, face), (t, face)
+        assert _in_frame(view, tan_x, tan_y, spray), (t, spray)
+        _, wheel, face = tires[0]
+        assert _first_hit(view.eye, face, posed, meshes)[:2] == (target, wheel), t
+        assert _first_hit(view.eye, spray, posed, meshes)[0] is None, t  # nothing between the eye and the spray
+        checked += 1
+    assert checked == int(scene.duration * 2) + 1
+
+
+def test_view_preset_tire_pixel_is_the_tire(pipeline, scenes_dir):
+    """Drawn: in a frame of the convoy's default view, the pixel where the renderer's camera projects the hub
+    of the truck's nearest rear tire shows the hub (a neutral grey lit like GGUI lights it), and the renderer's
+    posed meshes put that tire first on the ray from the eye."""
+    from taichi_rocks.config.scene import load_scene, scene_with
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.render.looks import AMBIENT, HUB_COLOR, SUN_COLOR
+    from taichi_rocks.render.renderer import Renderer
+
+    scene = scene_with(load_scene(scenes_dir / "convoy.toml"), {"bed.rocks": 3000, "bed.radius": 12.0})
+    sim = Simulation(scene, arch="cpu")
+    r = Renderer(sim, resolution=(W * 2, H * 2), window_every=0)
+    try:
+        sim.advance_to(0.4)
+        img = r.render_frame().copy()
+        view = r.view()
+        poses = sim.vehicle_poses()
+        posed = r.posed_vehicles(poses, sim.origin, sim.time)
+        pose = poses[r.target]
+        local = type(pose)(pose.name, pose.position - sim.origin, pose.heading, pose.speed, pose.yaw_rate,
+                           pose.velocity)
+        tires, _ = _framed_points(scene, r.target, local, r._meshes[r.target], view.eye)
+        _, wheel, face = tires[0]
+        assert _first_hit(view.eye, face, posed, r._meshes)[:2] == (r.target, wheel)
+    finally:
+        r.close()
+    d = face - view.eye
+    z = d @ view.fwd
+    px = int((d @ view.right / (z * r.tan_x) + 1) / 2 * 2 * W)
+    py = int((1 - (d @ view.up / (z * r.tan_y) + 1) / 2) * 2 * H)
+    assert 0 <= px < 2 * W and 0 <= py < 2 * H
+    lo = np.array(HUB_COLOR) * np.array(AMBIENT) * 255 - 3
+    hi = np.array(HUB_COLOR) * (np.array(AMBIENT) + np.array(SUN_COLOR)) * 255 + 3
+    patch = img[py - 1:py + 2, px - 1:px + 2].reshape(-1, 3).astype(float)
+    hub = np.all((patch >= lo) & (patch <= hi), axis=1) & (patch[:, 2] >= patch[:, 0] - 2)
+    assert hub.sum() >= 5, patch  # most of the 3 x 3 pixels around it
+
+
 # -------------------------------------------------------------------------------------------------- interrupted CLI renders
 CLI_FRAMES = 40
 

@@ -265,11 +265,23 @@ class Vehicle(_Table):
         return value
 
 
+CAMERA_VIEWS = ("chase", "side", "low", "orbit")
+
+
 class Camera(_Table):
-    """The camera of rendered videos."""
-    follow: Optional[Name] = _follow("vehicle the camera follows; default: bed.follow")
-    offset: Vec3 = _f((-9.0, 0.0, 3.5), "m, in the vehicle frame (x forward, y left, z up)")
-    look_ahead: Float = _f(6.0, "m ahead of the vehicle the camera looks at")
+    """The camera of rendered videos: a view preset, the vehicles it rides with and looks at."""
+    view: Literal[CAMERA_VIEWS] = _f("chase", "chase: behind and above the followed vehicle; side (beside the "
+                                              "target, at its rear tires), low (low, behind and to the left of "
+                                              "its rear tires), orbit (circling it): ride with the target")
+    follow: Optional[Name] = _follow("vehicle the chase camera rides with; default: bed.follow")
+    target: Optional[Name] = _f(None, "vehicle the camera looks at (side, low, orbit: and rides with); "
+                                      "default: follow")
+    offset: Optional[Vec3] = _f(None, "m, the eye in the frame of the vehicle the camera rides with (x forward, "
+                                      "y left, z up); default: the view's")
+    aim: Optional[Vec3] = _f(None, "m, the point looked at, in the target's frame; default: the view's "
+                                   "(chase: look_ahead metres ahead)")
+    look_ahead: Float = _f(6.0, "m ahead of the vehicle the chase camera looks at")
+    orbit_period: Float = _f(20.0, "s, one turn of the orbit view", gt=0)
     fov: Float = _f(50.0, "deg, field of view, in (0, 180)", gt=0, lt=180)
     smoothing: Float = _f(0.3, "s, time constant of the camera's follow", ge=0)
 
@@ -469,10 +481,10 @@ def _name_problems(data: dict) -> list[tuple[tuple, str]]:
         elif isinstance(name, str):
             seen[name] = i
     if names and all(isinstance(n, str) for n in names):
-        for table in ("bed", "camera"):
-            follow = data[table].get("follow") if isinstance(data.get(table), dict) else None
+        for table, key in (("bed", "follow"), ("camera", "follow"), ("camera", "target")):
+            follow = data[table].get(key) if isinstance(data.get(table), dict) else None
             if isinstance(follow, str) and follow not in seen:
-                problems.append(((table, "follow"), _unknown("vehicle", follow, list(seen))))
+                problems.append(((table, key), _unknown("vehicle", follow, list(seen))))
     return problems
 
 
@@ -583,6 +595,12 @@ def _speed(path: Path_) -> str:
     return f"{path.speed:g} m/s"
 
 
+def _camera_line(cam: Camera) -> str:
+    if cam.view == "chase":
+        return f"chase view, follows {cam.follow!r}" + (f", looks at {cam.target!r}" if cam.target else "")
+    return f"{cam.view} view of {cam.target or cam.follow!r}"
+
+
 def summarise(scene: Scene) -> str:
     """A few lines describing the scene and what the simulation will do (``taichi-rocks check``)."""
     e, sim, h, bed = scene.effects, scene.sim, scene.sim.hash, scene.bed
@@ -603,7 +621,7 @@ def summarise(scene: Scene) -> str:
         f" detection {sim.detection} (substeps {sim.substeps}), precision {sim.precision}, origin {sim.origin}",
         f"hash: insert {h.insert}, cell size {h.cell_size}, table size {h.table_size},"
         + (f" reorder every {h.reorder_every} steps" if h.reorder_every else " never reordered"),
-        f"camera: follows {scene.camera.follow!r}, {scene.render.resolution[0]}x{scene.render.resolution[1]}"
+        f"camera: {_camera_line(scene.camera)}, {scene.render.resolution[0]}x{scene.render.resolution[1]}"
         f" at {scene.render.fps:g} fps",
         f"memory: about {estimate_memory(scene) / 1e6:.1f} MB (estimate)",
     ]

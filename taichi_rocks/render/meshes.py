@@ -5,11 +5,51 @@ normals of each vehicle on the host every frame (GGUI 1.7.4's ``mesh_instance`` 
 mesh, so a yawed vehicle would keep the shading of an unrotated one).
 """
 
+import math
+from typing import NamedTuple
+
 import numpy as np
 
 from .looks import BUMPER_COLOR, GLASS_COLOR, HUB_COLOR, TAIL_LIGHT_COLOR, TIRE_COLOR
 
-__all__ = ["vehicle_kind", "vehicle_mesh", "merge"]
+__all__ = ["VehicleMesh", "vehicle_kind", "vehicle_mesh", "merge", "pose_mesh"]
+
+
+class VehicleMesh(NamedTuple):
+    """One vehicle's mesh in its body frame (x forward, y left, z up; origin at the body centre on the ground).
+
+    ``wheel[v]``: the wheel vertex v belongs to (-1: the body); a wheel's vertices are relative to its centre
+    ``centres[k]`` (body frame), so that turning it is a rotation about its own axle (y). ``rear[k]``: wheel k
+    is a rear wheel."""
+
+    verts: np.ndarray
+    norms: np.ndarray
+    cols: np.ndarray
+    idx: np.ndarray
+    wheel: np.ndarray
+    centres: np.ndarray
+    rear: np.ndarray
+
+    def triangle_owner(self) -> np.ndarray:
+        """Per triangle: the wheel it belongs to (-1: the body)."""
+        return self.wheel[self.idx[0::3]]
+
+
+def pose_mesh(mesh: VehicleMesh, position, heading: float, angles=None):
+    """The mesh's vertices and normals placed at ``position`` (local frame) with ``heading`` (rad), each wheel
+    k turned about its axle by ``angles[k]`` (rad; positive rolls the vehicle forward); float64."""
+    v, n = mesh.verts, mesh.norms
+    if angles is not None and len(mesh.centres):
+        a = np.asarray(angles, np.float64)[np.maximum(mesh.wheel, 0)]
+        c, s = np.cos(a), np.sin(a)
+        w = mesh.wheel >= 0
+        # rotation about +y by a: x' = x cos a + z sin a, z' = -x sin a + z cos a
+        v = np.where(w[:, None], np.stack([v[:, 0] * c + v[:, 2] * s, v[:, 1], -v[:, 0] * s + v[:, 2] * c], 1), v)
+        n = np.where(w[:, None], np.stack([n[:, 0] * c + n[:, 2] * s, n[:, 1], -n[:, 0] * s + n[:, 2] * c], 1), n)
+    v = v + np.where((mesh.wheel >= 0)[:, None], mesh.centres[np.maximum(mesh.wheel, 0)], 0.0)
+    ch, sh = math.cos(heading), math.sin(heading)
+    rot = np.array([[ch, -sh, 0.0], [sh, ch, 0.0], [0.0, 0.0, 1.0]])
+    return v @ rot.T + np.asarray(position, np.float64), n @ rot.T
 
 
 def _quad_faces(corners, normal, color):
@@ -91,10 +131,10 @@ def vehicle_kind(spec) -> str:
     return "car"
 
 
-def vehicle_mesh(spec, ground_z: float = 0.0):
+def vehicle_mesh(spec, ground_z: float = 0.0) -> VehicleMesh:
     """Body-frame mesh of one vehicle (x forward, y left, z up; origin at the body centre on the ground).
 
-    Returns (vertices, normals, colours, indices). Tires (dark tread, light hubs) at (+-wheelbase/2,
+    Returns a :class:`VehicleMesh`. Tires (dark tread, light hubs) at (+-wheelbase/2,
     +-track/2), centre height tire_radius. The body (length x width, from 0.8 tire radius up to that plus
     ``height``) is shaped by :func:`vehicle_kind`: a car has a lower body and a glazed cabin with a roof in the
     body colour, a van a tall body glazed at the front, a truck a cab at the front and a cargo box behind.
@@ -153,7 +193,10 @@ def vehicle_mesh(spec, ground_z: float = 0.0):
     for side in (1.0, -1.0):
         parts.append(_box((-L / 2 - 0.02, side * 0.38 * W, lz), (0.03, 0.16 * W, 0.07 * H),
                           same(np.array(TAIL_LIGHT_COLOR))))
-    for sx in (0.5, -0.5):
-        for sy in (0.5, -0.5):
-            parts.append(_tire((sx * float(spec.wheelbase), sy * float(spec.track), ground_z + R), R, TW))
-    return merge(parts)
+    body = merge(parts)
+    centres = np.array([(sx * float(spec.wheelbase), sy * float(spec.track), ground_z + R)
+                        for sx in (0.5, -0.5) for sy in (0.5, -0.5)])
+    wheels = [_tire((0.0, 0.0, 0.0), R, TW) for _ in centres]
+    v, n, c, i = merge([body] + wheels)
+    wheel = np.concatenate([np.full(len(body[0]), -1)] + [np.full(len(w[0]), k) for k, w in enumerate(wheels)])
+    return VehicleMesh(v, n, c, i, wheel, centres, centres[:, 0] < 0)

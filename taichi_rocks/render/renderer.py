@@ -40,10 +40,11 @@ import taichi as ti
 
 from ..config.resolution import check_resolution
 from . import kernels as K
-from .camera import GL_UP, NEAR, CameraRig, Lens, View, look, sun_direction
+from .camera import GL_UP, NEAR, Lens, View, camera_of, look, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
-from .meshes import merge, vehicle_mesh
+from .meshes import merge, pose_mesh, vehicle_mesh
 from .overlays import Overlays
+from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
 
 __all__ = ["Renderer", "DEFAULT_LOD_PIXELS", "ROCK_MODES", "WINDOW_EVERY", "check_rocks"]
@@ -128,31 +129,38 @@ class Renderer:
                                      hash_cells=bool(rs.hash_cells))
 
     def _camera_setup(self, scene) -> None:
-        """Which vehicle the camera follows, its lens and its rig."""
-        cam = scene.camera
-        names = [v.name for v in scene.vehicles]
-        follow = cam.follow or getattr(scene.bed, "follow", None) or names[0]
-        if follow not in names:
-            raise ValueError(f"camera.follow: no vehicle named {follow!r} (vehicles: {', '.join(names)})")
-        self.follow = names.index(follow)
-        self.fov = float(cam.fov)
+        """Which vehicle the camera follows and which it looks at, its view, lens and rig."""
+        self.rig, self.follow, self.target = camera_of(scene)
+        self.view_name = scene.camera.view
+        self.fov = float(scene.camera.fov)
         self.tan_x, self.tan_y, self.px_per_rad = Lens.of(self.fov, *self.resolution)
-        self.rig = CameraRig(cam.offset, cam.look_ahead, cam.smoothing)
         self.ground_z = float(scene.world.ground_z)
 
     def _vehicle_fields(self, vehicles) -> None:
-        """The vehicles: one merged mesh, transformed on the host each frame."""
-        meshes = [vehicle_mesh(v, 0.0) for v in vehicles]
-        self._v_sizes = [len(m[0]) for m in meshes]
-        vs, ns, cs, ids = merge(meshes)
-        self._v_local = (vs, ns)
+        """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer)."""
+        self._meshes = [vehicle_mesh(v, 0.0) for v in vehicles]
+        self._v_sizes = [len(m.verts) for m in self._meshes]
+        vs, ns, cs, ids = merge([m[:4] for m in self._meshes])
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
+        self._odometer = Odometer(self.sim.scene)
         self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
         self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols.from_numpy(cs.astype(np.float32))
         self._v_idx = ti.field(ti.i32, len(ids))
         self._v_idx.from_numpy(ids.astype(np.int32))
+
+    def wheel_angles(self, t: float) -> list:
+        """Per vehicle, its wheels' angles (rad) at time ``t``: distance driven / tire radius (rear wheels:
+        times 1 + slip; :mod:`.wheels`)."""
+        dist = self._odometer.at(t)
+        return [wheel_angles(v, d, m.rear) for v, d, m in zip(self.sim.scene.vehicles, dist, self._meshes)]
+
+    def posed_vehicles(self, poses, origin, t: float) -> list:
+        """Per vehicle, its (vertices, normals) in the local frame at time ``t`` (float64); with
+        ``self._meshes`` (triangles, owners) this is what GGUI draws."""
+        return [pose_mesh(m, np.asarray(p.position, np.float64) - origin, p.heading, a)
+                for m, p, a in zip(self._meshes, poses, self.wheel_angles(t))]
 
     def close(self) -> None:
         """Release the window (the fields stay until Taichi is reset) and the imgui.ini GGUI left behind."""
@@ -166,11 +174,15 @@ class Renderer:
 
     # -------------------------------------------------------------------------------------------- frame
     def view(self) -> View:
-        """Advance the chase camera to ``sim.time``; return the view in local f32 coordinates:
+        """Advance the camera to ``sim.time``; return the view in local f32 coordinates:
         (eye, target, forward, right, up, heading). Calling it twice at the same time changes nothing."""
         sim = self.sim
-        pose = sim.vehicle_poses()[self.follow]
-        return look(self.rig, pose.position, pose.heading, sim.time, sim.origin)
+        poses = sim.vehicle_poses()
+        pose = poses[self.follow]
+        target = None
+        if self.target != self.follow:
+            target = (poses[self.target].position, poses[self.target].heading)
+        return look(self.rig, pose.position, pose.heading, sim.time, sim.origin, target)
 
     @staticmethod
     def sun_direction(heading: float) -> np.ndarray:
@@ -338,20 +350,11 @@ class Renderer:
         K.paint_ground(self._buf, self._cam(eye, fwd, right, up), self._frustum(), ground, palette, n_cars)
 
     def _draw_vehicles(self, scene, origin, poses) -> None:
-        vs, ns = self._v_local
-        out_v = np.empty_like(vs)
-        out_n = np.empty_like(ns)
-        start = 0
-        for p, nv in zip(poses, self._v_sizes):
-            c, s = math.cos(p.heading), math.sin(p.heading)
-            rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-            sl = slice(start, start + nv)
-            out_v[sl] = vs[sl] @ rot.T + (np.asarray(p.position, np.float64) - origin)
-            out_n[sl] = ns[sl] @ rot.T
-            start += nv
+        posed = self.posed_vehicles(poses, origin, self.sim.time)
+        out_v = np.concatenate([v for v, _ in posed])
         self._v_frame = out_v
         self._v_verts.from_numpy(out_v.astype(np.float32))
-        self._v_norms.from_numpy(out_n.astype(np.float32))
+        self._v_norms.from_numpy(np.concatenate([n for _, n in posed]).astype(np.float32))
         # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows
         scene.mesh(self._v_verts, indices=self._v_idx, normals=self._v_norms, per_vertex_color=self._v_cols,
                    show_wireframe=self.flags.tire_rays or self.flags.hash_cells)
