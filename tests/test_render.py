@@ -157,6 +157,61 @@ def test_a_rock_in_view_is_drawn_where_it_projects(shared, minimal_scene, phase)
     assert 0.6 * math.pi * rad ** 2 < len(xs) < 1.5 * math.pi * rad ** 2, (len(xs), math.pi * rad ** 2)
 
 
+def _pixel(r, view, p):
+    """Pixel (x right, y down) of a local point under ``view``."""
+    d = np.asarray(p, float) - view.eye
+    z = d @ view.fwd
+    return (d @ view.right / (z * r.tan_x) + 1) / 2 * W, (1 - (d @ view.up / (z * r.tan_y) + 1) / 2) * H
+
+
+def test_a_flying_rock_casts_its_shadow_where_the_sun_puts_it(pipeline, shared, minimal_scene):
+    """A flying rock 1.2 m above the ground darkens the ground around the point the sun direction puts its
+    shadow at (the centroid of the darkened pixels within 2 pixels of that point projected), and nowhere
+    else; with shadows off the rock alone changes the frame."""
+    from taichi_rocks.render.renderer import Renderer
+
+    sim, r_on = shared
+    r_off = Renderer(sim, resolution=(W, H), window_every=0, shadows=False)
+    try:
+        view = r_on.view()
+        assert np.allclose(r_off.view().eye, view.eye)
+        sun = r_on.sun_direction(view.heading)
+        gz = float(minimal_scene.world.ground_z - sim.origin[2])
+        h, rad = 1.2, 0.3
+        ground = view.eye + 7.0 * np.array([view.fwd[0], view.fwd[1], 0.0]) / np.hypot(*view.fwd[:2])
+        ground += 1.2 * view.right
+        rock = np.array([ground[0], ground[1], gz + h]) - h * np.array([-sun[0] / sun[2], -sun[1] / sun[2], 0.0])
+        shadow = np.array([ground[0], ground[1], gz])  # where the sun puts the shadow of the rock's centre
+        i = 0
+        old = (sim.world.pos[i], sim.world.radius[i], sim.world.phase[i])
+        diffs = []
+        try:
+            sim.world.radius[i] = rad
+            sim.world.phase[i] = 1
+            for r in (r_on, r_off):
+                sim.world.pos[i] = (view.eye - 5.0 * view.fwd).tolist()  # behind the camera, shadow out of view
+                before = r.render_frame().astype(int)
+                sim.world.pos[i] = rock.tolist()
+                diffs.append(r.render_frame().astype(int) - before)
+        finally:
+            sim.world.pos[i], sim.world.radius[i], sim.world.phase[i] = old
+    finally:
+        r_off.close()
+    yy, xx = np.mgrid[0:H, 0:W]
+    rx, ry = _pixel(r_on, view, rock)
+    disc = (xx - rx) ** 2 + (yy - ry) ** 2 < (rad * r_on.px_per_rad / ((rock - view.eye) @ view.fwd) + 3) ** 2
+    sx, sy = _pixel(r_on, view, shadow)
+    assert 0 <= sx < W and 0 <= sy < H and not disc[int(sy), int(sx)]
+    on, off = (d.sum(axis=2) for d in diffs)
+    dark = (on < -20) & ~disc
+    assert dark.sum() >= 4, dark.sum()  # a shadow of a few pixels (the ground seen at a grazing angle)
+    ys, xs = np.nonzero(dark)
+    assert abs(xs.mean() + 0.5 - sx) < 2 and abs(ys.mean() + 0.5 - sy) < 2, (xs.mean(), ys.mean(), sx, sy)
+    assert on[~disc].max() < 20  # nothing lightened
+    assert not np.any(np.abs(off[~disc]) > 3)  # without shadows the rock alone changes the frame
+    assert (on[dark] < off[dark]).all()
+
+
 def test_ground_is_anchored_to_the_world(shared):
     """Moving the floating origin (here by 37.3 m, not a whole number of tiles) changes no pixel but rounding:
     the checker, the rocks and the vehicles are all drawn where they are in the world."""

@@ -286,6 +286,12 @@ class Camera(_Table):
     smoothing: Float = _f(0.3, "s, time constant of the camera's follow", ge=0)
 
 
+class SunAngles(_Table):
+    """A direction towards the sun by its angles."""
+    azimuth: Float = _f(129.3, "deg, counter-clockwise from +x (the sun's frame, see sun_frame)")
+    elevation: Float = _f(54.6, "deg above the horizon, in (0, 90]", gt=0, le=90)
+
+
 class Render(_Table):
     """Video output."""
     resolution: tuple[Pixels, Pixels] = _f((1280, 720), f"[width, height], even ints >= {MIN_SIDE}")
@@ -293,9 +299,22 @@ class Render(_Table):
     background: Color = _f((0.62, 0.76, 0.92), 'sky RGB in [0, 1], or "#rrggbb"')
     draw_distance: Float = _f(80.0, "m", gt=0)
     ground_tile: Float = _f(2.0, "m, checker size of the ground", gt=0)
+    sun: _either(Vec3, SunAngles, _is_list) = _f(
+        (-0.45, 0.55, 1.0), "direction towards the sun: [x, y, z] (z > 0) or {azimuth, elevation} in degrees")
+    sun_frame: Literal["vehicle", "world"] = _f(
+        "vehicle", "frame of sun: the heading frame of the vehicle the camera rides with (x forward, y left; "
+                   "smoothed like the camera, so the light keeps its side in turns) or the world's")
+    shadows: Bool = _f(True, "flying rocks and vehicles cast shadows on the ground; resting rocks darken it")
     bed_edge: Bool = _f(False, "debug overlay: the bed's edge circle")
     tire_rays: Bool = _f(False, "debug overlay: the tire rays")
     hash_cells: Bool = _f(False, "debug overlay: hash cells queried this frame")
+
+    @field_validator("sun")
+    @classmethod
+    def _sun_up(cls, v: Any) -> Any:
+        if isinstance(v, tuple) and not v[2] > 0:
+            raise ValueError(f"must point up (z > 0), got {_show(v)}")
+        return v
 
 
 class Scene(_Table):
@@ -333,7 +352,7 @@ class Scene(_Table):
 # tables by the key that holds them (or the path kind), to list the keys allowed where an unknown one is found
 _TABLES: dict[str, type[BaseModel]] = {
     "world": World, "bed": Bed, "launch": Launch, "effects": Effects, "sim": Sim, "hash": Hash,
-    "vehicle": Vehicle, "camera": Camera, "render": Render, **PATH_KINDS}
+    "vehicle": Vehicle, "camera": Camera, "render": Render, "sun": SunAngles, **PATH_KINDS}
 _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error locations
 
 

@@ -53,7 +53,9 @@ DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this m
 ROCK_MODES = ("splat", "particles")
 WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
 MIN_BUCKET = 4096
-MAX_CARS = 32  # vehicles casting a contact shadow
+MAX_CARS = 32  # vehicles casting a shadow
+CONTACT_PX = 3.0  # resting rocks at least this many pixels in radius darken the ground beside them (smaller
+# ones are many, and their contact shadows hardly show)
 GLITCH_DROP = 0.3  # a frame whose GGUI pixels fall below this fraction of the last frame's is drawn again
 GLITCH_RETRIES = 3  # at most this many extra draws of one frame
 LOST_COVERAGE = 0.15  # a vehicle in view drawing less than this share of its screen box was lost
@@ -73,7 +75,7 @@ def _vec(a):
 class Renderer:
     """Draws ``sim`` into a hidden GGUI window; :meth:`render_frame` returns the image (H, W, 3) uint8.
 
-    ``resolution`` (even sides) and ``fps`` default to the scene's [render] table. ``rocks``: "splat" (resting
+    ``resolution`` (even sides), ``fps`` and ``shadows`` default to the scene's [render] table. ``rocks``: "splat" (resting
     rocks splatted into the background image by a Taichi kernel, flying rocks GGUI particles; the default)
     or "particles" (every visible rock a GGUI particle). ``lod_pixels`` ("particles" only): resting rocks whose
     projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of
@@ -84,9 +86,10 @@ class Renderer:
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",
-                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY):
+                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY, shadows=None):
         self.sim = sim
         self._settings(sim.scene, resolution, fps, rocks, lod_pixels, window_every)
+        self.shadows = bool(sim.scene.render.shadows if shadows is None else shadows)
         self._camera_setup(sim.scene)
         self.frames_drawn = 0
         self.last_count = 0
@@ -101,7 +104,8 @@ class Renderer:
         self._buckets = {}
         self._drawn = None
         w, h = self.resolution
-        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS)  # background image, splat buffers, shadows
+        # background image, splat buffers, shadows
+        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows)
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
@@ -129,12 +133,13 @@ class Renderer:
                                      hash_cells=bool(rs.hash_cells))
 
     def _camera_setup(self, scene) -> None:
-        """Which vehicle the camera follows and which it looks at, its view, lens and rig."""
+        """Which vehicle the camera follows and which it looks at, its view, lens and rig; the sun."""
         self.rig, self.follow, self.target = camera_of(scene)
         self.view_name = scene.camera.view
         self.fov = float(scene.camera.fov)
         self.tan_x, self.tan_y, self.px_per_rad = Lens.of(self.fov, *self.resolution)
         self.ground_z = float(scene.world.ground_z)
+        self.sun = (scene.render.sun, scene.render.sun_frame)
 
     def _vehicle_fields(self, vehicles) -> None:
         """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer)."""
@@ -184,10 +189,9 @@ class Renderer:
             target = (poses[self.target].position, poses[self.target].heading)
         return look(self.rig, pose.position, pose.heading, sim.time, sim.origin, target)
 
-    @staticmethod
-    def sun_direction(heading: float) -> np.ndarray:
-        """Unit vector towards the sun (:func:`.camera.sun_direction`)."""
-        return sun_direction(heading)
+    def sun_direction(self, heading: float) -> np.ndarray:
+        """Unit vector towards the sun (:func:`.camera.sun_direction`; ``heading``: the rig's)."""
+        return sun_direction(heading, *self.sun)
 
     def _bucket(self, need: int) -> K.Bucket:
         cap = MIN_BUCKET
@@ -207,6 +211,20 @@ class Renderer:
     def _cam(eye, fwd, right, up):
         return K.Camera(eye=_vec(eye), fwd=_vec(fwd), right=_vec(right), up=_vec(up))
 
+    def _shade(self, sun) -> K.Shade:
+        """The shadows' geometry for a sun direction (unit, towards the sun): see :class:`.kernels.Shade`."""
+        sz = max(float(sun[2]), 0.05)  # the sun just above the horizon at the lowest: shadows 20 x as long
+        horiz = math.hypot(float(sun[0]), float(sun[1]))
+        away = (-float(sun[0]) / horiz, -float(sun[1]) / horiz) if horiz > 1e-9 else (1.0, 0.0)
+        return K.Shade(z=self.ground_z - float(self.sim.origin[2]), shift=ti.Vector(self._shift(sun)),
+                       away=ti.Vector(away), sin_el=sz / math.hypot(sz, horiz), contact_px=CONTACT_PX)
+
+    @staticmethod
+    def _shift(sun) -> tuple:
+        """Where a point's shadow falls, per metre of its height above the ground: -sun_xy / sun_z."""
+        sz = max(float(sun[2]), 0.05)
+        return (-float(sun[0]) / sz, -float(sun[1]) / sz)
+
     def cull(self, eye, fwd, right, up, sun) -> int:
         """Cull the rocks; splat the resting ones ("splat" mode) and compact those GGUI draws into a bucket.
         Return how many GGUI draws (also ``self.last_count``)."""
@@ -219,15 +237,16 @@ class Renderer:
         cam = self._cam(eye, fwd, right, up)
         size = K.Sizing(lod_px=self.lod_pixels, radius_scale=h / w)  # GGUI 1.7.4 draws particles w/h too large
         light = K.Light(sun=_vec(sun), ambient=ti.Vector(AMBIENT), sun_color=ti.Vector(SUN_COLOR))
+        shade = self._shade(sun)
         need = max(int(self.last_count * 1.25), 1)
         while True:
             bucket = self._bucket(need)
-            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light)
+            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light, shade)
             count = int(self._buf.count[None])
             if count <= bucket.cap:
                 break
             need = count
-            if self.rocks == "splat":  # the splats are in the buffers already: clear them before re-running
+            if self.rocks == "splat" or self.shadows:  # splats in the buffers already: clear them first
                 K.clear_buffers(self._buf)
         self.last_count = count
         self._drawn = (bucket, count)
@@ -324,16 +343,21 @@ class Renderer:
         return False
 
     # -------------------------------------------------------------------------------------------- parts
-    def _shadow_casters(self, poses, origin) -> int:
-        """Upload the vehicles' footprints (local frame) for the contact shadows; return how many."""
-        cars = np.zeros((MAX_CARS, 7), np.float32)
+    def _shadow_casters(self, poses, origin, sun_dir) -> int:
+        """Upload the vehicles' footprints and heights (local frame) for their shadows; return how many."""
+        cars = np.zeros((MAX_CARS, 11), np.float32)
+        shift = np.array(self._shift(sun_dir))
         k = 0
         for p, v in zip(poses, self.sim.scene.vehicles):
             if k == MAX_CARS:
                 break
             loc = np.asarray(p.position, np.float64) - origin
+            top = 0.8 * v.tire_radius + v.height
+            soft = 0.35 + 0.4 * v.width  # of the contact shadow
+            mid = loc[:2] + 0.5 * top * shift  # the sun shadow's middle, and a circle round both shadows
+            reach = 0.5 * math.hypot(v.length, v.width) + 0.5 * top * float(np.hypot(*shift)) + max(soft, 0.5)
             cars[k] = (loc[0], loc[1], math.cos(p.heading), math.sin(p.heading), 0.5 * v.length, 0.5 * v.width,
-                       0.35 + 0.4 * v.width)
+                       soft, top, mid[0], mid[1], reach * reach)
             k += 1
         self._buf.cars.from_numpy(cars)
         return k
@@ -342,11 +366,12 @@ class Renderer:
         period = 2.0 * self.tile
         wrap = (float(np.mod(origin[0], period)), float(np.mod(origin[1], period)))
         light = tuple(a + l * max(float(sun_dir[2]), 0.0) for a, l in zip(AMBIENT, SUN_COLOR))
-        n_cars = self._shadow_casters(poses, origin)
+        n_cars = self._shadow_casters(poses, origin, sun_dir)
         ground = K.Ground(z=self.ground_z - float(origin[2]), wrap=ti.Vector(wrap), tile=self.tile,
-                          haze_dist=HAZE * self.draw_distance)
+                          haze_dist=HAZE * self.draw_distance, shift=ti.Vector(self._shift(sun_dir)))
+        umbra = tuple(a / l for a, l in zip(AMBIENT, light))
         palette = K.Palette(ground_a=ti.Vector(GROUND_A), ground_b=ti.Vector(GROUND_B), light=ti.Vector(light),
-                            sky=ti.Vector(self.background), horizon=ti.Vector(self.horizon))
+                            sky=ti.Vector(self.background), horizon=ti.Vector(self.horizon), umbra=ti.Vector(umbra))
         K.paint_ground(self._buf, self._cam(eye, fwd, right, up), self._frustum(), ground, palette, n_cars)
 
     def _draw_vehicles(self, scene, origin, poses) -> None:
