@@ -87,6 +87,29 @@ def test_mp4_reads_back(mp4_render):
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # the partial video was renamed
 
 
+def test_video_is_lighter_than_with_the_old_settings(mp4_render, tmp_path):
+    """The same frames at the same resolution: the default quality ([render] quality, the writer's default)
+    gives a smaller MP4 than the old settings (x264 superfast, CRF 23), still close to the frames."""
+    import imageio.v3 as iio
+
+    from taichi_rocks.config.scene import Render
+    from taichi_rocks.output.video import DEFAULT_CRF, FrameWriter
+
+    _, frames, _ = mp4_render
+    assert DEFAULT_CRF == Render().quality > 23
+    sizes, errors = {}, {}
+    for name, crf in (("old", 23), ("new", DEFAULT_CRF)):
+        w = FrameWriter(tmp_path / name, "clip", 30.0, "mp4", background=False, ffmpeg_preset="superfast", crf=crf)
+        for f in frames:
+            w.write(f)
+        video = w.close()
+        sizes[name] = video.stat().st_size
+        back = list(iio.imiter(video))
+        errors[name] = np.mean([np.abs(a.astype(int) - b.astype(int)).mean() for a, b in zip(frames, back)])
+    assert sizes["new"] < 0.9 * sizes["old"], sizes
+    assert errors["new"] < 12, errors
+
+
 def test_frames_not_blank_sky_on_top_ground_below(mp4_render, minimal_scene):
     _, frames, _ = mp4_render
     sky = np.array(minimal_scene.render.background)
