@@ -480,6 +480,82 @@ def test_failed_render_keeps_frames_and_drops_partial_video(tmp_path):
     assert len(os.listdir(tmp_path / "frames")) == 3
 
 
+# -------------------------------------------------------------------------------------------------- vehicles
+def test_odometer_integrates_the_speed_and_depends_on_the_time_alone():
+    """Distance driven: v t at constant speed, 0.5 a t^2 from standing (a path's constant acceleration), and the
+    same bits whether reached frame by frame or at once (a resumed render turns its wheels as an
+    uninterrupted one)."""
+    from scenes_util import scene
+
+    from taichi_rocks.render.wheels import Odometer
+
+    sc = scene(vehicles=[{"name": "a", "path": {"points": [[0.0, 0.0], [400.0, 0.0]], "speed": 10.0}},
+                         {"name": "b", "path": {"points": [[0.0, 5.0], [50.0, 5.0]], "speed": [0.0, 10.0]}}])
+    step = Odometer(sc)
+    for k in range(1, 91):
+        got = step.at(k / 30)
+    np.testing.assert_allclose(got, [10.0 * 3.0, 0.5 * 3.0 ** 2], rtol=1e-12)  # a = v^2 / 2 L = 1 m/s^2
+    assert np.array_equal(Odometer(sc).at(3.0), got)
+    assert np.array_equal(step.at(1.2345), Odometer(sc).at(1.2345))  # back in time: from 0 again
+
+
+def test_vehicle_kinds_and_the_player_mark():
+    """``kind`` picks the body (auto: from the proportions); bodies differ by kind; the wheels stand clear of
+    the body's sides (wheel wells); only the player (bed.follow) wears the white marks."""
+    from scenes_util import scene
+
+    from taichi_rocks.render.bodies import scene_meshes, vehicle_kind
+    from taichi_rocks.render.looks import PLAYER_MARK_COLOR
+
+    same = {"length": 6.0, "width": 2.2, "height": 2.2, "wheelbase": 3.6, "track": 1.9, "tire_radius": 0.4}
+    sc = scene(vehicles=[{"name": k, "kind": k, **same, "path": {"points": [[0.0, 3.0 * i], [99.0, 3.0 * i]]}}
+                         for i, k in enumerate(("car", "van", "truck", "auto"))])
+    assert [vehicle_kind(v) for v in sc.vehicles] == ["car", "van", "truck", "van"]  # auto: 2.2 m tall, 6 m long
+    meshes = scene_meshes(sc)
+    marked = [bool(np.all(m.cols == PLAYER_MARK_COLOR, axis=1).any()) for m in meshes]
+    assert marked == [True, False, False, False]  # the bed follows the first vehicle
+    bodies = [m.verts[m.wheel < 0] for m in meshes]
+    tops = [b[:, 2].max() for b in bodies[1:]]
+    assert len({len(b) for b in bodies[1:]}) == 2 and len(set(np.round(tops, 6))) == 1  # van != truck
+    from taichi_rocks.render.meshes import pose_mesh
+
+    for m, v in zip(meshes, sc.vehicles):  # seen from the side, level with the axle and above, no wheel is hidden
+        posed = [pose_mesh(m, np.zeros(3), 0.0)]
+        for k, c in enumerate(m.centres):
+            for dz in (0.0, 0.5 * v.tire_radius):
+                face = c + [0.0, np.sign(c[1]) * (v.tire_width / 2 - 0.01), dz]
+                eye = face + [0.0, np.sign(c[1]) * 5.0, 0.0]
+                assert _first_hit(eye, face, posed, [m])[:2] == (0, k), (k, dz)
+
+
+def test_wheels_turn_by_distance_over_radius(shared, minimal_scene):
+    """Between two frames the renderer turns each wheel by distance / tire radius (rear wheels: times
+    1 + slip, their tread speed), and the vertices it poses turn about the wheel's axle by that angle."""
+    sim, r = shared
+    (car,) = minimal_scene.vehicles
+    speed = car.path.speed
+    t1, t2 = 0.5, 0.5 + 1 / 30
+    a1, a2 = np.array(r.wheel_angles(t1)[0]), np.array(r.wheel_angles(t2)[0])
+    mesh = r._meshes[0]
+    want = speed * (t2 - t1) / car.tire_radius * np.where(mesh.rear, 1.0 + car.slip, 1.0)
+    np.testing.assert_allclose(a2 - a1, want, rtol=1e-9)
+    assert mesh.rear.sum() == 2 and want.min() > 0.3  # a visible step: ~0.1 of a turn a frame
+    pose = sim.vehicle_poses()[0]
+    posed = [r.posed_vehicles([pose], sim.origin, t)[0][0] for t in (t1, t2)]
+    c, s = math.cos(pose.heading), math.sin(pose.heading)
+    to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # inverse of the heading's rotation
+    base = np.asarray(pose.position) - sim.origin
+    for k in range(4):
+        vs = np.nonzero(mesh.wheel == k)[0]
+        rel = [((p[vs] - base) @ to_body.T) - mesh.centres[k] for p in posed]
+        radius = np.hypot(rel[0][:, 0], rel[0][:, 2])
+        far = radius > 0.5 * car.tire_radius  # points off the axle
+        # the angle from the top (+z) towards the front (+x): rolling forward moves the top forward
+        turn = np.arctan2(rel[1][far, 0], rel[1][far, 2]) - np.arctan2(rel[0][far, 0], rel[0][far, 2])
+        np.testing.assert_allclose(np.remainder(turn - want[k] + np.pi, 2 * np.pi) - np.pi, 0.0, atol=1e-6)
+        np.testing.assert_allclose(rel[0][:, 1], rel[1][:, 1], atol=1e-9)  # about the axle (y)
+
+
 # -------------------------------------------------------------------------------------------------- camera
 def test_camera_snaps_then_smooths_independently_of_frame_rate():
     from taichi_rocks.render.camera import CameraRig
@@ -569,13 +645,14 @@ def test_view_preset_shows_the_target_rear_tires_unoccluded(scenes_dir, name):
     from taichi_rocks.config.scene import load_scene
     from taichi_rocks.motion.vehicles import Fleet
     from taichi_rocks.render.camera import Lens, camera_of, look
-    from taichi_rocks.render.meshes import pose_mesh, vehicle_mesh
+    from taichi_rocks.render.bodies import scene_meshes
+    from taichi_rocks.render.meshes import pose_mesh
 
     scene = load_scene(scenes_dir / f"{name}.toml")
     assert scene.camera.view in ("side", "low") and scene.vehicles[scene.vehicle_index(scene.camera.target)].splash
     rig, ride, target = camera_of(scene)
     fleet = Fleet(scene)
-    meshes = [vehicle_mesh(v) for v in scene.vehicles]
+    meshes = scene_meshes(scene)
     tan_x, tan_y, _ = Lens.of(scene.camera.fov, *scene.render.resolution)
     fps = scene.render.fps
     checked = 0

@@ -244,6 +244,7 @@ class Vehicle(_Table):
                             **_FIT)
     tire_width: Float = _f(0.22, "m, > 0, <= track", le=MAX_BODY, **_FIT)
     color: Color = _f((0.8, 0.2, 0.1), 'RGB in [0, 1], or "#rrggbb"')
+    kind: Literal["auto", "car", "van", "truck"] = _f("auto", "body drawn in videos; auto: from the proportions")
     splash: Bool = _f(True, "its rear tires launch rocks")
     slip: Float = _f(0.15, "wheel spin = speed / tire_radius * (1 + slip)", ge=0)
     path: Path_ = Field(WaypointPath(), discriminator="kind", description="path of the body centre")

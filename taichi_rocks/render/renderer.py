@@ -5,10 +5,10 @@ Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidd
 
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;
-2. the GGUI 3D scene: vehicles (body, cabin or cargo box, bumpers, lights, four tire cylinders each, one
-   ``scene.mesh``, :mod:`.meshes`), the *flying* rocks as ``scene.particles`` from compact f32 fields
-   (atomic-counter compaction in the same pass, ``index_count`` = the count, power-of-two buckets), debug
-   overlays (:mod:`.overlays`) as ``scene.lines``;
+2. the GGUI 3D scene: vehicles (a car, van or truck body of a few boxes, lights, four wheels that turn at
+   their angular velocity; all in one ``scene.mesh``, :mod:`.bodies`, :mod:`.meshes`), the *flying* rocks as
+   ``scene.particles`` from compact f32 fields (atomic-counter compaction in the same pass, ``index_count``
+   = the count, power-of-two buckets), debug overlays (:mod:`.overlays`) as ``scene.lines``;
 
 merged by :func:`.kernels.to_u8` wherever GGUI left its clear colour.
 
@@ -42,7 +42,8 @@ from ..config.resolution import check_resolution
 from . import kernels as K
 from .camera import GL_UP, NEAR, Lens, View, camera_of, look, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
-from .meshes import merge, pose_mesh, vehicle_mesh
+from .bodies import scene_meshes
+from .meshes import merge, pose_mesh
 from .overlays import Overlays
 from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
@@ -109,7 +110,7 @@ class Renderer:
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
-        self._vehicle_fields(sim.scene.vehicles)
+        self._vehicle_fields()
         self._overlays = Overlays(self.flags)
         self._raw = None
         self._win = HiddenWindow(self.resolution)
@@ -141,9 +142,9 @@ class Renderer:
         self.ground_z = float(scene.world.ground_z)
         self.sun = (scene.render.sun, scene.render.sun_frame)
 
-    def _vehicle_fields(self, vehicles) -> None:
+    def _vehicle_fields(self) -> None:
         """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer)."""
-        self._meshes = [vehicle_mesh(v, 0.0) for v in vehicles]
+        self._meshes = scene_meshes(self.sim.scene)
         self._v_sizes = [len(m.verts) for m in self._meshes]
         vs, ns, cs, ids = merge([m[:4] for m in self._meshes])
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
