@@ -235,6 +235,64 @@ def test_a_flying_rock_casts_its_shadow_where_the_sun_puts_it(pipeline, shared, 
     assert (on[dark] < off[dark]).all()
 
 
+def test_resting_rocks_are_irregular_with_the_outline_of_their_id(pipeline, shared, minimal_scene):
+    """A big resting rock is drawn with the outline its id gives (the host twin of the kernels' shape, checked
+    component by component), not as a disc: the drawn pixels match that outline better than they match the
+    circle of the same area, and fill it."""
+    import taichi as ti
+
+    from taichi_rocks.render import rocklook
+
+    ids = np.array([0, 5, 77, 1000, 123457, 2 ** 31 - 1], np.int32)
+    out = ti.ndarray(ti.types.vector(9, ti.f32), len(ids))
+
+    @ti.kernel
+    def shapes(rid: ti.types.ndarray(dtype=ti.i32, ndim=1), sh: ti.types.ndarray(dtype=ti.types.vector(9, ti.f32),
+                                                                                  ndim=1)):
+        for i in range(rid.shape[0]):
+            sh[i] = rocklook.rock_shape(rid[i])
+
+    shapes(ids, out)
+    np.testing.assert_allclose(out.to_numpy(), [rocklook.rock_shape_np(int(i)) for i in ids], atol=2e-6)
+
+    from taichi_rocks.render.renderer import Renderer
+
+    sim, _ = shared
+    r = Renderer(sim, resolution=(W, H), window_every=0, shadows=False)  # the rock alone changes the frame
+    view = r.view()
+    i = 0
+    rid = int(sim.world.rock_id[i])
+    shape = rocklook.rock_shape_np(rid)
+    assert abs(shape[0]) + abs(shape[1]) > 0.05  # elongated
+    rad = 0.5
+    ray = view.fwd - 0.6 * r.tan_y * view.up - 0.5 * r.tan_x * view.right  # left of the car, low in the image
+    target = view.eye + ray * (float(minimal_scene.world.ground_z - sim.origin[2]) + rad - view.eye[2]) / ray[2]
+    old = (sim.world.pos[i], sim.world.radius[i], sim.world.phase[i])
+    try:
+        sim.world.radius[i] = rad
+        sim.world.phase[i] = 0
+        sim.world.pos[i] = (view.eye - 5.0 * view.fwd).tolist()
+        before = r.render_frame().astype(int)
+        sim.world.pos[i] = target.tolist()
+        after = r.render_frame().astype(int)
+    finally:
+        sim.world.pos[i], sim.world.radius[i], sim.world.phase[i] = old
+        r.close()
+    drawn = np.abs(after - before).sum(axis=2) > 30
+    px, py = _pixel(r, view, target)
+    pr = rad * r.px_per_rad / ((target - view.eye) @ view.fwd)
+    yy, xx = np.mgrid[0:H, 0:W]
+    dx, dy = (xx + 0.5 - px) / pr, (py - yy - 0.5) / pr  # y up
+    d, phi = np.hypot(dx, dy), np.arctan2(dy, dx)
+    inside = d < rocklook.outline(shape, phi)
+    disc = d < 1.0
+    near = d < 1.6  # the rock's neighbourhood
+    assert pr > 8 and drawn[~near].sum() == 0
+    iou = lambda a, b: (a & b & near).sum() / ((a | b) & near).sum()
+    assert iou(drawn, inside) > 0.85, iou(drawn, inside)
+    assert iou(drawn, inside) > iou(drawn, disc) + 0.03, (iou(drawn, inside), iou(drawn, disc))
+
+
 def test_ground_is_anchored_to_the_world(shared):
     """Moving the floating origin (here by 37.3 m, not a whole number of tiles) changes no pixel but rounding:
     the checker, the rocks and the vehicles are all drawn where they are in the world."""
@@ -619,10 +677,8 @@ def _in_frame(view, tan_x, tan_y, p, margin=0.05):
 
 
 def _framed_points(scene, i, pose, mesh, eye):
-    """The points a view of vehicle i must show: each rear tire (1 cm inside its outer face; the one facing the eye
-    first) and the spray as it leaves the body (0.5 m behind the rear bumper, 0.5 m up)."""
-    from taichi_rocks.render.meshes import pose_mesh
-
+    """The points a view of vehicle i must show: each rear tire (1 cm inside its outer face; the one facing the
+    eye first) and the spray as it leaves the body (0.5 m behind the rear bumper, 0.5 m up)."""
     spec = scene.vehicles[i]
     c, s = math.cos(pose.heading), math.sin(pose.heading)
     rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..config.scene import Render
 
-__all__ = ["FrameWriter", "FORMATS", "DEFAULT_CRF", "DEFAULT_PRESET", "frame_name", "output_paths", "finished_frames", "existing_size", "png_bytes"]
+__all__ = ["FrameWriter", "FORMATS", "DEFAULT_CRF", "DEFAULT_PRESET", "frame_name", "output_paths", "finished_frames",
+           "existing_size", "png_bytes"]
 
 FORMATS = ("mp4", "gif", "png")
 PNG_COMPRESS_LEVEL = 1  # zlib level 1: ~2x faster than 6 for files a few % larger (rock beds are noisy)
@@ -115,13 +116,13 @@ def _unlink(path) -> None:
 class FrameWriter:
     """Write frames as PNG files plus an MP4 or GIF.
 
-    ``fmt``: "mp4", "gif" or "png" (frames only); ``crf``: the MP4's H.264 constant rate factor (0-51, lower
-    is better and larger; +6 about halves the size), ``ffmpeg_preset`` x264's speed preset. With ``background=True`` (default) frames are encoded by one
-    worker thread fed through a short queue, so PNG compression (zlib releases the GIL) and the pipe to ffmpeg
-    overlap the next frame's simulation and drawing; :meth:`write` copies the frame and blocks only when the
-    queue is full. Errors of the worker are raised by the next :meth:`write` or by :meth:`close`.
-    ``timings["encode"]``: seconds the caller spent blocked in write/close; ``timings["encode_busy"]``: seconds
-    of actual encoding work (PNG + video), wherever it ran.
+    ``fmt``: "mp4", "gif" or "png" (frames only); ``crf``: the MP4's H.264 constant rate factor (0-51, lower is
+    better and larger; +6 about halves the size), ``ffmpeg_preset`` x264's speed preset. With ``background=True``
+    (default) frames are encoded by one worker thread fed through a short queue, so PNG compression (zlib releases
+    the GIL) and the pipe to ffmpeg overlap the next frame's simulation and drawing; :meth:`write` copies the frame
+    and blocks only when the queue is full. Errors of the worker are raised by the next :meth:`write` or by
+    :meth:`close`. ``timings["encode"]``: seconds the caller spent blocked in write/close;
+    ``timings["encode_busy"]``: seconds of actual encoding work (PNG + video), wherever it ran.
     ``start``: resume after frames 0 .. start-1, which are already on disk (they are re-encoded into the
     video first; the next :meth:`write` is frame ``start``).
     Use as a context manager, or call :meth:`close` with ``ok=True`` when every frame was written.

@@ -13,8 +13,8 @@ import numpy as np
 
 from .looks import SUN_DIR_CAMERA
 
-__all__ = ["GL_UP", "NEAR", "VIEWS", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of", "View", "Lens", "look",
-           "sun_vector", "sun_direction"]
+__all__ = ["GL_UP", "NEAR", "VIEWS", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of", "View",
+           "Lens", "look", "sun_vector", "sun_direction"]
 
 GL_UP = (0.0, 0.0, 1.0)  # GGUI camera up: the simulation's +Z (no axis swap anywhere)
 NEAR = 0.05  # near plane, m (GGUI's and the rock culling's)

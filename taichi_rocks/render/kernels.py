@@ -15,20 +15,21 @@ Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)). Kernel arguments a
 below (local f32 coordinates, the simulation's Z up); the buffers live in a :class:`Buffers`.
 """
 
-import numpy as np
 import taichi as ti
 
-from ..engine.randomness import mix32, mix32_np
 from ..engine.world import FLYING
 from .looks import KEY
+from .rocklook import _rock_color, _unit, rock_color, rock_shape
 from .shadows import SHADE_ONE, Shade, smooth01 as _smooth01, splat_shadow as _splat_shadow, \
     take_shade as _take_shade, vehicle_shadows as _vehicle_shadows
 
-__all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "Camera", "Frustum", "Sizing", "Light", "Ground", "Palette",
-           "Shade", "Buffers", "Bucket", "rock_color", "rocks_pass", "clear_buffers", "paint_ground", "to_u8"]
+__all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "Camera", "Frustum", "Sizing", "Light", "Ground",
+           "Palette", "Shade", "Buffers", "Bucket", "rock_color", "rocks_pass", "clear_buffers", "paint_ground",
+           "to_u8"]
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
+SHAPED_PX = 2.0  # from this many pixels in radius, splatted rocks get irregular outlines and facets
 
 _vec2 = ti.types.vector(2, ti.f32)
 _vec3 = ti.types.vector(3, ti.f32)
@@ -95,60 +96,6 @@ class Bucket:
         self.col = ti.Vector.field(3, ti.f32, cap)
 
 
-# ------------------------------------------------------------------------------------------------ rock colour
-_GOLDEN = 0x9E3779B9
-_SALT = 0x85EBCA6B
-
-
-@ti.func
-def _unit(rid, salt):
-    """A number in [0, 1) from a rock id and a salt: stable across frames and memory re-orderings."""
-    h = mix32(ti.cast(ti.cast(rid, ti.u32) * ti.u32(_GOLDEN) + ti.cast(salt, ti.u32) * ti.u32(_SALT), ti.u32))
-    return ti.cast(h >> ti.u32(8), ti.f32) * (1.0 / 16777216.0)
-
-
-def _unit_np(rid, salt) -> np.ndarray:
-    """:func:`_unit` on the host."""
-    x = (np.asarray(rid, np.int64).astype(np.uint64) * np.uint64(_GOLDEN)
-         + np.asarray(salt, np.int64).astype(np.uint64) * np.uint64(_SALT))
-    return (mix32_np(x) >> np.uint32(8)) / 16777216.0
-
-
-_GREY = (0.60, 0.59, 0.57)
-_BROWN = (0.62, 0.50, 0.37)
-_DARK = (0.36, 0.34, 0.32)
-_WARM = (1.30, 1.12, 0.85)  # flying rocks: warmer and lighter, so the splash reads
-_LIFT = 0.06
-
-
-@ti.func
-def _rock_color(rid, phase):
-    a = _unit(rid, 1)
-    b = _unit(rid, 2)
-    c = _unit(rid, 3)
-    grey = ti.Vector(_GREY)
-    brown = ti.Vector(_BROWN)
-    dark = ti.Vector(_DARK)
-    col = grey + (brown - grey) * (a * a)
-    col = col + (dark - col) * (0.55 * c * c)
-    col = col * (0.72 + 0.45 * b)
-    if phase == FLYING:
-        col = ti.min(col * ti.Vector(_WARM) + _LIFT, 1.0)
-    return col
-
-
-def rock_color(rock_id, phase: int = 0) -> np.ndarray:
-    """Host twin of the kernels' rock colour (float64; equal to the kernels' to f32 round-off)."""
-    a, b, c = (float(_unit_np(rock_id, salt)) for salt in (1, 2, 3))
-    grey, brown, dark = np.array(_GREY), np.array(_BROWN), np.array(_DARK)
-    col = grey + (brown - grey) * a * a
-    col = col + (dark - col) * 0.55 * c * c
-    col = col * (0.72 + 0.45 * b)
-    if phase == FLYING:
-        col = np.minimum(col * np.array(_WARM) + _LIFT, 1.0)
-    return col
-
-
 # ------------------------------------------------------------------------------------------------ splatting
 @ti.func
 def _empty_key():
@@ -196,6 +143,19 @@ def _splat_coverage(buf, X, Y, pr, base, fwd, light):
 
 
 @ti.func
+def _shade_rgb(base, nrm, light):
+    """A rock's 8-bit colour, packed, for normal ``nrm``: GGUI's lighting, clamped."""
+    col = ti.min(ti.max(base * (light.ambient + light.sun_color * ti.max(nrm.dot(light.sun), 0.0)), 0.0),
+                 1.0) * 255.0 + 0.5
+    return (ti.cast(col[0], ti.i32) << 16) | (ti.cast(col[1], ti.i32) << 8) | ti.cast(col[2], ti.i32)
+
+
+@ti.func
+def _depth_key(depth, rgb):
+    return (ti.cast(ti.bit_cast(ti.max(depth, 1e-4), ti.i32), ti.i64) << 24) | ti.cast(rgb, ti.i64)
+
+
+@ti.func
 def _splat_sphere(buf, X, Y, pr, z, r, base, cam, light):
     """An opaque shaded sphere of radius pr pixels at view depth z, pixel by pixel, depth-tested through an
     atomic min on (depth, rgb) packed in an i64 (order independent, so deterministic)."""
@@ -213,27 +173,71 @@ def _splat_sphere(buf, X, Y, pr, z, r, base, cam, light):
             for ii in range(i_lo, i_hi + 1):
                 dx = (ii + 0.5 - X) * inv
                 nz = ti.sqrt(ti.max(half - dx * dx, 0.0))
-                nrm = cam.right * dx + cam.up * dy - cam.fwd * nz
-                col = ti.min(ti.max(base * (light.ambient + light.sun_color * ti.max(nrm.dot(light.sun), 0.0)),
-                                    0.0), 1.0) * 255.0 + 0.5
-                depth = ti.max(z - r * nz, 1e-4)
-                key = (ti.cast(ti.bit_cast(depth, ti.i32), ti.i64) << 24) | ti.cast(
-                    (ti.cast(col[0], ti.i32) << 16) | (ti.cast(col[1], ti.i32) << 8) | ti.cast(col[2], ti.i32),
-                    ti.i64)
-                ti.atomic_min(buf.zbuf[ii, jj], key)
+                rgb = _shade_rgb(base, cam.right * dx + cam.up * dy - cam.fwd * nz, light)
+                ti.atomic_min(buf.zbuf[ii, jj], _depth_key(z - r * nz, rgb))
     if j_lo <= j_hi:
         ti.atomic_min(buf.rows[0], j_lo)
         ti.atomic_max(buf.rows[1], j_hi)
 
 
 @ti.func
-def _splat_rock(buf, X, Y, pr, z, r, base, cam, light):
+def _splat_pebble(buf, X, Y, pr, z, r, base, cam, light, shape):
+    """An opaque rock of mean radius pr pixels: its outline the circle's radius times a sum of 2-, 3- and
+    5-fold waves (``shape``: :func:`.rocklook.rock_shape`), shaded as a flattened sphere fitted to that
+    outline whose normal leans by an angle-dependent tilt towards its rim (facets); depth-tested like
+    :func:`_splat_sphere`. cos k phi and sin k phi come from the pixel's offset by the angle-addition formulas
+    (no trigonometry)."""
+    W, H = buf.zbuf.shape
+    reach = pr * shape[8]
+    j_lo = ti.max(ti.cast(ti.floor(Y - reach), ti.i32), 0)
+    j_hi = ti.min(ti.cast(ti.floor(Y + reach), ti.i32), H - 1)
+    inv = 1.0 / pr
+    for jj in range(j_lo, j_hi + 1):
+        dy = (jj + 0.5 - Y) * inv
+        half = shape[8] * shape[8] - dy * dy
+        if half > 0.0:
+            span = pr * ti.sqrt(half)
+            i_lo = ti.max(ti.cast(ti.ceil(X - span - 0.5), ti.i32), 0)
+            i_hi = ti.min(ti.cast(ti.floor(X + span - 0.5), ti.i32), W - 1)
+            for ii in range(i_lo, i_hi + 1):
+                dx = (ii + 0.5 - X) * inv
+                d = ti.sqrt(dx * dx + dy * dy) + 1e-6
+                c1 = dx / d
+                s1 = dy / d
+                c2 = c1 * c1 - s1 * s1
+                s2 = 2.0 * c1 * s1
+                c3 = c1 * c2 - s1 * s2
+                s3 = s1 * c2 + c1 * s2
+                c5 = c2 * c3 - s2 * s3
+                s5 = s2 * c3 + c2 * s3
+                rho = shape[7] * (1.0 + shape[0] * c2 - shape[1] * s2 + shape[2] * c3 - shape[3] * s3
+                                  + shape[4] * c5 - shape[5] * s5)
+                if d < rho:
+                    q = d / rho
+                    lean = q * ti.sqrt(q)  # flatter on top than a sphere, steeper at the rim
+                    tilt = shape[6] * q * (shape[2] * c2 - shape[1] * s3 + shape[5] * c5)
+                    nx = c1 * lean - s1 * tilt
+                    ny = s1 * lean + c1 * tilt
+                    nz = ti.sqrt(ti.max(1.0 - nx * nx - ny * ny, 0.02))
+                    rgb = _shade_rgb(base, (cam.right * nx + cam.up * ny - cam.fwd * nz).normalized(), light)
+                    ti.atomic_min(buf.zbuf[ii, jj], _depth_key(z - r * ti.sqrt(1.0 - q * q), rgb))
+    if j_lo <= j_hi:
+        ti.atomic_min(buf.rows[0], j_lo)
+        ti.atomic_max(buf.rows[1], j_hi)
+
+
+@ti.func
+def _splat_rock(buf, X, Y, pr, z, r, rid, phase, cam, light):
     """Draw one resting rock into the software buffers: centre (X, Y) in pixels (row 0 at the bottom),
-    projected radius pr pixels, view depth z, radius r, colour ``base``."""
+    projected radius pr pixels, view depth z, radius r; its colour and (from SHAPED_PX pixels) its outline
+    from its id."""
+    base = _rock_color(rid, phase)
     if pr < OPAQUE_PX:
         _splat_coverage(buf, X, Y, pr, base, cam.fwd, light)
-    else:
+    elif pr < SHAPED_PX:
         _splat_sphere(buf, X, Y, pr, z, r, base, cam, light)
+    else:
+        _splat_pebble(buf, X, Y, pr, z, r, base, cam, light, rock_shape(rid))
 
 
 @ti.func
@@ -297,7 +301,7 @@ def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.t
                             zz = ti.max(z, fr.near)
                             _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
                                         (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
-                                        _rock_color(rid, ph), cam, light)
+                                        rid, ph, cam, light)
                         continue
                 keep = True
                 draw_r = r

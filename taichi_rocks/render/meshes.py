@@ -14,7 +14,8 @@ import numpy as np
 
 from .looks import HUB_COLOR, RIM_DARK_COLOR, TIRE_COLOR, TREAD_COLOR
 
-__all__ = ["VehicleMesh", "pose_mesh", "merge", "quad", "box", "frustum", "wheel", "turn_about_axle", "WHEEL_SEGMENTS", "SPOKES"]
+__all__ = ["VehicleMesh", "pose_mesh", "merge", "quad", "box", "frustum", "wheel", "turn_about_axle",
+           "WHEEL_SEGMENTS", "SPOKES"]
 
 WHEEL_SEGMENTS = 20  # around a wheel: tread blocks alternate in colour segment by segment
 SPOKES = 5  # light spokes between dark openings on the rim

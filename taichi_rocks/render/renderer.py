@@ -76,14 +76,14 @@ def _vec(a):
 class Renderer:
     """Draws ``sim`` into a hidden GGUI window; :meth:`render_frame` returns the image (H, W, 3) uint8.
 
-    ``resolution`` (even sides), ``fps`` and ``shadows`` default to the scene's [render] table. ``rocks``: "splat" (resting
-    rocks splatted into the background image by a Taichi kernel, flying rocks GGUI particles; the default)
+    ``resolution`` (even sides), ``fps`` and ``shadows`` default to the scene's [render] table. ``rocks``: "splat"
+    (resting rocks splatted into the background image by a Taichi kernel, flying rocks GGUI particles; the default)
     or "particles" (every visible rock a GGUI particle). ``lod_pixels`` ("particles" only): resting rocks whose
-    projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of
-    rock_id, drawn 1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames
-    between window re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass:
-    culling, splatting, compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and
-    the read-back). ``last_count``: rocks GGUI drew in the last frame.
+    projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of rock_id, drawn
+    1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames between window
+    re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass: culling, splatting,
+    compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
+    ``last_count``: rocks GGUI drew in the last frame.
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",
