@@ -46,8 +46,9 @@ def view_preset(view: str, follow_spec, target_spec, look_ahead: float):
     * side: on the vehicle's left (the side the default sun lights), level with a point a quarter
       of its length behind its rear axle, at 1.4 m, looking across at the target's rear tires and the spray
       behind them; far enough (4 m + half the length) to frame the rear half of the body and the spray;
-    * low: at 1.2 m, 5.5 m behind the vehicle's rear axle and 3.5 m outside its left tires,
-      looking at the target's rear tires from behind, along the spray;
+    * low: at 1.2 m, 5.5 m behind the vehicle's rear axle and 3.5 m outside its left tires, looking along
+      the spray at a point a quarter of the target's length behind its rear axle (the rear tires on the
+      left of the frame, the spray on the right);
     * orbit: the side view's eye turned about the vehicle's centre (:class:`CameraRig`).
     """
     if view not in VIEWS:
@@ -59,7 +60,7 @@ def view_preset(view: str, follow_spec, target_spec, look_ahead: float):
     if view in ("side", "orbit"):
         return (np.array([xr - 0.25 * L, 4.0 + 0.5 * L, 1.4]),
                 np.array([txr - 0.25 * tL, 0.0, max(0.4 * ttop, tR)]))
-    return np.array([xr - 5.5, 0.5 * track + 3.5, 1.2]), np.array([txr, 0.0, 0.35 * ttop])
+    return np.array([xr - 5.5, 0.5 * track + 3.5, 1.2]), np.array([txr - 0.25 * tL, 0.0, 0.35 * ttop])
 
 
 class CameraRig:

@@ -29,7 +29,7 @@ __all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "Camera", "Fru
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
-SHAPED_PX = 2.0  # from this many pixels in radius, splatted rocks get irregular outlines and facets
+SHAPED_PX = 4.0  # from this many pixels in radius, splatted rocks get irregular outlines and facets
 
 _vec2 = ti.types.vector(2, ti.f32)
 _vec3 = ti.types.vector(3, ti.f32)
@@ -202,8 +202,9 @@ def _splat_pebble(buf, X, Y, pr, z, r, base, cam, light, shape):
             for ii in range(i_lo, i_hi + 1):
                 dx = (ii + 0.5 - X) * inv
                 d = ti.sqrt(dx * dx + dy * dy) + 1e-6
-                c1 = dx / d
-                s1 = dy / d
+                inv_d = 1.0 / d
+                c1 = dx * inv_d
+                s1 = dy * inv_d
                 c2 = c1 * c1 - s1 * s1
                 s2 = 2.0 * c1 * s1
                 c3 = c1 * c2 - s1 * s2
@@ -214,13 +215,13 @@ def _splat_pebble(buf, X, Y, pr, z, r, base, cam, light, shape):
                                   + shape[4] * c5 - shape[5] * s5)
                 if d < rho:
                     q = d / rho
-                    lean = q * ti.sqrt(q)  # flatter on top than a sphere, steeper at the rim
+                    lean = 0.5 * q * (1.0 + q)  # ~ q^1.5: flatter on top than a sphere, steeper at the rim
                     tilt = shape[6] * q * (shape[2] * c2 - shape[1] * s3 + shape[5] * c5)
                     nx = c1 * lean - s1 * tilt
                     ny = s1 * lean + c1 * tilt
-                    nz = ti.sqrt(ti.max(1.0 - nx * nx - ny * ny, 0.02))
-                    rgb = _shade_rgb(base, (cam.right * nx + cam.up * ny - cam.fwd * nz).normalized(), light)
-                    ti.atomic_min(buf.zbuf[ii, jj], _depth_key(z - r * ti.sqrt(1.0 - q * q), rgb))
+                    nz = ti.sqrt(ti.max(1.0 - nx * nx - ny * ny, 0.02))  # (nx, ny, nz) is (about) a unit
+                    rgb = _shade_rgb(base, cam.right * nx + cam.up * ny - cam.fwd * nz, light)
+                    ti.atomic_min(buf.zbuf[ii, jj], _depth_key(z - r * nz, rgb))
     if j_lo <= j_hi:
         ti.atomic_min(buf.rows[0], j_lo)
         ti.atomic_max(buf.rows[1], j_hi)

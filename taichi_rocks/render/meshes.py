@@ -17,8 +17,8 @@ from .looks import HUB_COLOR, RIM_DARK_COLOR, TIRE_COLOR, TREAD_COLOR
 __all__ = ["VehicleMesh", "pose_mesh", "merge", "quad", "box", "frustum", "wheel", "turn_about_axle",
            "WHEEL_SEGMENTS", "SPOKES"]
 
-WHEEL_SEGMENTS = 20  # around a wheel: tread blocks alternate in colour segment by segment
-SPOKES = 5  # light spokes between dark openings on the rim
+WHEEL_SEGMENTS = 16  # around a wheel: tread blocks alternate in colour segment by segment (even)
+SPOKES = 4  # light spokes between dark openings on the rim (WHEEL_SEGMENTS a multiple of it)
 
 
 class VehicleMesh(NamedTuple):
