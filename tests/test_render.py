@@ -545,16 +545,18 @@ def test_odometer_integrates_the_speed_and_depends_on_the_time_alone():
     uninterrupted one)."""
     from scenes_util import scene
 
+    from taichi_rocks.motion.vehicles import Fleet
     from taichi_rocks.render.wheels import Odometer
 
     sc = scene(vehicles=[{"name": "a", "path": {"points": [[0.0, 0.0], [400.0, 0.0]], "speed": 10.0}},
                          {"name": "b", "path": {"points": [[0.0, 5.0], [50.0, 5.0]], "speed": [0.0, 10.0]}}])
-    step = Odometer(sc)
+    paths = Fleet(sc).paths
+    step = Odometer(paths)
     for k in range(1, 91):
         got = step.at(k / 30)
     np.testing.assert_allclose(got, [10.0 * 3.0, 0.5 * 3.0 ** 2], rtol=1e-12)  # a = v^2 / 2 L = 1 m/s^2
-    assert np.array_equal(Odometer(sc).at(3.0), got)
-    assert np.array_equal(step.at(1.2345), Odometer(sc).at(1.2345))  # back in time: from 0 again
+    assert np.array_equal(Odometer(paths).at(3.0), got)
+    assert np.array_equal(step.at(1.2345), Odometer(paths).at(1.2345))  # back in time: from 0 again
 
 
 def test_vehicle_kinds_and_the_player_mark():

@@ -148,7 +148,7 @@ class Renderer:
         self._v_sizes = [len(m.verts) for m in self._meshes]
         vs, ns, cs, ids = merge([m[:4] for m in self._meshes])
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
-        self._odometer = Odometer(self.sim.scene)
+        self._odometer = Odometer(self.sim.fleet.paths)
         self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
         self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols = ti.Vector.field(3, ti.f32, len(vs))

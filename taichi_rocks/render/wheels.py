@@ -11,27 +11,20 @@ import math
 
 import numpy as np
 
-from ..motion.paths import path_from_spec
-
 __all__ = ["STEP", "Odometer", "wheel_angles"]
 
 STEP = 1.0 / 240.0  # s: the integration grid
 
 
-def _path(spec):
-    data = spec.path.model_dump()
-    kind = data.pop("kind")
-    return path_from_spec(kind, **data)
-
-
 class Odometer:
-    """Signed distance driven since t = 0 by each vehicle of ``scene``, :meth:`at` any time t >= 0.
+    """Signed distance driven since t = 0 along each of ``paths`` (objects whose ``pose(t).speed`` is the
+    signed speed: the simulation's vehicle paths, ``sim.fleet.paths``), :meth:`at` any time t >= 0.
 
     Integrates forwards from the last grid point reached (so a render advancing frame by frame costs a few
     path evaluations per frame) and starts again from 0 when asked for an earlier time."""
 
-    def __init__(self, scene):
-        self.paths = [_path(v) for v in scene.vehicles]
+    def __init__(self, paths):
+        self.paths = list(paths)
         self._k = 0  # grid points integrated: the distance is known at t = k * STEP
         self._dist = np.zeros(len(self.paths))
         self._speed = self._speeds(0.0)
