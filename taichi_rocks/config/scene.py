@@ -260,6 +260,7 @@ class Vehicle(_Table):
     mud_flaps: Bool = _f(False, "mud flaps 1.1 tire_radius behind the rear axles")
     mud_flap_clearance: Float = _f(0.10, "m, height of the mud flaps' lower edge", ge=0)
     color: Color = _f((0.8, 0.2, 0.1), 'RGB in [0, 1], or "#rrggbb"')
+    kind: Literal["auto", "car", "van", "truck"] = _f("auto", "body drawn in videos; auto: from the proportions")
     splash: Bool = _f(True, "its rear tires launch rocks")
     slip: Float = _f(0.15, "wheel spin = speed / tire_radius * (1 + slip)", ge=0)
     path: Path_ = Field(WaypointPath(), discriminator="kind", description="path of the body centre")
@@ -282,25 +283,58 @@ class Vehicle(_Table):
         return value
 
 
+CAMERA_VIEWS = ("chase", "side", "low", "orbit")
+
+
 class Camera(_Table):
-    """The camera of rendered videos."""
-    follow: Optional[Name] = _follow("vehicle the camera follows; default: bed.follow")
-    offset: Vec3 = _f((-9.0, 0.0, 3.5), "m, in the vehicle frame (x forward, y left, z up)")
-    look_ahead: Float = _f(6.0, "m ahead of the vehicle the camera looks at")
+    """The camera of rendered videos: a view preset, the vehicles it rides with and looks at."""
+    view: Literal[CAMERA_VIEWS] = _f("chase", "chase: behind and above the followed vehicle; side (beside the "
+                                              "target, at its rear tires), low (low, behind and to the left of "
+                                              "its rear tires), orbit (circling it): ride with the target")
+    follow: Optional[Name] = _follow("vehicle the chase camera rides with; default: bed.follow")
+    target: Optional[Name] = _f(None, "vehicle the camera looks at (side, low, orbit: and rides with); "
+                                      "default: follow")
+    offset: Optional[Vec3] = _f(None, "m, the eye in the frame of the vehicle the camera rides with (x forward, "
+                                      "y left, z up); default: the view's")
+    aim: Optional[Vec3] = _f(None, "m, the point looked at, in the target's frame; default: the view's "
+                                   "(chase: look_ahead metres ahead)")
+    look_ahead: Float = _f(6.0, "m ahead of the vehicle the chase camera looks at")
+    orbit_period: Float = _f(20.0, "s, one turn of the orbit view", gt=0)
     fov: Float = _f(50.0, "deg, field of view, in (0, 180)", gt=0, lt=180)
     smoothing: Float = _f(0.3, "s, time constant of the camera's follow", ge=0)
+
+
+class SunAngles(_Table):
+    """A direction towards the sun by its angles."""
+    azimuth: Float = _f(129.3, "deg, counter-clockwise from +x (the sun's frame, see sun_frame)")
+    elevation: Float = _f(54.6, "deg above the horizon, in (0, 90]", gt=0, le=90)
 
 
 class Render(_Table):
     """Video output."""
     resolution: tuple[Pixels, Pixels] = _f((1280, 720), f"[width, height], even ints >= {MIN_SIDE}")
     fps: Float = _f(30.0, "frames per second of simulated time", gt=0)
+    quality: Int = _f(27, "H.264 constant rate factor of the MP4 (x264 superfast), 0 (lossless) to 51 "
+                          "(smallest): +6 about halves the size; 27: ~0.9 MB/s at 720p", ge=0, le=51)
     background: Color = _f((0.62, 0.76, 0.92), 'sky RGB in [0, 1], or "#rrggbb"')
     draw_distance: Float = _f(80.0, "m", gt=0)
     ground_tile: Float = _f(2.0, "m, checker size of the ground", gt=0)
+    sun: _either(Vec3, SunAngles, _is_list) = _f(
+        (-0.45, 0.55, 1.0), "direction towards the sun: [x, y, z] (z > 0) or {azimuth, elevation} in degrees")
+    sun_frame: Literal["vehicle", "world"] = _f(
+        "vehicle", "frame of sun: the heading frame of the vehicle the camera rides with (x forward, y left; "
+                   "smoothed like the camera, so the light keeps its side in turns) or the world's")
+    shadows: Bool = _f(True, "flying rocks and vehicles cast shadows on the ground; resting rocks darken it")
     bed_edge: Bool = _f(False, "debug overlay: the bed's edge circle")
     tire_rays: Bool = _f(False, "debug overlay: the tire rays")
     hash_cells: Bool = _f(False, "debug overlay: hash cells queried this frame")
+
+    @field_validator("sun")
+    @classmethod
+    def _sun_up(cls, v: Any) -> Any:
+        if isinstance(v, tuple) and not v[2] > 0:
+            raise ValueError(f"must point up (z > 0), got {_show(v)}")
+        return v
 
 
 class Scene(_Table):
@@ -338,7 +372,7 @@ class Scene(_Table):
 # tables by the key that holds them (or the path kind), to list the keys allowed where an unknown one is found
 _TABLES: dict[str, type[BaseModel]] = {
     "world": World, "bed": Bed, "launch": Launch, "effects": Effects, "sim": Sim, "hash": Hash,
-    "vehicle": Vehicle, "camera": Camera, "render": Render, **PATH_KINDS}
+    "vehicle": Vehicle, "camera": Camera, "render": Render, "sun": SunAngles, **PATH_KINDS}
 _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error locations
 
 
@@ -479,10 +513,10 @@ def _name_problems(data: dict) -> list[tuple[tuple, str]]:
         elif isinstance(name, str):
             seen[name] = i
     if names and all(isinstance(n, str) for n in names):
-        for table in ("bed", "camera"):
-            follow = data[table].get("follow") if isinstance(data.get(table), dict) else None
+        for table, key in (("bed", "follow"), ("camera", "follow"), ("camera", "target")):
+            follow = data[table].get(key) if isinstance(data.get(table), dict) else None
             if isinstance(follow, str) and follow not in seen:
-                problems.append(((table, "follow"), _unknown("vehicle", follow, list(seen))))
+                problems.append(((table, key), _unknown("vehicle", follow, list(seen))))
     return problems
 
 

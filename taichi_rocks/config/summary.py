@@ -39,6 +39,12 @@ def _speed(path) -> str:
     return f"{path.speed:g} m/s"
 
 
+def _camera_line(cam) -> str:
+    if cam.view == "chase":
+        return f"chase view, follows {cam.follow!r}" + (f", looks at {cam.target!r}" if cam.target else "")
+    return f"{cam.view} view of {cam.target or cam.follow!r}"
+
+
 def summarise(scene) -> str:
     """A few lines describing the scene and what the simulation will do (``taichi-rocks check``)."""
     e, sim, h, bed = scene.effects, scene.sim, scene.sim.hash, scene.bed
@@ -59,7 +65,7 @@ def summarise(scene) -> str:
         f" detection {sim.detection} (substeps {sim.substeps}), precision {sim.precision}, origin {sim.origin}",
         f"hash: insert {h.insert}, cell size {h.cell_size}, table size {h.table_size},"
         + (f" reorder every {h.reorder_every} steps" if h.reorder_every else " never reordered"),
-        f"camera: follows {scene.camera.follow!r}, {scene.render.resolution[0]}x{scene.render.resolution[1]}"
+        f"camera: {_camera_line(scene.camera)}, {scene.render.resolution[0]}x{scene.render.resolution[1]}"
         f" at {scene.render.fps:g} fps",
         f"memory: about {estimate_memory(scene) / 1e6:.1f} MB (estimate)",
     ]

@@ -2,9 +2,11 @@
 
 * PNG frames ``out_dir/frames/frame_00000.png``: each written under a temporary name in the same folder and
   renamed (``os.replace``) when complete, so a frame on disk is never half written.
-* MP4 ``out_dir/<name>.mp4``: H.264 in yuv420p (x264 preset superfast, CRF 23: on 720p frames of a rock bed,
-  34 ms of CPU a frame and ~19 Mbit/s, against 52 ms and ~17 Mbit/s for veryfast, 17 ms and ~27 Mbit/s for
-  ultrafast) through imageio-ffmpeg, streamed while rendering into
+* MP4 ``out_dir/<name>.mp4``: H.264 in yuv420p, x264 preset superfast at a constant rate factor ``crf``
+  ([render] quality, default :data:`DEFAULT_CRF`) through imageio-ffmpeg. A rock bed is noise to the encoder:
+  on 720p frames of the default scene CRF 23 gave ~12 Mbit/s (PSNR 33.3 dB), 26 ~8.3 (31.6 dB), 28 ~6.3
+  (30.5 dB); veryfast is ~18 % smaller at the same CRF for twice the encoding time, medium ~20 % for five
+  times (more than the render loop can hide in its encoding thread on two cores). Streamed while rendering into
   ``out_dir/.<name>.partial.mp4`` and renamed when closed successfully. ``macro_block_size=2`` keeps the
   frame size exact (the default 16 would silently resize 1280x720 -> 1280x720 but 1920x1080 -> 1920x1088);
   odd sides cannot be encoded in yuv420p and are refused up front.
@@ -24,10 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FrameWriter", "FORMATS", "frame_name", "output_paths", "finished_frames", "existing_size", "png_bytes"]
+from ..config.scene import Render
+
+__all__ = ["FrameWriter", "FORMATS", "DEFAULT_CRF", "DEFAULT_PRESET", "frame_name", "output_paths", "finished_frames",
+           "existing_size", "png_bytes"]
 
 FORMATS = ("mp4", "gif", "png")
 PNG_COMPRESS_LEVEL = 1  # zlib level 1: ~2x faster than 6 for files a few % larger (rock beds are noisy)
+DEFAULT_CRF = Render.model_fields["quality"].default  # H.264 constant rate factor: the scene format's default
+DEFAULT_PRESET = "superfast"
 
 
 def frame_name(index: int) -> str:
@@ -109,19 +116,20 @@ def _unlink(path) -> None:
 class FrameWriter:
     """Write frames as PNG files plus an MP4 or GIF.
 
-    ``fmt``: "mp4", "gif" or "png" (frames only). With ``background=True`` (default) frames are encoded by one
-    worker thread fed through a short queue, so PNG compression (zlib releases the GIL) and the pipe to ffmpeg
-    overlap the next frame's simulation and drawing; :meth:`write` copies the frame and blocks only when the
-    queue is full. Errors of the worker are raised by the next :meth:`write` or by :meth:`close`.
-    ``timings["encode"]``: seconds the caller spent blocked in write/close; ``timings["encode_busy"]``: seconds
-    of actual encoding work (PNG + video), wherever it ran.
+    ``fmt``: "mp4", "gif" or "png" (frames only); ``crf``: the MP4's H.264 constant rate factor (0-51, lower is
+    better and larger; +6 about halves the size), ``ffmpeg_preset`` x264's speed preset. With ``background=True``
+    (default) frames are encoded by one worker thread fed through a short queue, so PNG compression (zlib releases
+    the GIL) and the pipe to ffmpeg overlap the next frame's simulation and drawing; :meth:`write` copies the frame
+    and blocks only when the queue is full. Errors of the worker are raised by the next :meth:`write` or by
+    :meth:`close`. ``timings["encode"]``: seconds the caller spent blocked in write/close;
+    ``timings["encode_busy"]``: seconds of actual encoding work (PNG + video), wherever it ran.
     ``start``: resume after frames 0 .. start-1, which are already on disk (they are re-encoded into the
     video first; the next :meth:`write` is frame ``start``).
     Use as a context manager, or call :meth:`close` with ``ok=True`` when every frame was written.
     """
 
     def __init__(self, out_dir, name: str, fps: float, fmt: str = "mp4", *, start: int = 0, background: bool = True,
-                 queue_size: int = 3, ffmpeg_preset: str = "superfast", crf: int = 23):
+                 queue_size: int = 3, ffmpeg_preset: str = DEFAULT_PRESET, crf: int = DEFAULT_CRF):
         paths = output_paths(out_dir, name, fmt)
         if not fps > 0:
             raise ValueError(f"fps must be > 0, got {fps!r}")

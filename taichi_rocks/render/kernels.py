@@ -6,7 +6,8 @@ and splats the resting/sliding ones (:func:`_splat_sphere`: shaded spheres, dept
 :func:`_splat_coverage`: sub-pixel rocks blended by coverage); :func:`paint_ground` then traces one ray per
 pixel to the ground plane: a checker of ``render.ground_tile`` metre tiles anchored to *world* coordinates
 (it scrolls as the vehicles drive; box-filtered, so no moire at the horizon), soft contact shadows under the
-vehicles, the splatted rocks, haze. Everything GGUI draws (the second layer: vehicles, flying rocks,
+vehicles, the shadows of the vehicles and the rocks (:mod:`.shadows`; splatted by the rock pass), the
+splatted rocks, haze. Everything GGUI draws (the second layer: vehicles, flying rocks,
 overlays) lies above the ground plane, so drawing the ground and what lies on it *behind* the 3D scene is
 exact (up to a rock touching a tire's contact patch). :func:`to_u8` merges the two.
 
@@ -14,18 +15,21 @@ Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)). Kernel arguments a
 below (local f32 coordinates, the simulation's Z up); the buffers live in a :class:`Buffers`.
 """
 
-import numpy as np
 import taichi as ti
 
-from ..engine.randomness import mix32, mix32_np
 from ..engine.world import FLYING
 from .looks import KEY
+from .rocklook import _rock_color, _unit, rock_color, rock_shape
+from .shadows import SHADE_ONE, Shade, smooth01 as _smooth01, splat_shadow as _splat_shadow, \
+    take_shade as _take_shade, vehicle_shadows as _vehicle_shadows
 
-__all__ = ["COVERAGE_ONE", "OPAQUE_PX", "Camera", "Frustum", "Sizing", "Light", "Ground", "Palette", "Buffers",
-           "Bucket", "rock_color", "rocks_pass", "clear_buffers", "paint_ground", "to_u8"]
+__all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "Camera", "Frustum", "Sizing", "Light", "Ground",
+           "Palette", "Shade", "Buffers", "Bucket", "rock_color", "rocks_pass", "clear_buffers", "paint_ground",
+           "to_u8"]
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
+SHAPED_PX = 4.0  # from this many pixels in radius, splatted rocks get irregular outlines and facets
 
 _vec2 = ti.types.vector(2, ti.f32)
 _vec3 = ti.types.vector(3, ti.f32)
@@ -40,10 +44,12 @@ Frustum = ti.types.struct(tan_x=ti.f32, tan_y=ti.f32, sec_x=ti.f32, sec_y=ti.f32
 Sizing = ti.types.struct(lod_px=ti.f32, radius_scale=ti.f32)
 #: the lights: unit vector towards the sun, ambient and sun colours
 Light = ti.types.struct(sun=_vec3, ambient=_vec3, sun_color=_vec3)
-#: the ground plane z, the world's checker phase (origin mod 2 tiles), the tile size, the haze distance
-Ground = ti.types.struct(z=ti.f32, wrap=_vec2, tile=ti.f32, haze_dist=ti.f32)
-#: the checker's two colours, the ground's light (ambient + sun * cos), the sky's colour and the horizon's
-Palette = ti.types.struct(ground_a=_vec3, ground_b=_vec3, light=_vec3, sky=_vec3, horizon=_vec3)
+#: the ground plane z, the world's checker phase (origin mod 2 tiles), the tile size, the haze distance, the
+#: shift of a shadow per metre of height (-sun_xy / sun_z)
+Ground = ti.types.struct(z=ti.f32, wrap=_vec2, tile=ti.f32, haze_dist=ti.f32, shift=_vec2)
+#: the checker's two colours, the ground's light (ambient + sun * cos), the sky's colour and the horizon's,
+#: the share of the light left in full shadow (ambient / light)
+Palette = ti.types.struct(ground_a=_vec3, ground_b=_vec3, light=_vec3, sky=_vec3, horizon=_vec3, umbra=_vec3)
 
 
 @ti.data_oriented
@@ -52,8 +58,9 @@ class Buffers:
     the splatted rocks (1 x 1 placeholders unless ``splat``), the rows they touch, the vehicles' shadows, and
     two counters (rocks compacted for GGUI, pixels GGUI drew)."""
 
-    def __init__(self, width: int, height: int, splat: bool, max_cars: int):
+    def __init__(self, width: int, height: int, splat: bool, max_cars: int, shadows: bool = False):
         self.splat = bool(splat)  # read at compile time
+        self.shadows = bool(shadows)  # read at compile time
         self.count = ti.field(ti.i32, shape=())
         self.sky = ti.Vector.field(4, ti.u8)
         ti.root.dense(ti.j, height).dense(ti.i, width).place(self.sky)  # rows contiguous: written row by row
@@ -65,10 +72,16 @@ class Buffers:
         tree = ti.FieldsBuilder()
         tree.dense(ti.j, bh).dense(ti.i, bw).place(self.zbuf, self.acc)
         tree.finalize()
-        self.rows = ti.field(ti.i32, shape=2)  # lowest and highest row a splat touched
+        # shadows cast on the ground, SHADE_ONE = full: by flying rocks (on everything), by resting rocks (on the
+        # ground only: a rock does not shade itself)
+        sw, sh = (width, height) if shadows else (1, 1)
+        self.shade = ti.Vector.field(2, ti.i32)
+        ti.root.dense(ti.j, sh).dense(ti.i, sw).place(self.shade)
+        self.rows = ti.field(ti.i32, shape=4)  # lowest and highest row a splat touched, and a shadow
         clear_buffers(self)
-        # x, y, cos, sin, half length, half width, shadow softness (local, m)
-        self.cars = ti.Vector.field(7, ti.f32, shape=max_cars)
+        # x, y, cos, sin, half length, half width, contact shadow softness, height of the top, and the centre
+        # (x, y) and squared radius of a circle holding the sun's shadow (local, m)
+        self.cars = ti.Vector.field(11, ti.f32, shape=max_cars)
         self.drawn_px = ti.field(ti.i32, shape=())
 
 
@@ -83,67 +96,7 @@ class Bucket:
         self.col = ti.Vector.field(3, ti.f32, cap)
 
 
-# ------------------------------------------------------------------------------------------------ rock colour
-_GOLDEN = 0x9E3779B9
-_SALT = 0x85EBCA6B
-
-
-@ti.func
-def _unit(rid, salt):
-    """A number in [0, 1) from a rock id and a salt: stable across frames and memory re-orderings."""
-    h = mix32(ti.cast(ti.cast(rid, ti.u32) * ti.u32(_GOLDEN) + ti.cast(salt, ti.u32) * ti.u32(_SALT), ti.u32))
-    return ti.cast(h >> ti.u32(8), ti.f32) * (1.0 / 16777216.0)
-
-
-def _unit_np(rid, salt) -> np.ndarray:
-    """:func:`_unit` on the host."""
-    x = (np.asarray(rid, np.int64).astype(np.uint64) * np.uint64(_GOLDEN)
-         + np.asarray(salt, np.int64).astype(np.uint64) * np.uint64(_SALT))
-    return (mix32_np(x) >> np.uint32(8)) / 16777216.0
-
-
-_GREY = (0.60, 0.59, 0.57)
-_BROWN = (0.62, 0.50, 0.37)
-_DARK = (0.36, 0.34, 0.32)
-_WARM = (1.30, 1.12, 0.85)  # flying rocks: warmer and lighter, so the splash reads
-_LIFT = 0.06
-
-
-@ti.func
-def _rock_color(rid, phase):
-    a = _unit(rid, 1)
-    b = _unit(rid, 2)
-    c = _unit(rid, 3)
-    grey = ti.Vector(_GREY)
-    brown = ti.Vector(_BROWN)
-    dark = ti.Vector(_DARK)
-    col = grey + (brown - grey) * (a * a)
-    col = col + (dark - col) * (0.55 * c * c)
-    col = col * (0.72 + 0.45 * b)
-    if phase == FLYING:
-        col = ti.min(col * ti.Vector(_WARM) + _LIFT, 1.0)
-    return col
-
-
-def rock_color(rock_id, phase: int = 0) -> np.ndarray:
-    """Host twin of the kernels' rock colour (float64; equal to the kernels' to f32 round-off)."""
-    a, b, c = (float(_unit_np(rock_id, salt)) for salt in (1, 2, 3))
-    grey, brown, dark = np.array(_GREY), np.array(_BROWN), np.array(_DARK)
-    col = grey + (brown - grey) * a * a
-    col = col + (dark - col) * 0.55 * c * c
-    col = col * (0.72 + 0.45 * b)
-    if phase == FLYING:
-        col = np.minimum(col * np.array(_WARM) + _LIFT, 1.0)
-    return col
-
-
 # ------------------------------------------------------------------------------------------------ splatting
-@ti.func
-def _smooth01(x):
-    s = ti.min(ti.max(x, 0.0), 1.0)
-    return s * s * (3.0 - 2.0 * s)
-
-
 @ti.func
 def _empty_key():
     """The depth-buffer value of a pixel no rock covers."""
@@ -190,6 +143,19 @@ def _splat_coverage(buf, X, Y, pr, base, fwd, light):
 
 
 @ti.func
+def _shade_rgb(base, nrm, light):
+    """A rock's 8-bit colour, packed, for normal ``nrm``: GGUI's lighting, clamped."""
+    col = ti.min(ti.max(base * (light.ambient + light.sun_color * ti.max(nrm.dot(light.sun), 0.0)), 0.0),
+                 1.0) * 255.0 + 0.5
+    return (ti.cast(col[0], ti.i32) << 16) | (ti.cast(col[1], ti.i32) << 8) | ti.cast(col[2], ti.i32)
+
+
+@ti.func
+def _depth_key(depth, rgb):
+    return (ti.cast(ti.bit_cast(ti.max(depth, 1e-4), ti.i32), ti.i64) << 24) | ti.cast(rgb, ti.i64)
+
+
+@ti.func
 def _splat_sphere(buf, X, Y, pr, z, r, base, cam, light):
     """An opaque shaded sphere of radius pr pixels at view depth z, pixel by pixel, depth-tested through an
     atomic min on (depth, rgb) packed in an i64 (order independent, so deterministic)."""
@@ -207,27 +173,72 @@ def _splat_sphere(buf, X, Y, pr, z, r, base, cam, light):
             for ii in range(i_lo, i_hi + 1):
                 dx = (ii + 0.5 - X) * inv
                 nz = ti.sqrt(ti.max(half - dx * dx, 0.0))
-                nrm = cam.right * dx + cam.up * dy - cam.fwd * nz
-                col = ti.min(ti.max(base * (light.ambient + light.sun_color * ti.max(nrm.dot(light.sun), 0.0)),
-                                    0.0), 1.0) * 255.0 + 0.5
-                depth = ti.max(z - r * nz, 1e-4)
-                key = (ti.cast(ti.bit_cast(depth, ti.i32), ti.i64) << 24) | ti.cast(
-                    (ti.cast(col[0], ti.i32) << 16) | (ti.cast(col[1], ti.i32) << 8) | ti.cast(col[2], ti.i32),
-                    ti.i64)
-                ti.atomic_min(buf.zbuf[ii, jj], key)
+                rgb = _shade_rgb(base, cam.right * dx + cam.up * dy - cam.fwd * nz, light)
+                ti.atomic_min(buf.zbuf[ii, jj], _depth_key(z - r * nz, rgb))
     if j_lo <= j_hi:
         ti.atomic_min(buf.rows[0], j_lo)
         ti.atomic_max(buf.rows[1], j_hi)
 
 
 @ti.func
-def _splat_rock(buf, X, Y, pr, z, r, base, cam, light):
+def _splat_pebble(buf, X, Y, pr, z, r, base, cam, light, shape):
+    """An opaque rock of mean radius pr pixels: its outline the circle's radius times a sum of 2-, 3- and
+    5-fold waves (``shape``: :func:`.rocklook.rock_shape`), shaded as a flattened sphere fitted to that
+    outline whose normal leans by an angle-dependent tilt towards its rim (facets); depth-tested like
+    :func:`_splat_sphere`. cos k phi and sin k phi come from the pixel's offset by the angle-addition formulas
+    (no trigonometry)."""
+    W, H = buf.zbuf.shape
+    reach = pr * shape[8]
+    j_lo = ti.max(ti.cast(ti.floor(Y - reach), ti.i32), 0)
+    j_hi = ti.min(ti.cast(ti.floor(Y + reach), ti.i32), H - 1)
+    inv = 1.0 / pr
+    for jj in range(j_lo, j_hi + 1):
+        dy = (jj + 0.5 - Y) * inv
+        half = shape[8] * shape[8] - dy * dy
+        if half > 0.0:
+            span = pr * ti.sqrt(half)
+            i_lo = ti.max(ti.cast(ti.ceil(X - span - 0.5), ti.i32), 0)
+            i_hi = ti.min(ti.cast(ti.floor(X + span - 0.5), ti.i32), W - 1)
+            for ii in range(i_lo, i_hi + 1):
+                dx = (ii + 0.5 - X) * inv
+                d = ti.sqrt(dx * dx + dy * dy) + 1e-6
+                inv_d = 1.0 / d
+                c1 = dx * inv_d
+                s1 = dy * inv_d
+                c2 = c1 * c1 - s1 * s1
+                s2 = 2.0 * c1 * s1
+                c3 = c1 * c2 - s1 * s2
+                s3 = s1 * c2 + c1 * s2
+                c5 = c2 * c3 - s2 * s3
+                s5 = s2 * c3 + c2 * s3
+                rho = shape[7] * (1.0 + shape[0] * c2 - shape[1] * s2 + shape[2] * c3 - shape[3] * s3
+                                  + shape[4] * c5 - shape[5] * s5)
+                if d < rho:
+                    q = d / rho
+                    lean = 0.5 * q * (1.0 + q)  # ~ q^1.5: flatter on top than a sphere, steeper at the rim
+                    tilt = shape[6] * q * (shape[2] * c2 - shape[1] * s3 + shape[5] * c5)
+                    nx = c1 * lean - s1 * tilt
+                    ny = s1 * lean + c1 * tilt
+                    nz = ti.sqrt(ti.max(1.0 - nx * nx - ny * ny, 0.02))  # (nx, ny, nz) is (about) a unit
+                    rgb = _shade_rgb(base, cam.right * nx + cam.up * ny - cam.fwd * nz, light)
+                    ti.atomic_min(buf.zbuf[ii, jj], _depth_key(z - r * nz, rgb))
+    if j_lo <= j_hi:
+        ti.atomic_min(buf.rows[0], j_lo)
+        ti.atomic_max(buf.rows[1], j_hi)
+
+
+@ti.func
+def _splat_rock(buf, X, Y, pr, z, r, rid, phase, cam, light):
     """Draw one resting rock into the software buffers: centre (X, Y) in pixels (row 0 at the bottom),
-    projected radius pr pixels, view depth z, radius r, colour ``base``."""
+    projected radius pr pixels, view depth z, radius r; its colour and (from SHAPED_PX pixels) its outline
+    from its id."""
+    base = _rock_color(rid, phase)
     if pr < OPAQUE_PX:
         _splat_coverage(buf, X, Y, pr, base, cam.fwd, light)
-    else:
+    elif pr < SHAPED_PX:
         _splat_sphere(buf, X, Y, pr, z, r, base, cam, light)
+    else:
+        _splat_pebble(buf, X, Y, pr, z, r, base, cam, light, rock_shape(rid))
 
 
 @ti.func
@@ -242,7 +253,7 @@ def _compact(bucket, count, p, draw_r, col):
 
 @ti.kernel
 def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: Camera,
-               fr: Frustum, size: Sizing, light: Light):
+               fr: Frustum, size: Sizing, light: Light, sh: Shade):
     """Cull the first ``n`` rocks of ``world`` to the view frustum and the draw distance, then
 
     * ``buf.splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`),
@@ -250,32 +261,48 @@ def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.t
     * otherwise every visible rock is compacted into ``bucket`` (atomic counter ``buf.count``; the first
       ``count`` entries are valid, count may exceed the bucket's capacity: then the caller re-runs with a bigger
       bucket), far resting rocks thinned (a fraction q^2 kept by a hash of rock_id and drawn 1/q larger,
-      q = projected radius / lod_px).
+      q = projected radius / lod_px);
+    * ``buf.shadows``: every flying rock within the draw distance (in view or not) casts its shadow along the
+      sun (:func:`_splat_shadow`, channel 0), and every visible resting rock of at least ``sh.contact_px``
+      pixels its own, a contact shadow just beside it (channel 1).
     """
     buf.count[None] = 0
     if ti.static(buf.splat):
         buf.rows[0] = buf.zbuf.shape[1]
         buf.rows[1] = -1
+    if ti.static(buf.shadows):
+        buf.rows[2] = buf.shade.shape[1]
+        buf.rows[3] = -1
     W = ti.cast(buf.zbuf.shape[0], ti.f32)
     H = ti.cast(buf.zbuf.shape[1], ti.f32)
     for i in range(n):
         p = ti.cast(world.pos[i], ti.f32)
         r = ti.cast(world.radius[i], ti.f32)
+        ph = world.phase[i]
         d = p - cam.eye
+        if ti.static(buf.shadows):
+            if ph == FLYING:
+                hgt = ti.max(p[2] - sh.z, 0.0)
+                c = ti.Vector([p[0], p[1]]) + sh.shift * hgt
+                if (c[0] - cam.eye[0]) ** 2 + (c[1] - cam.eye[1]) ** 2 < fr.far * fr.far:
+                    _splat_shadow(buf, c, r, 0.3 * r + 0.01 * hgt, 0, cam, fr, sh)
         z = d.dot(cam.fwd)
         if z > fr.near - r and d.norm_sqr() < fr.far * fr.far:
             x = d.dot(cam.right)
             y = d.dot(cam.up)
             if ti.abs(x) < z * fr.tan_x + r * fr.sec_x and ti.abs(y) < z * fr.tan_y + r * fr.sec_y:
-                ph = world.phase[i]
                 rid = world.rock_id[i]
+                if ti.static(buf.shadows):
+                    if ph != FLYING and r * fr.px_per_rad >= sh.contact_px * ti.max(z, fr.near):
+                        c = ti.Vector([p[0], p[1]]) + sh.shift * ti.max(p[2] - sh.z, 0.0)
+                        _splat_shadow(buf, c, r, 0.35 * r, 1, cam, fr, sh)
                 if ti.static(buf.splat):
                     if ph != FLYING:
                         if z > fr.near:
                             zz = ti.max(z, fr.near)
                             _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
                                         (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
-                                        _rock_color(rid, ph), cam, light)
+                                        rid, ph, cam, light)
                         continue
                 keep = True
                 draw_r = r
@@ -296,6 +323,8 @@ def clear_buffers(buf: ti.template()):
     for i, j in buf.zbuf:
         buf.zbuf[i, j] = _empty_key()
         buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
+    for i, j in buf.shade:
+        buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
 
 
 # ------------------------------------------------------------------------------------------------ background
@@ -344,24 +373,11 @@ def _checker(hx, hy, fx, fy, wrap, inv_tile):
 
 
 @ti.func
-def _contact_shadows(g, hx, hy, cars, n_cars):
-    """``g`` darkened under the vehicles: soft-edged rectangles of their footprints."""
-    for k in range(n_cars):
-        c = cars[k]  # x, y, cos, sin, half length, half width, shadow softness (local, m)
-        rx = hx - c[0]
-        ry = hy - c[1]
-        ox = ti.abs(rx * c[2] + ry * c[3]) - c[4]
-        oy = ti.abs(-rx * c[3] + ry * c[2]) - c[5]
-        if ox < c[6] and oy < c[6]:
-            dd = ti.sqrt(ti.max(ox, 0.0) ** 2 + ti.max(oy, 0.0) ** 2)
-            g *= 0.5 + 0.5 * _smooth01(dd / c[6])
-    return g
-
-
-@ti.func
-def _ground_row(buf, j, dr, t, rocks, cam, fr, ground, pal, n_cars):
+def _ground_row(buf, j, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
     """Row j where the ground shows: ray ``dr`` through the row's centre line meets the plane at distance t
-    (in units of dr). The pixel's ray is dr + right * u."""
+    (in units of dr). The pixel's ray is dr + right * u. With ``buf.shadows``, the light the sun gives is
+    taken away in the shadows (the vehicles', and the flying rocks' splatted ones) from the ground and the
+    resting rocks alike, in the resting rocks' contact shadows from the ground only."""
     W, H = buf.sky.shape
     inv_tile = 1.0 / ground.tile
     right = cam.right
@@ -375,7 +391,22 @@ def _ground_row(buf, j, dr, t, rocks, cam, fr, ground, pal, n_cars):
     r2 = dr.norm_sqr()
     for i in range(W):
         u = ((i + 0.5) / W * 2.0 - 1.0) * fr.tan_x
+        hx = bx0 + t * u * right[0]
+        hy = by0 + t * u * right[1]
         g = ti.Vector([0.0, 0.0, 0.0])
+        dark = False  # in a shadow
+        lit = ti.Vector([1.0, 1.0, 1.0])  # the share of the light left, for everything on the ground
+        lit_ground = lit  # for the ground itself
+        vs = _vehicle_shadows(hx, hy, buf.cars, n_cars, ground.shift, buf.shadows)
+        if ti.static(buf.shadows):
+            sv = ti.Vector([0.0, 0.0])
+            if shaded:
+                sv = _take_shade(buf, i, j)
+            s0 = ti.max(sv[0], vs[1])
+            if s0 > 0.0 or sv[1] > 0.0:
+                dark = True
+                lit = 1.0 + (pal.umbra - 1.0) * s0
+                lit_ground = 1.0 + (pal.umbra - 1.0) * ti.max(s0, sv[1])
         covered = False
         if ti.static(buf.splat):
             if rocks:
@@ -385,30 +416,38 @@ def _ground_row(buf, j, dr, t, rocks, cam, fr, ground, pal, n_cars):
                     buf.zbuf[i, j] = _empty_key()
                     buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
                     g = _key_rgb(key)
+                    if dark:
+                        g *= lit
         if not covered:
-            hx = bx0 + t * u * right[0]
-            hy = by0 + t * u * right[1]
             fx = ti.abs(gu[0]) + ti.abs(gv0[0] + gv1[0] * u)
             fy = ti.abs(gu[1]) + ti.abs(gv0[1] + gv1[1] * u)
             chk = _checker(hx, hy, fx, fy, ground.wrap, inv_tile)
             g = (pal.ground_a + (pal.ground_b - pal.ground_a) * chk) * pal.light
-            g = _contact_shadows(g, hx, hy, buf.cars, n_cars)
+            g *= vs[0]
+            if dark:
+                g *= lit_ground / lit  # the ground's own shadows; the common ones after the rocks are blended in
             if ti.static(buf.splat):
                 if rocks:
                     g = _composite(g, buf, i, j)
+            if dark:
+                g *= lit
         x = t * ti.sqrt(r2 + u * u) / ground.haze_dist  # distance / haze distance (right is a unit normal to dr)
         fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
         buf.sky[i, j] = _to_rgba8(g + (pal.horizon - g) * fog)
 
 
 @ti.func
-def _sky_row(buf, j, dr, rocks, pal):
+def _sky_row(buf, j, dr, rocks, shaded, pal):
     """Row j above the horizon: one colour (elevation of the row's centre), rocks only when the camera is lower
-    than they are."""
+    than they are. (A shadow splatted across the horizon is reset here.)"""
     W, H = buf.sky.shape
     elev = dr[2] / ti.sqrt(dr.norm_sqr())
     col = pal.horizon + (pal.sky - pal.horizon) * _smooth01(elev * (1.0 / 0.12))
     px = _to_rgba8(col)
+    if ti.static(buf.shadows):
+        if shaded:
+            for i in range(W):
+                buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
     if ti.static(buf.splat):
         if rocks:
             for i in range(W):
@@ -429,13 +468,13 @@ def paint_ground(buf: ti.template(), cam: Camera, fr: Frustum, ground: Ground, p
     Ground: the plane z = ground.z, a checker of ``ground.tile`` metre squares whose parity is that of the
     *world* tile (``ground.wrap`` = origin mod 2 tiles), box-filtered over the pixel's footprint (no moire: far
     tiles blend to the mean colour), lit like GGUI lights a mesh facing up (``pal.light`` = ambient + sun *
-    cos), darkened under the first ``n_cars`` vehicles of ``buf.cars`` (soft contact shadows), then the rocks
-    blended in (:func:`_composite`), then hazed towards ``pal.horizon`` with distance. Sky: ``pal.sky`` above,
-    lightening to ``pal.horizon`` at the horizon. Everything GGUI draws afterwards lies above the plane, so
-    painting the ground behind the 3D scene is exact; resting rocks lie on it (a rock just in front of a
-    tire's contact patch is the only thing that can come out behind instead of in front). Parallel over rows:
-    the camera has no roll (its right vector is horizontal), so a row's rays share their height and distance
-    to the plane.
+    cos), darkened under the first ``n_cars`` vehicles of ``buf.cars`` (soft contact shadows) and
+    (``buf.shadows``) in the shadows (:func:`_ground_row`), then the rocks blended in (:func:`_composite`), then
+    hazed towards ``pal.horizon`` with distance. Sky: ``pal.sky`` above, lightening to ``pal.horizon`` at the
+    horizon. Everything GGUI draws afterwards lies above the plane, so painting the ground behind the 3D scene
+    is exact; resting rocks lie on it (a rock just in front of a tire's contact patch is the only thing that
+    can come out behind instead of in front). Parallel over rows: the camera has no roll (its right vector is
+    horizontal), so a row's rays share their height and distance to the plane.
     """
     W, H = buf.sky.shape
     h = cam.eye[2] - ground.z
@@ -444,12 +483,15 @@ def paint_ground(buf: ti.template(), cam: Camera, fr: Frustum, ground: Ground, p
         dr = cam.fwd + cam.up * v  # ray through the row's centre line
         dz = dr[2]  # right is horizontal (no roll), so the whole row shares dz and the plane distance t
         rocks = False
+        shaded = False
         if ti.static(buf.splat):
             rocks = buf.rows[0] <= j <= buf.rows[1]
+        if ti.static(buf.shadows):
+            shaded = buf.rows[2] <= j <= buf.rows[3]
         if dz < 0.0 and h > 0.0:
-            _ground_row(buf, j, dr, h / -dz, rocks, cam, fr, ground, pal, n_cars)
+            _ground_row(buf, j, dr, h / -dz, rocks, shaded, cam, fr, ground, pal, n_cars)
         else:
-            _sky_row(buf, j, dr, rocks, pal)
+            _sky_row(buf, j, dr, rocks, shaded, pal)
 
 
 @ti.kernel

@@ -1,72 +1,67 @@
-"""Vehicle meshes, host side (NumPy, no Taichi): flat-shaded boxes and tire cylinders in the body frame.
+"""Mesh pieces, host side (NumPy, no Taichi): flat-shaded quads and boxes, wheels, and the posing of a vehicle.
 
 A mesh is (vertices, normals, colours, indices), float64 / int64. The renderer transforms the vertices and
 normals of each vehicle on the host every frame (GGUI 1.7.4's ``mesh_instance`` lights the *untransformed*
-mesh, so a yawed vehicle would keep the shading of an unrotated one).
+mesh, so a yawed vehicle would keep the shading of an unrotated one), turning each wheel about its axle.
+No two visible faces may share a plane: lavapipe resolves z-fighting differently from frame to frame, which
+would make renders irreproducible (pieces that touch overlap a little instead, or stand a few mm proud).
 """
+
+import math
+from typing import NamedTuple
 
 import numpy as np
 
-from .looks import BUMPER_COLOR, GLASS_COLOR, HUB_COLOR, TAIL_LIGHT_COLOR, TIRE_COLOR
+from .looks import HUB_COLOR, RIM_DARK_COLOR, TIRE_COLOR, TREAD_COLOR
 
-__all__ = ["vehicle_kind", "vehicle_mesh", "merge"]
+__all__ = ["VehicleMesh", "pose_mesh", "merge", "quad", "box", "frustum", "wheel", "turn_about_axle",
+           "WHEEL_SEGMENTS", "SPOKES"]
 
-
-def _quad_faces(corners, normal, color):
-    """One flat quad (4 corners CCW seen from the normal side)."""
-    v = np.asarray(corners, np.float64)
-    return v, np.tile(normal, (4, 1)), np.tile(color, (4, 1)), np.array([0, 1, 2, 0, 2, 3])
+WHEEL_SEGMENTS = 16  # around a wheel: tread blocks alternate in colour segment by segment (even)
+SPOKES = 4  # light spokes between dark openings on the rim (WHEEL_SEGMENTS a multiple of it)
 
 
-def _box(center, size, colors):
-    """Axis-aligned box: 24 vertices (flat faces). colors: dict face -> rgb for '+x','-x','+y','-y','+z','-z'."""
-    cx, cy, cz = center
-    hx, hy, hz = (s / 2 for s in size)
-    x0, x1, y0, y1, z0, z1 = cx - hx, cx + hx, cy - hy, cy + hy, cz - hz, cz + hz
-    faces = {
-        "+x": ([(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)], (1, 0, 0)),
-        "-x": ([(x0, y1, z0), (x0, y0, z0), (x0, y0, z1), (x0, y1, z1)], (-1, 0, 0)),
-        "+y": ([(x1, y1, z0), (x0, y1, z0), (x0, y1, z1), (x1, y1, z1)], (0, 1, 0)),
-        "-y": ([(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)], (0, -1, 0)),
-        "+z": ([(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], (0, 0, 1)),
-        "-z": ([(x0, y1, z0), (x1, y1, z0), (x1, y0, z0), (x0, y0, z0)], (0, 0, -1)),
-    }
-    return merge([_quad_faces(c, n, colors[k]) for k, (c, n) in faces.items()])
+class VehicleMesh(NamedTuple):
+    """One vehicle's mesh in its body frame (x forward, y left, z up; origin at the body centre on the ground).
+
+    ``wheel[v]``: the wheel vertex v belongs to (-1: the body); a wheel's vertices are relative to its centre
+    ``centres[k]`` (body frame), so that turning it is a rotation about its own axle (y). ``rear[k]``: wheel k
+    is a rear wheel."""
+
+    verts: np.ndarray
+    norms: np.ndarray
+    cols: np.ndarray
+    idx: np.ndarray
+    wheel: np.ndarray
+    centres: np.ndarray
+    rear: np.ndarray
+
+    def triangle_owner(self) -> np.ndarray:
+        """Per triangle: the wheel it belongs to (-1: the body)."""
+        return self.wheel[self.idx[0::3]]
 
 
-def _tire(center, radius, width, seg=20):
-    """Cylinder with its axis along y: dark tread and sidewalls, light hub discs."""
-    cx, cy, cz = center
-    th = np.linspace(0.0, 2.0 * np.pi, seg, endpoint=False)
-    c, s = np.cos(th), np.sin(th)
-    parts = []
-    # tread: 2 rings, smooth normals
-    ring = lambda y, rr: np.stack([cx + rr * c, np.full(seg, y), cz + rr * s], 1)
-    y0, y1 = cy - width / 2, cy + width / 2
-    v = np.concatenate([ring(y0, radius), ring(y1, radius)])
-    nrm = np.concatenate([np.stack([c, 0 * c, s], 1)] * 2)
-    idx = []
-    for k in range(seg):
-        k2 = (k + 1) % seg
-        idx += [k, k2, seg + k2, k, seg + k2, seg + k]
-    parts.append((v, nrm, np.tile(TIRE_COLOR, (2 * seg, 1)), np.array(idx)))
-    # sidewalls (annulus) and hubs (disc), both sides
-    for y, ny in ((y1, 1.0), (y0, -1.0)):
-        outer, inner = ring(y, radius), ring(y, 0.55 * radius)
-        v = np.concatenate([outer, inner])
-        idx = []
-        for k in range(seg):
-            k2 = (k + 1) % seg
-            a = [k, k2, seg + k2, k, seg + k2, seg + k]
-            idx += a if ny < 0 else [a[0], a[2], a[1], a[3], a[5], a[4]]
-        parts.append((v, np.tile((0, ny, 0), (2 * seg, 1)), np.tile(TIRE_COLOR, (2 * seg, 1)), np.array(idx)))
-        hub = np.concatenate([inner, [(cx, y + 0.002 * ny, cz)]])
-        idx = []
-        for k in range(seg):
-            k2 = (k + 1) % seg
-            idx += [seg, k2, k] if ny < 0 else [seg, k, k2]
-        parts.append((hub, np.tile((0, ny, 0), (seg + 1, 1)), np.tile(HUB_COLOR, (seg + 1, 1)), np.array(idx)))
-    return merge(parts)
+def turn_about_axle(v: np.ndarray, angle) -> np.ndarray:
+    """Points or normals (N, 3) turned about the y axis by ``angle`` (rad, scalar or (N,)), the way a wheel
+    turns when the vehicle rolls forward (+x): x' = x cos a + z sin a, z' = -x sin a + z cos a."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([v[:, 0] * c + v[:, 2] * s, v[:, 1], -v[:, 0] * s + v[:, 2] * c], 1)
+
+
+def pose_mesh(mesh: VehicleMesh, position, heading: float, angles=None):
+    """The mesh's vertices and normals placed at ``position`` (local frame) with ``heading`` (rad), each wheel
+    k turned about its axle by ``angles[k]`` (rad; positive rolls the vehicle forward); float64."""
+    v, n = mesh.verts, mesh.norms
+    on_wheel = mesh.wheel >= 0
+    if angles is not None and len(mesh.centres):
+        a = np.asarray(angles, np.float64)[np.maximum(mesh.wheel, 0)]
+        v = np.where(on_wheel[:, None], turn_about_axle(v, a), v)
+        n = np.where(on_wheel[:, None], turn_about_axle(n, a), n)
+    if len(mesh.centres):
+        v = v + np.where(on_wheel[:, None], mesh.centres[np.maximum(mesh.wheel, 0)], 0.0)
+    ch, sh = math.cos(heading), math.sin(heading)
+    rot = np.array([[ch, -sh, 0.0], [sh, ch, 0.0], [0.0, 0.0, 1.0]])
+    return v @ rot.T + np.asarray(position, np.float64), n @ rot.T
 
 
 def merge(parts):
@@ -81,79 +76,85 @@ def merge(parts):
     return np.concatenate(vs), np.concatenate(ns), np.concatenate(cs), np.concatenate(ids)
 
 
-def vehicle_kind(spec) -> str:
-    """"truck", "van" or "car", from the proportions (the scene format has no vehicle type)."""
-    L, H = float(spec.length), float(spec.height)
-    if H >= 2.6 or L >= 6.5:
-        return "truck"
-    if H >= 1.75:
-        return "van"
-    return "car"
+def quad(corners, normal, color):
+    """One flat quad or triangle (3 or 4 corners in order round it), wound counter-clockwise seen from the
+    ``normal`` side whichever way the corners were given."""
+    v = np.asarray(corners, np.float64)
+    nrm = np.asarray(normal, np.float64)
+    if np.cross(v[1] - v[0], v[2] - v[0]) @ nrm < 0:
+        v = v[::-1].copy()
+    idx = np.array([0, 1, 2, 0, 2, 3] if len(v) == 4 else [0, 1, 2])
+    return v, np.tile(nrm, (len(v), 1)), np.tile(np.asarray(color, np.float64), (len(v), 1)), idx
 
 
-def vehicle_mesh(spec, ground_z: float = 0.0):
-    """Body-frame mesh of one vehicle (x forward, y left, z up; origin at the body centre on the ground).
+def box(center, size, colors):
+    """Axis-aligned box: 24 vertices (flat faces). ``colors``: one rgb, or a dict face -> rgb for '+x', '-x',
+    '+y', '-y', '+z', '-z' (faces left out are not drawn: they are hidden inside other pieces)."""
+    if not isinstance(colors, dict):
+        colors = {k: colors for k in ("+x", "-x", "+y", "-y", "+z", "-z")}
+    cx, cy, cz = center
+    hx, hy, hz = (s / 2 for s in size)
+    x0, x1, y0, y1, z0, z1 = cx - hx, cx + hx, cy - hy, cy + hy, cz - hz, cz + hz
+    faces = {
+        "+x": ([(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)], (1, 0, 0)),
+        "-x": ([(x0, y0, z0), (x0, y1, z0), (x0, y1, z1), (x0, y0, z1)], (-1, 0, 0)),
+        "+y": ([(x0, y1, z0), (x1, y1, z0), (x1, y1, z1), (x0, y1, z1)], (0, 1, 0)),
+        "-y": ([(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)], (0, -1, 0)),
+        "+z": ([(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)], (0, 0, 1)),
+        "-z": ([(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0)], (0, 0, -1)),
+    }
+    return merge([quad(c, n, colors[k]) for k, (c, n) in faces.items() if k in colors])
 
-    Returns (vertices, normals, colours, indices). Tires (dark tread, light hubs) at (+-wheelbase/2,
-    +-track/2), centre height tire_radius. The body (length x width, from 0.8 tire radius up to that plus
-    ``height``) is shaped by :func:`vehicle_kind`: a car has a lower body and a glazed cabin with a roof in the
-    body colour, a van a tall body glazed at the front, a truck a cab at the front and a cargo box behind.
-    """
-    col = np.clip(np.asarray(spec.color, np.float64), 0, 1)
-    glass = np.array(GLASS_COLOR)
-    dark = col * 0.8
-    L, W, H = float(spec.length), float(spec.width), float(spec.height)
-    R, TW = float(spec.tire_radius), float(spec.tire_width)
-    z0 = ground_z + 0.8 * R
-    same = lambda c: {k: c for k in ("+x", "-x", "+y", "-y", "+z", "-z")}
-    kind = vehicle_kind(spec)
+
+def frustum(bottom, top, z0: float, z1: float, colors):
+    """A six-sided solid between two horizontal rectangles centred on y = 0: ``bottom`` = (x0, x1, half width)
+    at z0 and ``top`` = (x0, x1, half width) at z1 (a cabin with sloping windows). ``colors``: face -> rgb for
+    "front" (+x), "back", "left" (+y), "right", "top" ("bottom" too if given); faces left out are not drawn."""
+    (a0, a1, ay), (b0, b1, by) = bottom, top
+    lo = [(a0, -ay, z0), (a1, -ay, z0), (a1, ay, z0), (a0, ay, z0)]
+    hi = [(b0, -by, z1), (b1, -by, z1), (b1, by, z1), (b0, by, z1)]
+    faces = {"front": [lo[1], lo[2], hi[2], hi[1]], "back": [lo[0], lo[3], hi[3], hi[0]],
+             "left": [lo[3], lo[2], hi[2], hi[3]], "right": [lo[0], lo[1], hi[1], hi[0]], "top": hi, "bottom": lo}
+    mid = np.mean(np.array(lo + hi, np.float64), axis=0)
     parts = []
-    if kind == "car":
-        lower_h = 0.5 * H
-        parts.append(_box((0.0, 0.0, z0 + lower_h / 2), (L, W, lower_h), same(col)))
-        cab = {k: glass for k in ("+x", "-x", "+y", "-y", "-z")}
-        cab["+z"] = col * 0.92
-        cab_h = H - lower_h
-        parts.append(_box((-0.06 * L, 0.0, z0 + lower_h + cab_h / 2), (0.52 * L, 0.88 * W, cab_h), cab))
-    elif kind == "van":
-        lower_h = 0.55 * H
-        parts.append(_box((0.0, 0.0, z0 + lower_h / 2), (L, W, lower_h), same(col)))
-        up_h = H - lower_h
-        xf1 = L / 2 - 0.04 * L  # the upper body: glazed front part [xf0, xf1], closed rear part [-L/2, xf0]
-        xf0 = xf1 - 0.3 * L
-        wind = same(col * 0.95)
-        wind.update({"+x": glass, "+y": glass, "-y": glass})
-        parts.append(_box(((xf0 + xf1) / 2, 0.0, z0 + lower_h + up_h / 2), (xf1 - xf0, 0.97 * W, up_h), wind))
-        rear = same(col * 0.95)
-        rear["-x"] = glass  # rear window
-        parts.append(_box(((xf0 - L / 2) / 2, 0.0, z0 + lower_h + up_h / 2), (xf0 + L / 2, 0.97 * W, up_h), rear))
-    else:  # truck: chassis, cab at the front, cargo box behind
-        chassis_h = 0.22 * H
-        parts.append(_box((0.0, 0.0, z0 + chassis_h / 2), (L, 0.9 * W, chassis_h), same(np.array(TIRE_COLOR) * 2)))
-        cab_l = min(2.2, 0.3 * L)
-        cab_h = 0.78 * H - chassis_h
-        low_h = 0.5 * cab_h
-        parts.append(_box((L / 2 - cab_l / 2, 0.0, z0 + chassis_h + low_h / 2), (cab_l, W, low_h), same(col)))
-        cab = same(col)
-        cab.update({"+x": glass, "+y": glass, "-y": glass})  # windscreen and side windows
-        up_h = cab_h - low_h
-        parts.append(_box((L / 2 - cab_l / 2, 0.0, z0 + chassis_h + low_h + up_h / 2), (cab_l, W, up_h), cab))
-        box_l = L - cab_l - 0.15
-        box_h = H - chassis_h
-        cargo = same(np.clip(col * 1.08 + 0.04, 0, 1))
-        cargo["-x"] = dark
-        parts.append(_box((-L / 2 + box_l / 2, 0.0, z0 + chassis_h + box_h / 2), (box_l, W, box_h), cargo))
-    # bumpers (dark) and tail lights, standing proud of the body: no two visible faces share a plane (lavapipe
-    # resolves z-fighting differently from frame to frame, which would make renders irreproducible)
-    bump_h = min(0.18, 0.12 * H)
-    for sx in (1.0, -1.0):
-        parts.append(_box((sx * (L / 2 + 0.02), 0.0, z0 - 0.01 + bump_h / 2), (0.08, 1.02 * W, bump_h),
-                          same(np.array(BUMPER_COLOR))))
-    lz = z0 + bump_h + 0.06 * H
+    for name, corners in faces.items():
+        if name not in colors:
+            continue
+        v = np.asarray(corners, np.float64)
+        n = np.cross(v[1] - v[0], v[2] - v[0])
+        n /= np.linalg.norm(n)
+        if n @ (v.mean(axis=0) - mid) < 0:
+            n = -n
+        parts.append(quad(v, n, colors[name]))
+    return merge(parts)
+
+
+def _ring(radius, y, th):
+    return np.stack([radius * np.cos(th), np.full(len(th), y), radius * np.sin(th)], 1)
+
+
+def wheel(radius: float, width: float, seg: int = WHEEL_SEGMENTS, spokes: int = SPOKES):
+    """A wheel centred at the origin, its axle along y: a tread of ``seg`` flat blocks alternating between two
+    dark rubbers, dark sidewalls, and on each side a rim of ``spokes`` light spokes between dark openings
+    round a light cap (the cap stands 4 mm proud). Its pattern turns with it, so the wheel is seen to roll."""
+    th = np.linspace(0.0, 2.0 * np.pi, seg + 1)
+    parts = []
+    for k in range(seg):
+        a, b = th[k], th[k + 1]
+        mid = 0.5 * (a + b)
+        corners = [(radius * math.cos(t), y, radius * math.sin(t)) for t, y in
+                   ((a, -width / 2), (b, -width / 2), (b, width / 2), (a, width / 2))]
+        parts.append(quad(corners, (math.cos(mid), 0.0, math.sin(mid)), TREAD_COLOR if k % 2 else TIRE_COLOR))
+    per_spoke = max(seg // spokes, 2)
     for side in (1.0, -1.0):
-        parts.append(_box((-L / 2 - 0.02, side * 0.38 * W, lz), (0.03, 0.16 * W, 0.07 * H),
-                          same(np.array(TAIL_LIGHT_COLOR))))
-    for sx in (0.5, -0.5):
-        for sy in (0.5, -0.5):
-            parts.append(_tire((sx * float(spec.wheelbase), sy * float(spec.track), ground_z + R), R, TW))
+        y = side * width / 2
+        outer, rim, cap = _ring(radius, y, th), _ring(0.66 * radius, y, th), _ring(0.24 * radius, y, th)
+        yc = y + side * 0.004
+        cap_out = _ring(0.24 * radius, yc, th)
+        for k in range(seg):
+            nrm = (0.0, side, 0.0)
+            parts.append(quad([outer[k], outer[k + 1], rim[k + 1], rim[k]], nrm, TIRE_COLOR))
+            spoke = (k % per_spoke) < per_spoke // 2
+            parts.append(quad([rim[k], rim[k + 1], cap[k + 1], cap[k]], nrm, HUB_COLOR if spoke else RIM_DARK_COLOR))
+            parts.append(quad([cap_out[k], cap_out[k + 1], (0.0, yc, 0.0)], nrm, HUB_COLOR))
     return merge(parts)

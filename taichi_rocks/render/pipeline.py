@@ -62,7 +62,8 @@ def _draw(job, run, resume, progress, on_frame) -> SimpleNamespace:
     with new_folders(job.paths["frames"]):
         try:
             run.checkpoints.start(resume, job.start)
-            run.writer = FrameWriter(job.out_dir, job.scene.name, job.video_fps, job.fmt, start=job.start)
+            run.writer = FrameWriter(job.out_dir, job.scene.name, job.video_fps, job.fmt, start=job.start,
+                                     crf=job.scene.render.quality)
             t_replay = _replay(job, run)
             times = _frame_loop(job, run, progress, on_frame)
         except BaseException:

@@ -5,10 +5,10 @@ Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidd
 
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;
-2. the GGUI 3D scene: vehicles (body, cabin or cargo box, bumpers, lights, four tire cylinders each, one
-   mesh instance, :mod:`.meshes`), the *flying* rocks as ``scene.particles`` from compact f32 fields
-   (atomic-counter compaction in the same pass, ``index_count`` = the count, power-of-two buckets), debug
-   overlays (:mod:`.overlays`) as ``scene.lines``;
+2. the GGUI 3D scene: vehicles (a car, van or truck body of a few boxes, lights, four wheels that turn at
+   their angular velocity; all in one mesh instance, :mod:`.bodies`, :mod:`.meshes`), the *flying* rocks as
+   ``scene.particles`` from compact f32 fields (atomic-counter compaction in the same pass, ``index_count``
+   = the count, power-of-two buckets), debug overlays (:mod:`.overlays`) as ``scene.lines``;
 
 merged by :func:`.kernels.to_u8` wherever GGUI left its clear colour.
 
@@ -44,10 +44,12 @@ import taichi as ti
 
 from ..config.resolution import check_resolution
 from . import kernels as K
-from .camera import GL_UP, NEAR, CameraRig, Lens, View, look, sun_direction
+from .camera import GL_UP, NEAR, Lens, View, camera_of, look, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
-from .meshes import merge, vehicle_mesh
+from .bodies import scene_meshes
+from .meshes import merge, pose_mesh
 from .overlays import Overlays
+from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
 
 __all__ = ["Renderer", "DEFAULT_LOD_PIXELS", "ROCK_MODES", "WINDOW_EVERY", "check_rocks"]
@@ -56,7 +58,9 @@ DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this m
 ROCK_MODES = ("splat", "particles")
 WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
 MIN_BUCKET = 4096
-MAX_CARS = 32  # vehicles casting a contact shadow
+MAX_CARS = 32  # vehicles casting a shadow
+CONTACT_PX = 3.0  # resting rocks at least this many pixels in radius darken the ground beside them (smaller
+# ones are many, and their contact shadows hardly show)
 GLITCH_DROP = 0.3  # a frame whose GGUI pixels fall below this fraction of the last frame's is drawn again
 GLITCH_RETRIES = 3  # at most this many extra draws of one frame
 LOST_COVERAGE = 0.15  # a vehicle in view drawing less than this share of its screen box was lost
@@ -76,20 +80,21 @@ def _vec(a):
 class Renderer:
     """Draws ``sim`` into a hidden GGUI window; :meth:`render_frame` returns the image (H, W, 3) uint8.
 
-    ``resolution`` (even sides) and ``fps`` default to the scene's [render] table. ``rocks``: "splat" (resting
-    rocks splatted into the background image by a Taichi kernel, flying rocks GGUI particles; the default)
+    ``resolution`` (even sides), ``fps`` and ``shadows`` default to the scene's [render] table. ``rocks``: "splat"
+    (resting rocks splatted into the background image by a Taichi kernel, flying rocks GGUI particles; the default)
     or "particles" (every visible rock a GGUI particle). ``lod_pixels`` ("particles" only): resting rocks whose
-    projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of
-    rock_id, drawn 1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames
-    between window re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass:
-    culling, splatting, compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and
-    the read-back). ``last_count``: rocks GGUI drew in the last frame.
+    projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of rock_id, drawn
+    1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames between window
+    re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass: culling, splatting,
+    compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
+    ``last_count``: rocks GGUI drew in the last frame.
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",
-                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY):
+                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY, shadows=None):
         self.sim = sim
         self._settings(sim.scene, resolution, fps, rocks, lod_pixels, window_every)
+        self.shadows = bool(sim.scene.render.shadows if shadows is None else shadows)
         self._camera_setup(sim.scene)
         self.frames_drawn = 0
         self.last_count = 0
@@ -104,11 +109,12 @@ class Renderer:
         self._buckets = {}
         self._drawn = None
         w, h = self.resolution
-        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS)  # background image, splat buffers, shadows
+        # background image, splat buffers, shadows
+        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows)
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
-        self._vehicle_fields(sim.scene.vehicles)
+        self._vehicle_fields()
         self._overlays = Overlays(self.flags)
         self._raw = None
         self._win = HiddenWindow(self.resolution)
@@ -132,25 +138,21 @@ class Renderer:
                                      hash_cells=bool(rs.hash_cells))
 
     def _camera_setup(self, scene) -> None:
-        """Which vehicle the camera follows, its lens and its rig."""
-        cam = scene.camera
-        names = [v.name for v in scene.vehicles]
-        follow = cam.follow or getattr(scene.bed, "follow", None) or names[0]
-        if follow not in names:
-            raise ValueError(f"camera.follow: no vehicle named {follow!r} (vehicles: {', '.join(names)})")
-        self.follow = names.index(follow)
-        self.fov = float(cam.fov)
+        """Which vehicle the camera follows and which it looks at, its view, lens and rig; the sun."""
+        self.rig, self.follow, self.target = camera_of(scene)
+        self.view_name = scene.camera.view
+        self.fov = float(scene.camera.fov)
         self.tan_x, self.tan_y, self.px_per_rad = Lens.of(self.fov, *self.resolution)
-        self.rig = CameraRig(cam.offset, cam.look_ahead, cam.smoothing)
         self.ground_z = float(scene.world.ground_z)
+        self.sun = (scene.render.sun, scene.render.sun_frame)
 
-    def _vehicle_fields(self, vehicles) -> None:
-        """The vehicles: one merged mesh, transformed on the host each frame."""
-        meshes = [vehicle_mesh(v, 0.0) for v in vehicles]
-        self._v_sizes = [len(m[0]) for m in meshes]
-        vs, ns, cs, ids = merge(meshes)
-        self._v_local = (vs, ns)
+    def _vehicle_fields(self) -> None:
+        """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer)."""
+        self._meshes = scene_meshes(self.sim.scene)
+        self._v_sizes = [len(m.verts) for m in self._meshes]
+        vs, ns, cs, ids = merge([m[:4] for m in self._meshes])
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
+        self._odometer = Odometer(self.sim.fleet.paths)
         self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
         self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols = ti.Vector.field(3, ti.f32, len(vs))
@@ -160,6 +162,18 @@ class Renderer:
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
         self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
         self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
+
+    def wheel_angles(self, t: float) -> list:
+        """Per vehicle, its wheels' angles (rad) at time ``t``: distance driven / tire radius (rear wheels:
+        times 1 + slip; :mod:`.wheels`)."""
+        dist = self._odometer.at(t)
+        return [wheel_angles(v, d, m.rear) for v, d, m in zip(self.sim.scene.vehicles, dist, self._meshes)]
+
+    def posed_vehicles(self, poses, origin, t: float) -> list:
+        """Per vehicle, its (vertices, normals) in the local frame at time ``t`` (float64); with
+        ``self._meshes`` (triangles, owners) this is what GGUI draws."""
+        return [pose_mesh(m, np.asarray(p.position, np.float64) - origin, p.heading, a)
+                for m, p, a in zip(self._meshes, poses, self.wheel_angles(t))]
 
     def close(self) -> None:
         """Release the window (the fields stay until Taichi is reset) and the imgui.ini GGUI left behind."""
@@ -173,16 +187,19 @@ class Renderer:
 
     # -------------------------------------------------------------------------------------------- frame
     def view(self) -> View:
-        """Advance the chase camera to ``sim.time``; return the view in local f32 coordinates:
+        """Advance the camera to ``sim.time``; return the view in local f32 coordinates:
         (eye, target, forward, right, up, heading). Calling it twice at the same time changes nothing."""
         sim = self.sim
-        pose = sim.vehicle_poses()[self.follow]
-        return look(self.rig, pose.position, pose.heading, sim.time, sim.origin)
+        poses = sim.vehicle_poses()
+        pose = poses[self.follow]
+        target = None
+        if self.target != self.follow:
+            target = (poses[self.target].position, poses[self.target].heading)
+        return look(self.rig, pose.position, pose.heading, sim.time, sim.origin, target)
 
-    @staticmethod
-    def sun_direction(heading: float) -> np.ndarray:
-        """Unit vector towards the sun (:func:`.camera.sun_direction`)."""
-        return sun_direction(heading)
+    def sun_direction(self, heading: float) -> np.ndarray:
+        """Unit vector towards the sun (:func:`.camera.sun_direction`; ``heading``: the rig's)."""
+        return sun_direction(heading, *self.sun)
 
     def _bucket(self, need: int) -> K.Bucket:
         cap = MIN_BUCKET
@@ -202,6 +219,20 @@ class Renderer:
     def _cam(eye, fwd, right, up):
         return K.Camera(eye=_vec(eye), fwd=_vec(fwd), right=_vec(right), up=_vec(up))
 
+    def _shade(self, sun) -> K.Shade:
+        """The shadows' geometry for a sun direction (unit, towards the sun): see :class:`.kernels.Shade`."""
+        sz = max(float(sun[2]), 0.05)  # the sun just above the horizon at the lowest: shadows 20 x as long
+        horiz = math.hypot(float(sun[0]), float(sun[1]))
+        away = (-float(sun[0]) / horiz, -float(sun[1]) / horiz) if horiz > 1e-9 else (1.0, 0.0)
+        return K.Shade(z=self.ground_z - float(self.sim.origin[2]), shift=ti.Vector(self._shift(sun)),
+                       away=ti.Vector(away), sin_el=sz / math.hypot(sz, horiz), contact_px=CONTACT_PX)
+
+    @staticmethod
+    def _shift(sun) -> tuple:
+        """Where a point's shadow falls, per metre of its height above the ground: -sun_xy / sun_z."""
+        sz = max(float(sun[2]), 0.05)
+        return (-float(sun[0]) / sz, -float(sun[1]) / sz)
+
     def cull(self, eye, fwd, right, up, sun) -> int:
         """Cull the rocks; splat the resting ones ("splat" mode) and compact those GGUI draws into a bucket.
         Return how many GGUI draws (also ``self.last_count``)."""
@@ -214,15 +245,16 @@ class Renderer:
         cam = self._cam(eye, fwd, right, up)
         size = K.Sizing(lod_px=self.lod_pixels, radius_scale=h / w)  # GGUI 1.7.4 draws particles w/h too large
         light = K.Light(sun=_vec(sun), ambient=ti.Vector(AMBIENT), sun_color=ti.Vector(SUN_COLOR))
+        shade = self._shade(sun)
         need = max(int(self.last_count * 1.25), 1)
         while True:
             bucket = self._bucket(need)
-            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light)
+            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light, shade)
             count = int(self._buf.count[None])
             if count <= bucket.cap:
                 break
             need = count
-            if self.rocks == "splat":  # the splats are in the buffers already: clear them before re-running
+            if self.rocks == "splat" or self.shadows:  # splats in the buffers already: clear them first
                 K.clear_buffers(self._buf)
         self.last_count = count
         self._drawn = (bucket, count)
@@ -319,16 +351,21 @@ class Renderer:
         return False
 
     # -------------------------------------------------------------------------------------------- parts
-    def _shadow_casters(self, poses, origin) -> int:
-        """Upload the vehicles' footprints (local frame) for the contact shadows; return how many."""
-        cars = np.zeros((MAX_CARS, 7), np.float32)
+    def _shadow_casters(self, poses, origin, sun_dir) -> int:
+        """Upload the vehicles' footprints and heights (local frame) for their shadows; return how many."""
+        cars = np.zeros((MAX_CARS, 11), np.float32)
+        shift = np.array(self._shift(sun_dir))
         k = 0
         for p, v in zip(poses, self.sim.scene.vehicles):
             if k == MAX_CARS:
                 break
             loc = np.asarray(p.position, np.float64) - origin
+            top = 0.8 * v.tire_radius + v.height
+            soft = 0.35 + 0.4 * v.width  # of the contact shadow
+            mid = loc[:2] + 0.5 * top * shift  # the sun shadow's middle, and a circle round both shadows
+            reach = 0.5 * math.hypot(v.length, v.width) + 0.5 * top * float(np.hypot(*shift)) + max(soft, 0.5)
             cars[k] = (loc[0], loc[1], math.cos(p.heading), math.sin(p.heading), 0.5 * v.length, 0.5 * v.width,
-                       0.35 + 0.4 * v.width)
+                       soft, top, mid[0], mid[1], reach * reach)
             k += 1
         self._buf.cars.from_numpy(cars)
         return k
@@ -337,28 +374,20 @@ class Renderer:
         period = 2.0 * self.tile
         wrap = (float(np.mod(origin[0], period)), float(np.mod(origin[1], period)))
         light = tuple(a + l * max(float(sun_dir[2]), 0.0) for a, l in zip(AMBIENT, SUN_COLOR))
-        n_cars = self._shadow_casters(poses, origin)
+        n_cars = self._shadow_casters(poses, origin, sun_dir)
         ground = K.Ground(z=self.ground_z - float(origin[2]), wrap=ti.Vector(wrap), tile=self.tile,
-                          haze_dist=HAZE * self.draw_distance)
+                          haze_dist=HAZE * self.draw_distance, shift=ti.Vector(self._shift(sun_dir)))
+        umbra = tuple(a / l for a, l in zip(AMBIENT, light))
         palette = K.Palette(ground_a=ti.Vector(GROUND_A), ground_b=ti.Vector(GROUND_B), light=ti.Vector(light),
-                            sky=ti.Vector(self.background), horizon=ti.Vector(self.horizon))
+                            sky=ti.Vector(self.background), horizon=ti.Vector(self.horizon), umbra=ti.Vector(umbra))
         K.paint_ground(self._buf, self._cam(eye, fwd, right, up), self._frustum(), ground, palette, n_cars)
 
     def _draw_vehicles(self, scene, origin, poses) -> None:
-        vs, ns = self._v_local
-        out_v = np.empty_like(vs)
-        out_n = np.empty_like(ns)
-        start = 0
-        for p, nv in zip(poses, self._v_sizes):
-            c, s = math.cos(p.heading), math.sin(p.heading)
-            rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-            sl = slice(start, start + nv)
-            out_v[sl] = vs[sl] @ rot.T + (np.asarray(p.position, np.float64) - origin)
-            out_n[sl] = ns[sl] @ rot.T
-            start += nv
+        posed = self.posed_vehicles(poses, origin, self.sim.time)
+        out_v = np.concatenate([v for v, _ in posed])
         self._v_frame = out_v
         self._v_verts.from_numpy(out_v.astype(np.float32))
-        self._v_norms.from_numpy(out_n.astype(np.float32))
+        self._v_norms.from_numpy(np.concatenate([n for _, n in posed]).astype(np.float32))
         # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows
         scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
                             per_vertex_color=self._v_cols, transforms=self._v_model,

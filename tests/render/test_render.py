@@ -87,6 +87,29 @@ def test_mp4_reads_back(mp4_render):
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # the partial video was renamed
 
 
+def test_video_is_lighter_than_with_the_old_settings(mp4_render, tmp_path):
+    """The same frames at the same resolution: the default quality ([render] quality, the writer's default)
+    gives a smaller MP4 than the old settings (x264 superfast, CRF 23), still close to the frames."""
+    import imageio.v3 as iio
+
+    from taichi_rocks.config.scene import Render
+    from taichi_rocks.output.video import DEFAULT_CRF, FrameWriter
+
+    _, frames, _ = mp4_render
+    assert DEFAULT_CRF == Render().quality > 23
+    sizes, errors = {}, {}
+    for name, crf in (("old", 23), ("new", DEFAULT_CRF)):
+        w = FrameWriter(tmp_path / name, "clip", 30.0, "mp4", background=False, ffmpeg_preset="superfast", crf=crf)
+        for f in frames:
+            w.write(f)
+        video = w.close()
+        sizes[name] = video.stat().st_size
+        back = list(iio.imiter(video))
+        errors[name] = np.mean([np.abs(a.astype(int) - b.astype(int)).mean() for a, b in zip(frames, back)])
+    assert sizes["new"] < 0.9 * sizes["old"], sizes
+    assert errors["new"] < 12, errors
+
+
 def test_frames_not_blank_sky_on_top_ground_below(mp4_render, minimal_scene):
     _, frames, _ = mp4_render
     sky = np.array(minimal_scene.render.background)
@@ -155,6 +178,119 @@ def test_a_rock_in_view_is_drawn_where_it_projects(shared, minimal_scene, phase)
     assert abs(xs.mean() - px) < 0.35 * rad + 1 and abs(ys.mean() - py) < 0.35 * rad + 1
     # drawn at its true size (GGUI 1.7.4 particles come out width/height too large unless corrected)
     assert 0.6 * math.pi * rad ** 2 < len(xs) < 1.5 * math.pi * rad ** 2, (len(xs), math.pi * rad ** 2)
+
+
+def _pixel(r, view, p):
+    """Pixel (x right, y down) of a local point under ``view``."""
+    d = np.asarray(p, float) - view.eye
+    z = d @ view.fwd
+    return (d @ view.right / (z * r.tan_x) + 1) / 2 * W, (1 - (d @ view.up / (z * r.tan_y) + 1) / 2) * H
+
+
+def test_a_flying_rock_casts_its_shadow_where_the_sun_puts_it(pipeline, shared, minimal_scene):
+    """A flying rock 1.2 m above the ground darkens the ground around the point the sun direction puts its
+    shadow at (the centroid of the darkened pixels within 2 pixels of that point projected), and nowhere
+    else; with shadows off the rock alone changes the frame."""
+    from taichi_rocks.render.renderer import Renderer
+
+    sim, r_on = shared
+    r_off = Renderer(sim, resolution=(W, H), window_every=0, shadows=False)
+    try:
+        view = r_on.view()
+        assert np.allclose(r_off.view().eye, view.eye)
+        sun = r_on.sun_direction(view.heading)
+        gz = float(minimal_scene.world.ground_z - sim.origin[2])
+        h, rad = 1.2, 0.3
+        ground = view.eye + 7.0 * np.array([view.fwd[0], view.fwd[1], 0.0]) / np.hypot(*view.fwd[:2])
+        ground += 1.2 * view.right
+        rock = np.array([ground[0], ground[1], gz + h]) - h * np.array([-sun[0] / sun[2], -sun[1] / sun[2], 0.0])
+        shadow = np.array([ground[0], ground[1], gz])  # where the sun puts the shadow of the rock's centre
+        i = 0
+        old = (sim.world.pos[i], sim.world.radius[i], sim.world.phase[i])
+        diffs = []
+        try:
+            sim.world.radius[i] = rad
+            sim.world.phase[i] = 1
+            for r in (r_on, r_off):
+                sim.world.pos[i] = (view.eye - 5.0 * view.fwd).tolist()  # behind the camera, shadow out of view
+                before = r.render_frame().astype(int)
+                sim.world.pos[i] = rock.tolist()
+                diffs.append(r.render_frame().astype(int) - before)
+        finally:
+            sim.world.pos[i], sim.world.radius[i], sim.world.phase[i] = old
+    finally:
+        r_off.close()
+    yy, xx = np.mgrid[0:H, 0:W]
+    rx, ry = _pixel(r_on, view, rock)
+    disc = (xx - rx) ** 2 + (yy - ry) ** 2 < (rad * r_on.px_per_rad / ((rock - view.eye) @ view.fwd) + 3) ** 2
+    sx, sy = _pixel(r_on, view, shadow)
+    assert 0 <= sx < W and 0 <= sy < H and not disc[int(sy), int(sx)]
+    on, off = (d.sum(axis=2) for d in diffs)
+    dark = (on < -20) & ~disc
+    assert dark.sum() >= 4, dark.sum()  # a shadow of a few pixels (the ground seen at a grazing angle)
+    ys, xs = np.nonzero(dark)
+    assert abs(xs.mean() + 0.5 - sx) < 2 and abs(ys.mean() + 0.5 - sy) < 2, (xs.mean(), ys.mean(), sx, sy)
+    assert on[~disc].max() < 20  # nothing lightened
+    assert not np.any(np.abs(off[~disc]) > 3)  # without shadows the rock alone changes the frame
+    assert (on[dark] < off[dark]).all()
+
+
+def test_resting_rocks_are_irregular_with_the_outline_of_their_id(pipeline, shared, minimal_scene):
+    """A big resting rock is drawn with the outline its id gives (the host twin of the kernels' shape, checked
+    component by component), not as a disc: the drawn pixels match that outline better than they match the
+    circle of the same area, and fill it."""
+    import taichi as ti
+
+    from taichi_rocks.render import rocklook
+
+    ids = np.array([0, 5, 77, 1000, 123457, 2 ** 31 - 1], np.int32)
+    out = ti.ndarray(ti.types.vector(9, ti.f32), len(ids))
+
+    @ti.kernel
+    def shapes(rid: ti.types.ndarray(dtype=ti.i32, ndim=1), sh: ti.types.ndarray(dtype=ti.types.vector(9, ti.f32),
+                                                                                  ndim=1)):
+        for i in range(rid.shape[0]):
+            sh[i] = rocklook.rock_shape(rid[i])
+
+    shapes(ids, out)
+    np.testing.assert_allclose(out.to_numpy(), [rocklook.rock_shape_np(int(i)) for i in ids], atol=2e-6)
+
+    from taichi_rocks.render.renderer import Renderer
+
+    sim, _ = shared
+    r = Renderer(sim, resolution=(W, H), window_every=0, shadows=False)  # the rock alone changes the frame
+    view = r.view()
+    i = 0
+    rid = int(sim.world.rock_id[i])
+    shape = rocklook.rock_shape_np(rid)
+    assert abs(shape[0]) + abs(shape[1]) > 0.05  # elongated
+    rad = 0.5
+    ray = view.fwd - 0.6 * r.tan_y * view.up - 0.5 * r.tan_x * view.right  # left of the car, low in the image
+    target = view.eye + ray * (float(minimal_scene.world.ground_z - sim.origin[2]) + rad - view.eye[2]) / ray[2]
+    old = (sim.world.pos[i], sim.world.radius[i], sim.world.phase[i])
+    try:
+        sim.world.radius[i] = rad
+        sim.world.phase[i] = 0
+        sim.world.pos[i] = (view.eye - 5.0 * view.fwd).tolist()
+        before = r.render_frame().astype(int)
+        sim.world.pos[i] = target.tolist()
+        after = r.render_frame().astype(int)
+    finally:
+        sim.world.pos[i], sim.world.radius[i], sim.world.phase[i] = old
+        r.close()
+    drawn = np.abs(after - before).sum(axis=2) > 30
+    px, py = _pixel(r, view, target)
+    pr = rad * r.px_per_rad / ((target - view.eye) @ view.fwd)
+    yy, xx = np.mgrid[0:H, 0:W]
+    dx, dy = (xx + 0.5 - px) / pr, (py - yy - 0.5) / pr  # y up
+    d, phi = np.hypot(dx, dy), np.arctan2(dy, dx)
+    inside = d < rocklook.outline(shape, phi)
+    disc = d < 1.0
+    near = d < 1.6  # the rock's neighbourhood
+    assert pr > 8 and drawn[~near].sum() == 0
+    iou = lambda a, b: (a & b & near).sum() / ((a | b) & near).sum()
+    assert iou(drawn, inside) > 0.85, iou(drawn, inside)
+    assert iou(drawn, inside) > iou(drawn, disc) + 0.03, (iou(drawn, inside), iou(drawn, disc))
 
 
 def test_ground_is_anchored_to_the_world(shared):
@@ -431,6 +567,84 @@ def test_failed_render_keeps_frames_and_drops_partial_video(tmp_path):
     assert len(os.listdir(tmp_path / "frames")) == 3
 
 
+# -------------------------------------------------------------------------------------------------- vehicles
+def test_odometer_integrates_the_speed_and_depends_on_the_time_alone():
+    """Distance driven: v t at constant speed, 0.5 a t^2 from standing (a path's constant acceleration), and the
+    same bits whether reached frame by frame or at once (a resumed render turns its wheels as an
+    uninterrupted one)."""
+    from scenes_util import scene
+
+    from taichi_rocks.motion.vehicles import Fleet
+    from taichi_rocks.render.wheels import Odometer
+
+    sc = scene(vehicles=[{"name": "a", "path": {"points": [[0.0, 0.0], [400.0, 0.0]], "speed": 10.0}},
+                         {"name": "b", "path": {"points": [[0.0, 5.0], [50.0, 5.0]], "speed": [0.0, 10.0]}}])
+    paths = Fleet(sc).paths
+    step = Odometer(paths)
+    for k in range(1, 91):
+        got = step.at(k / 30)
+    np.testing.assert_allclose(got, [10.0 * 3.0, 0.5 * 3.0 ** 2], rtol=1e-12)  # a = v^2 / 2 L = 1 m/s^2
+    assert np.array_equal(Odometer(paths).at(3.0), got)
+    assert np.array_equal(step.at(1.2345), Odometer(paths).at(1.2345))  # back in time: from 0 again
+
+
+def test_vehicle_kinds_and_the_player_mark():
+    """``kind`` picks the body (auto: from the proportions); bodies differ by kind; the wheels stand clear of
+    the body's sides (wheel wells); only the player (bed.follow) wears the white marks."""
+    from scenes_util import scene
+
+    from taichi_rocks.render.bodies import scene_meshes, vehicle_kind
+    from taichi_rocks.render.looks import PLAYER_MARK_COLOR
+
+    same = {"length": 6.0, "width": 2.2, "height": 2.2, "wheelbase": 3.6, "track": 1.9, "tire_radius": 0.4}
+    sc = scene(vehicles=[{"name": k, "kind": k, **same, "path": {"points": [[0.0, 3.0 * i], [99.0, 3.0 * i]]}}
+                         for i, k in enumerate(("car", "van", "truck", "auto"))])
+    assert [vehicle_kind(v) for v in sc.vehicles] == ["car", "van", "truck", "van"]  # auto: 2.2 m tall, 6 m long
+    meshes = scene_meshes(sc)
+    marked = [bool(np.all(m.cols == PLAYER_MARK_COLOR, axis=1).any()) for m in meshes]
+    assert marked == [True, False, False, False]  # the bed follows the first vehicle
+    bodies = [m.verts[m.wheel < 0] for m in meshes]
+    tops = [b[:, 2].max() for b in bodies[1:]]
+    assert len({len(b) for b in bodies[1:]}) == 2 and len(set(np.round(tops, 6))) == 1  # van != truck
+    from taichi_rocks.render.meshes import pose_mesh
+
+    for m, v in zip(meshes, sc.vehicles):  # seen from the side, level with the axle and above, no wheel is hidden
+        posed = [pose_mesh(m, np.zeros(3), 0.0)]
+        for k, c in enumerate(m.centres):
+            for dz in (0.0, 0.5 * v.tire_radius):
+                face = c + [0.0, np.sign(c[1]) * (v.tire_width / 2 - 0.01), dz]
+                eye = face + [0.0, np.sign(c[1]) * 5.0, 0.0]
+                assert _first_hit(eye, face, posed, [m])[:2] == (0, k), (k, dz)
+
+
+def test_wheels_turn_by_distance_over_radius(shared, minimal_scene):
+    """Between two frames the renderer turns each wheel by distance / tire radius (rear wheels: times
+    1 + slip, their tread speed), and the vertices it poses turn about the wheel's axle by that angle."""
+    sim, r = shared
+    (car,) = minimal_scene.vehicles
+    speed = car.path.speed
+    t1, t2 = 0.5, 0.5 + 1 / 30
+    a1, a2 = np.array(r.wheel_angles(t1)[0]), np.array(r.wheel_angles(t2)[0])
+    mesh = r._meshes[0]
+    want = speed * (t2 - t1) / car.tire_radius * np.where(mesh.rear, 1.0 + car.slip, 1.0)
+    np.testing.assert_allclose(a2 - a1, want, rtol=1e-9)
+    assert mesh.rear.sum() == 2 and want.min() > 0.3  # a visible step: ~0.1 of a turn a frame
+    pose = sim.vehicle_poses()[0]
+    posed = [r.posed_vehicles([pose], sim.origin, t)[0][0] for t in (t1, t2)]
+    c, s = math.cos(pose.heading), math.sin(pose.heading)
+    to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # inverse of the heading's rotation
+    base = np.asarray(pose.position) - sim.origin
+    for k in range(4):
+        vs = np.nonzero(mesh.wheel == k)[0]
+        rel = [((p[vs] - base) @ to_body.T) - mesh.centres[k] for p in posed]
+        radius = np.hypot(rel[0][:, 0], rel[0][:, 2])
+        far = radius > 0.5 * car.tire_radius  # points off the axle
+        # the angle from the top (+z) towards the front (+x): rolling forward moves the top forward
+        turn = np.arctan2(rel[1][far, 0], rel[1][far, 2]) - np.arctan2(rel[0][far, 0], rel[0][far, 2])
+        np.testing.assert_allclose(np.remainder(turn - want[k] + np.pi, 2 * np.pi) - np.pi, 0.0, atol=1e-6)
+        np.testing.assert_allclose(rel[0][:, 1], rel[1][:, 1], atol=1e-9)  # about the axle (y)
+
+
 # -------------------------------------------------------------------------------------------------- camera
 def test_camera_snaps_then_smooths_independently_of_frame_rate():
     from taichi_rocks.render.camera import CameraRig
@@ -454,6 +668,135 @@ def test_camera_snaps_then_smooths_independently_of_frame_rate():
     rig.update(np.zeros(3), math.pi - 0.1, 0.0)
     _, _, h = rig.update(np.zeros(3), -math.pi + 0.1, 10.0)
     assert abs(math.remainder(h - (-math.pi + 0.1), 2 * math.pi)) < 1e-6
+
+
+def _ray_hits(eye, target, tris):
+    """Distance (in units of |target - eye|) along the segment eye -> target to each triangle it crosses (inf: none);
+    Moller-Trumbore, vectorised. tris: (T, 3, 3)."""
+    d = np.asarray(target, float) - eye
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    pv = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, pv)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    tv = eye - a
+    u = np.einsum("ij,ij->i", tv, pv) * inv
+    qv = np.cross(tv, e1)
+    v = (qv @ d) * inv
+    t = np.einsum("ij,ij->i", e2, qv) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9) & (t < 1.0)
+    return np.where(hit, t, np.inf)
+
+
+def _first_hit(eye, target, posed, meshes):
+    """(vehicle, wheel or -1, distance fraction) of the first vehicle triangle on the segment eye -> target."""
+    best = (None, None, np.inf)
+    for i, ((v, _), m) in enumerate(zip(posed, meshes)):
+        t = _ray_hits(eye, target, v[m.idx.reshape(-1, 3)])
+        k = int(np.argmin(t))
+        if t[k] < best[2]:
+            best = (i, int(m.triangle_owner()[k]), float(t[k]))
+    return best
+
+
+def _in_frame(view, tan_x, tan_y, p, margin=0.05):
+    d = np.asarray(p, float) - view.eye
+    z = d @ view.fwd
+    x, y = (d @ view.right) / (z * tan_x), (d @ view.up) / (z * tan_y)
+    return z > 0.5 and abs(x) < 1 - 2 * margin and abs(y) < 1 - 2 * margin
+
+
+def _framed_points(scene, i, pose, mesh, eye):
+    """The points a view of vehicle i must show: each rear tire (1 cm inside its outer face; the one facing the
+    eye first) and the spray as it leaves the body (0.5 m behind the rear bumper, 0.5 m up)."""
+    spec = scene.vehicles[i]
+    c, s = math.cos(pose.heading), math.sin(pose.heading)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    tires = []
+    for k in np.nonzero(mesh.rear)[0]:
+        out = np.sign(mesh.centres[k, 1])  # the tire's outer side, body frame
+        face = pose.position + rot @ (mesh.centres[k] + [0.0, out * (spec.tire_width / 2 - 0.01), 0.0])
+        tires.append((float((eye - face) @ (rot @ [0.0, out, 0.0])), int(k), face))
+    tires.sort(reverse=True)  # the tire whose outer face looks at the eye most, first
+    spray = pose.position + rot @ np.array([-spec.length / 2 - 0.5, 0.0, 0.5])
+    return tires, spray
+
+
+@pytest.mark.parametrize("name", ["convoy", "circle", "slalom"])
+def test_view_preset_shows_the_target_rear_tires_unoccluded(scenes_dir, name):
+    """The shipped scenes' camera (a side/low view of a splashing vehicle) keeps, at every half second of the
+    scene, both rear tires of its target and the start of the spray inside the frame, and a ray from the eye
+    to the outer face of the tire nearest to it meets that tire before any other vehicle triangle (the
+    vehicles' meshes as the renderer poses them; the camera stepped at the scene's frame rate)."""
+    from taichi_rocks.config.scene import load_scene
+    from taichi_rocks.motion.vehicles import Fleet
+    from taichi_rocks.render.camera import Lens, camera_of, look
+    from taichi_rocks.render.bodies import scene_meshes
+    from taichi_rocks.render.meshes import pose_mesh
+
+    scene = load_scene(scenes_dir / f"{name}.toml")
+    assert scene.camera.view in ("side", "low") and scene.vehicles[scene.vehicle_index(scene.camera.target)].splash
+    rig, ride, target = camera_of(scene)
+    fleet = Fleet(scene)
+    meshes = scene_meshes(scene)
+    tan_x, tan_y, _ = Lens.of(scene.camera.fov, *scene.render.resolution)
+    fps = scene.render.fps
+    checked = 0
+    for k in range(int(scene.duration * fps) + 1):
+        t = k / fps
+        poses = fleet.poses(t)
+        view = look(rig, poses[ride].position, poses[ride].heading, t, np.zeros(3))
+        if k % int(fps / 2):
+            continue
+        posed = [pose_mesh(m, p.position, p.heading) for m, p in zip(meshes, poses)]
+        tires, spray = _framed_points(scene, target, poses[target], meshes[target], view.eye)
+        for _, _, face in tires:
+            assert _in_frame(view, tan_x, tan_y, face), (t, face)
+        assert _in_frame(view, tan_x, tan_y, spray), (t, spray)
+        _, wheel, face = tires[0]
+        assert _first_hit(view.eye, face, posed, meshes)[:2] == (target, wheel), t
+        assert _first_hit(view.eye, spray, posed, meshes)[0] is None, t  # nothing between the eye and the spray
+        checked += 1
+    assert checked == int(scene.duration * 2) + 1
+
+
+def test_view_preset_tire_pixel_is_the_tire(pipeline, scenes_dir):
+    """Drawn: in a frame of the convoy's default view, the pixel where the renderer's camera projects the hub
+    of the truck's nearest rear tire shows the hub (a neutral grey lit like GGUI lights it), and the renderer's
+    posed meshes put that tire first on the ray from the eye."""
+    from taichi_rocks.config.scene import load_scene, scene_with
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.render.looks import AMBIENT, HUB_COLOR, SUN_COLOR
+    from taichi_rocks.render.renderer import Renderer
+
+    scene = scene_with(load_scene(scenes_dir / "convoy.toml"), {"bed.rocks": 3000, "bed.radius": 12.0})
+    sim = Simulation(scene, arch="cpu")
+    r = Renderer(sim, resolution=(W * 2, H * 2), window_every=0)
+    try:
+        sim.advance_to(0.4)
+        img = r.render_frame().copy()
+        view = r.view()
+        poses = sim.vehicle_poses()
+        posed = r.posed_vehicles(poses, sim.origin, sim.time)
+        pose = poses[r.target]
+        local = type(pose)(pose.name, pose.position - sim.origin, pose.heading, pose.speed, pose.yaw_rate,
+                           pose.velocity)
+        tires, _ = _framed_points(scene, r.target, local, r._meshes[r.target], view.eye)
+        _, wheel, face = tires[0]
+        assert _first_hit(view.eye, face, posed, r._meshes)[:2] == (r.target, wheel)
+    finally:
+        r.close()
+    d = face - view.eye
+    z = d @ view.fwd
+    px = int((d @ view.right / (z * r.tan_x) + 1) / 2 * 2 * W)
+    py = int((1 - (d @ view.up / (z * r.tan_y) + 1) / 2) * 2 * H)
+    assert 0 <= px < 2 * W and 0 <= py < 2 * H
+    lo = np.array(HUB_COLOR) * np.array(AMBIENT) * 255 - 3
+    hi = np.array(HUB_COLOR) * (np.array(AMBIENT) + np.array(SUN_COLOR)) * 255 + 3
+    patch = img[py - 1:py + 2, px - 1:px + 2].reshape(-1, 3).astype(float)
+    hub = np.all((patch >= lo) & (patch <= hi), axis=1) & (patch[:, 2] >= patch[:, 0] - 2)
+    assert hub.sum() >= 5, patch  # most of the 3 x 3 pixels around it
 
 
 # -------------------------------------------------------------------------------------------------- interrupted CLI renders
