@@ -18,6 +18,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
                       ValidationError, ValidationInfo, field_validator, model_validator)
 from pydantic_core import PydanticCustomError
 
+from .presets import PRESETS
 from .resolution import MIN_SIDE, SIDE_MULTIPLE
 from .summary import estimate_memory, physical_memory, summarise
 from .tomltext import TomlTextError, loads as toml_loads
@@ -164,17 +165,6 @@ class Hash(_Table):
     reorder_every: Int = _f(64, "steps between re-sorting rocks by cell (0 = never; scope \"all\" only)", ge=0)
     scope: Literal["tires", "all"] = _f("tires", "hash only the rocks near a tire's query (same hits, less "
                                                  "work) or every rock (the full table)")
-
-
-# Accuracy presets (`[sim] accuracy`), from the measured study of `taichi-rocks bench` (README, "Accuracy
-# against cost"): the cheapest settings meeting a flight error over a 2 s flight of 5 cm / 1 mm / 1 um, a
-# recall of the true tire contacts at 60 m/s of at least 0.9 / 0.99 / 0.999, and a launch-time error bound
-# v_launch * dt of 0.6 m / 6 cm / 6 mm. Keys written in the file override the preset's.
-PRESETS = {
-    "draft": {"dt": 0.02, "integrator": "heun", "detection": "swept", "precision": "f32"},
-    "balanced": {"dt": 0.002, "integrator": "heun", "detection": "swept", "precision": "f32"},
-    "reference": {"dt": 0.0002, "integrator": "heun", "detection": "swept", "precision": "f64"},
-}
 
 
 class Sim(_Table):
