@@ -7,7 +7,7 @@
 What goes in: ``only="all"`` every rock; ``only="flying"`` the rocks in the air or sliding plus those that
 moved since the previous frame (landed, recycled); the resting rest of the bed is left out. ``crop=R`` keeps
 the rocks within R metres (horizontally) of the camera's followed vehicle. Ids, tumble and wheel spin:
-output/instances.py. The camera: shapes.FollowCamera, the renderer's framing rule ([camera] offset,
+output/instances.py. The camera: motion/camera.py's camera_of, the renderer's own rig ([camera] view, offset,
 look_ahead, fov, smoothing) computed here from the scene, since output/ does not import render/.
 
 Files are written under a temporary name beside the final one and renamed when complete (a .usdc file; for
@@ -26,7 +26,7 @@ import numpy as np
 from .instances import RockTracker, VehicleTracker
 from .recording import _temp_name, atomic_path, new_folders, remove_stale_temporaries
 from .runs import check_selection, crop_mask
-from .shapes import FollowCamera
+from ..motion.camera import camera_of
 
 __all__ = ["export_run", "check_target", "require_pxr", "FORMATS", "USD_SUFFIXES"]
 
@@ -135,11 +135,9 @@ def _ground_extent(sim, frames: int, fps: float):
 def _run(sim, writer, frames: int, fps: float, only: str, crop, progress, guard: bool) -> list:
     """The frame loop: simulate, choose the rocks, hand each frame to ``writer``; returns rocks per frame."""
     scene = sim.scene
-    follow = scene.vehicle_index(scene.camera.follow or scene.bed.follow or scene.vehicles[0].name)
+    camera, rides, target = camera_of(scene)  # the renderer's rig: the same shot in the imported stage
     rocks = RockTracker(sim.n_rocks, scene.world.gravity, fps)
     vehicles = VehicleTracker(scene.vehicles)
-    cam = scene.camera
-    camera = FollowCamera(cam.offset, cam.look_ahead, cam.smoothing)
     counts = []
     for f in range(frames):
         sim.advance_to(f / fps)
@@ -148,14 +146,15 @@ def _run(sim, writer, frames: int, fps: float, only: str, crop, progress, guard:
         st = sim.state()
         origin = np.asarray(sim.origin, np.float64)
         r = rocks.update(st)
-        keep = crop_mask(st, follow, crop)
+        keep = crop_mask(st, target, crop)
         if only == "flying":
             keep &= r["active"]
         idx = np.flatnonzero(keep)
         world = st["positions"][idx]
         v = vehicles.update(st["vehicle_positions"], st["vehicle_headings"])
-        eye_target = camera.update(st["vehicle_positions"][follow], float(st["vehicle_headings"][follow]),
-                                   float(st["time"]))
+        pos, head = st["vehicle_positions"], st["vehicle_headings"]
+        looked_at = None if target == rides else (pos[target], float(head[target]))
+        eye_target = camera.update(pos[rides], float(head[rides]), float(st["time"]), looked_at)[:2]
         writer.write({"frame": f, "time": float(st["time"]), "origin": origin, "world": world,
                       "local": (world - origin).astype(np.float32), "velocities": st["velocities"][idx],
                       "radii": st["radii"][idx], "ids": r["ids"][idx], "proto": r["proto"][idx],

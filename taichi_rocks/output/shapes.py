@@ -7,12 +7,11 @@ counter-clockwise seen from outside (USD's right-handed default).
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 __all__ = ["rock_prototype", "box_mesh", "cylinder_mesh", "uniforms", "random_quaternions", "axis_angle",
-           "quat_mul", "FollowCamera", "camera_matrix"]
+           "quat_mul", "camera_matrix"]
 
 _GOLDEN = (1.0 + 5.0 ** 0.5) / 2.0
 _ICOSAHEDRON_FACES = np.array([
@@ -122,34 +121,6 @@ def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------ camera
-class FollowCamera:
-    """The chase camera of [camera], as the renderer frames it: the eye at ``offset`` in the followed
-    vehicle's frame (x forward, y left, z up), looking at the point ``look_ahead`` metres ahead of it; the
-    frame's heading follows the vehicle's through a first-order low-pass of time constant ``smoothing`` s
-    (alpha = 1 - exp(-dt / smoothing)); the first frame snaps."""
-
-    def __init__(self, offset, look_ahead: float, smoothing: float):
-        self.offset = np.asarray(offset, np.float64)
-        self.look_ahead, self.smoothing = float(look_ahead), float(smoothing)
-        self.heading = self.t = None
-
-    def update(self, position, heading: float, t: float):
-        """(eye, target) in world coordinates, float64, at time ``t``."""
-        if self.heading is None or self.smoothing <= 0.0:
-            self.heading = float(heading)
-        else:
-            alpha = 1.0 - math.exp(-max(0.0, float(t) - self.t) / self.smoothing)
-            self.heading += alpha * math.remainder(float(heading) - self.heading, 2.0 * math.pi)
-        self.t = float(t)
-        c, s = math.cos(self.heading), math.sin(self.heading)
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        p = np.asarray(position, np.float64)
-        eye, target = p + rot @ self.offset, p + rot @ np.array([self.look_ahead, 0.0, 0.0])
-        if np.linalg.norm(target - eye) < 1e-6:
-            target = eye + rot @ np.array([1.0, 0.0, 0.0])
-        return eye, target
-
-
 def camera_matrix(eye, target) -> np.ndarray:
     """The 4x4 transform (row vectors, as USD composes them) of a camera at ``eye`` looking at ``target``,
     Z up, no roll: rows right, up, back (the camera looks along its -Z), eye."""

@@ -335,24 +335,23 @@ def test_meshes_are_closed_outward_and_reproducible():
         assert np.mean(np.linalg.norm(points, axis=1)) == pytest.approx(1.0, rel=1e-6)
 
 
-def test_follow_camera_frames_like_the_renderer():
-    """The export's camera (output/ cannot import render/) follows the same rule as the render's rig."""
-    from taichi_rocks.output.shapes import FollowCamera, camera_matrix
-    from taichi_rocks.render.camera import CameraRig
+def test_camera_matrix_looks_from_the_eye_at_the_target():
+    """The exported camera is the renderer's rig (motion/camera.py camera_of); its USD transform is a rotation
+    without roll that looks from the eye at the target."""
+    from taichi_rocks.motion.camera import CameraRig
+    from taichi_rocks.output.shapes import camera_matrix
 
-    ours, theirs = FollowCamera((-9.0, 0.5, 3.5), 6.0, 0.3), CameraRig((-9.0, 0.5, 3.5), 6.0, 0.3)
+    rig = CameraRig((-9.0, 0.5, 3.5), 6.0, 0.3)
     rng = np.random.default_rng(1)
     for k in range(40):
         p, h, t = rng.normal(size=3) * 100.0, float(rng.uniform(-np.pi, np.pi)), k / 12.0
-        eye, target = ours.update(p, h, t)
-        e2, t2, _ = theirs.update(p, h, t)
-        np.testing.assert_allclose(eye, e2, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(target, t2, rtol=0, atol=1e-12)
+        eye, target, _ = rig.update(p, h, t)
         m = camera_matrix(eye, target)
         np.testing.assert_allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-12)  # a rotation, no roll:
         assert abs(m[0, 2]) < 1e-12  # the camera's right axis stays horizontal
         look = -m[2, :3]
         np.testing.assert_allclose(look, (target - eye) / np.linalg.norm(target - eye), atol=1e-12)
+        np.testing.assert_allclose(m[3, :3], eye, atol=1e-12)
 
 
 def test_tumble_orientations_are_unit_and_turn_only_while_moving():
