@@ -23,6 +23,7 @@ only the edge distances count.
 import numpy as np
 import taichi as ti
 
+from .geometry import closest_on_segment
 from .world import HULL, HULL_VERTICES
 
 
@@ -79,16 +80,6 @@ def hull_vertex(w: ti.template(), t, k: ti.template()):
 
 
 @ti.func
-def _segment_dist2(a, b, c):
-    d = b - a
-    dd = d.dot(d)
-    s = 0.0 * dd
-    if dd > 0.0:
-        s = ti.min(ti.max((c - a).dot(d) / dd, 0.0), 1.0)
-    return (c - a - s * d).norm_sqr()
-
-
-@ti.func
 def footprint_dist2(w: ti.template(), t, c):
     """Squared XY distance from the point c (XY) to tire t's swept footprint (0 inside)."""
     best = ti.cast(3.0e38, w.real)
@@ -102,7 +93,7 @@ def footprint_dist2(w: ti.template(), t, c):
         if e[0] * q[1] - e[1] * q[0] < 0.0:
             inside = False
         area += a[0] * b[1] - a[1] * b[0]
-        best = ti.min(best, _segment_dist2(a, b, c))
+        best = ti.min(best, (c - closest_on_segment(a, b, c)).norm_sqr())
     if inside and area > 0.0:
         best = 0.0 * best
     return best

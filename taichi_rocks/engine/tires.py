@@ -28,21 +28,11 @@ footprint's XY box. Tire model and detection are compile-time switches of the Wo
 import taichi as ti
 
 from . import patch, throw
+from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells
 from .randomness import uniform01
 from .world import A0, A1, ACTIVE, B0, B1, FLYING, FWD, HALF_L, HALF_W, SLIDING, SPIN, VEL, IPar, Par
 
-
-
-@ti.func
-def closest_on_segment(a, b, c):
-    """Point of segment a-b closest to c (a zero-length segment gives a)."""
-    d = b - a
-    dd = d.dot(d)
-    t = 0.0 * dd
-    if dd > 0.0:
-        t = ti.min(ti.max((c - a).dot(d) / dd, 0.0), 1.0)
-    return a + t * d
 
 
 @ti.func

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .instances import RockTracker, VehicleTracker
-from .recording import _temp_name, atomic_path, new_folders, remove_stale_temporaries
+from .recording import _temp_name, atomic_path, frame_states, new_folders, remove_stale_temporaries
 from .runs import check_selection, crop_mask
 from ..motion.camera import camera_of
 
@@ -139,11 +139,7 @@ def _run(sim, writer, frames: int, fps: float, only: str, crop, progress, guard:
     rocks = RockTracker(sim.n_rocks, scene.world.gravity, fps)
     vehicles = VehicleTracker(scene.vehicles)
     counts = []
-    for f in range(frames):
-        sim.advance_to(f / fps)
-        if guard:
-            sim.check_health()
-        st = sim.state()
+    for f, st in frame_states(sim, frames, fps, guard, progress):
         origin = np.asarray(sim.origin, np.float64)
         r = rocks.update(st)
         keep = crop_mask(st, target, crop)
@@ -161,6 +157,4 @@ def _run(sim, writer, frames: int, fps: float, only: str, crop, progress, guard:
                       "orientations": r["orientations"][idx],
                       "angular_velocities": r["angular_velocities"][idx], "vehicles": v, "camera": eye_target})
         counts.append(len(idx))
-        if progress is not None:
-            progress.update(1)
     return counts

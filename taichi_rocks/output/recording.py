@@ -167,6 +167,18 @@ def remove_stale_temporaries(final: Path) -> list[Path]:
     return removed
 
 
+
+def frame_states(sim, frames: int, fps: float, guard: bool = True, progress=None):
+    """Yield (f, state) for frames f = 0 .. frames - 1: ``sim`` advanced to exactly f / fps, checked by the runtime
+    guard with ``guard`` (a HealthError propagates), its ``state()``; ``progress`` ticks once a frame is done."""
+    for f in range(frames):
+        sim.advance_to(f / fps)
+        if guard:
+            sim.check_health()
+        yield f, sim.state()
+        if progress is not None:
+            progress.update(1)
+
 def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True, layout: str = "light",
            only: str = "flying", crop=None) -> dict:
     """Run ``sim`` for ``frames`` frames and write ``out`` (its missing folders are created, and removed
@@ -216,18 +228,12 @@ def _record_frames(sim, work: Path, frames: int, fps: float, progress, guard: bo
               for k, (shape, dt) in shapes.items()}
     previous = sim.launches_total
     st = None
-    for f in range(frames):
-        sim.advance_to(f / fps)
-        if guard:
-            sim.check_health()
-        st = sim.state()
+    for f, st in frame_states(sim, frames, fps, guard, progress):
         for k in ("time", "positions", "velocities", "phase", "bed_center", "vehicle_positions",
                   "vehicle_headings"):
             arrays[k][f] = st[k]
         arrays["launches"][f] = st["launches_total"] - previous
         previous = st["launches_total"]
-        if progress is not None:
-            progress.update(1)
     for a in arrays.values():
         a.flush()
     del arrays

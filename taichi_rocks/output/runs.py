@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .recording import Raw
+from .recording import Raw, frame_states
 
 __all__ = ["LIGHT", "MISSING", "RUN_KEYS", "load_run", "record_light", "RowChanges", "crop_mask", "check_selection"]
 
@@ -101,11 +101,7 @@ def record_light(sim, work: Path, frames: int, fps: float, progress, guard: bool
     previous, st = sim.launches_total, None
     try:
         arrays["frame_rows"][0] = 0
-        for f in range(frames):
-            sim.advance_to(f / fps)
-            if guard:
-                sim.check_health()
-            st = sim.state()
+        for f, st in frame_states(sim, frames, fps, guard, progress):
             origin = np.asarray(sim.origin, np.float64)
             for k in ("time", "bed_center", "vehicle_positions", "vehicle_headings"):
                 arrays[k][f] = st[k]
@@ -119,8 +115,6 @@ def record_light(sim, work: Path, frames: int, fps: float, progress, guard: bool
             present = inside
             total += _write_rows(files, np.flatnonzero(keep), st, origin, inside, real)
             arrays["frame_rows"][f + 1] = total
-            if progress is not None:
-                progress.update(1)
     finally:
         for fh in files.values():
             fh.close()
