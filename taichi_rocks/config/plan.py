@@ -27,6 +27,7 @@ class Plan:
     drag: str
     ground: str
     cell_size: float
+    active: bool = False  # activity-proportional stepping: resting rocks in ground tiles (engine/active.py)
 
     @classmethod
     def from_scene(cls, scene) -> "Plan":
@@ -40,9 +41,10 @@ class Plan:
                    swept=sim.detection in ("swept", "patch"), patch=sim.detection == "patch",
                    throw=scene.launch.model, fenders=bool(fx.fenders and scene.launch.model == "tread"),
                    substeps=int(sim.substeps) if sim.detection == "ray" else 1,
-                   reorder_every=int(sim.hash.reorder_every) if (splash and center and scope_all) else 0,
+                   reorder_every=(int(sim.hash.reorder_every) if (splash and center and scope_all
+                                                                   and sim.stepping == "full") else 0),
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
-                   cell_size=cell_size(scene))
+                   cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0)
 
     def passes(self) -> list[str]:
         out = []

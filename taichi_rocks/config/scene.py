@@ -178,6 +178,9 @@ class Sim(_Table):
     substeps: Int = _f(1, "tire-ray evaluations per step (ray detection)", ge=1)
     precision: Literal["f32", "f64"] = _f("f32", "floating-point precision of the simulation")
     origin: Literal["floating", "world"] = _f("floating", "floating keeps kernel coordinates near the bed")
+    stepping: Literal["active", "full"] = _f("active", "active: a step visits only the rocks something happens "
+                                                       "to (resting rocks wait in ground tiles); full: every rock, "
+                                                       "every step (the reference; same results)")
     hash: Hash = _f(Hash(), "spatial hash settings")
 
 

@@ -58,6 +58,7 @@ READS = {
     "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground"),
     "hash_and_tires": ("center", "swept", "ground"),
     "health": ("recycle", "ground"),
+    "active_step": ("splash", "flight", "recycle", "center", "swept", "integrator", "gravity", "drag", "ground"),
 }
 
 

@@ -120,14 +120,18 @@ def hash_sizing(scene, plan, radius, n_tires: int) -> HashSizing:
     entries = entry_capacity(radius, cell, plan.center)
     expected = expected_entries(radius, cell, plan.center)
     tiles = None
-    if not plan.scope_all:
+    if plan.active:  # the hash holds the active list: flying rocks, the tires' tiles, the recycled ones
+        side = 2.0 * margin + 2.0 * tile + 60.0 * float(scene.sim.dt)
+        under = n_tires * side * side * len(radius) / (math.pi * bed.radius ** 2)
+        expected = max(1, int(min(expected, under + 0.01 * expected)))
+    elif not plan.scope_all:
         side = int(math.ceil(2.0 * half / tile))
         tiles = (side, side)
         reach = 2.0 * margin + 2.0 * tile + 60.0 * float(scene.sim.dt)
         share = min(1.0, n_tires * reach * reach / (math.pi * bed.radius ** 2))
         expected = max(1, int(expected * share))
     ts = scene.sim.hash.table_size
-    table = next_prime(max(expected, 1024 if tiles else 1)) if ts == "auto" else int(ts)
+    table = next_prime(max(expected, 1024 if (tiles or plan.active) else 1)) if ts == "auto" else int(ts)
     return HashSizing(table=table, entries=entries, tiles=tiles, tile=tile, margin=margin, grid_half=half)
 
 

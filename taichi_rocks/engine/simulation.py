@@ -31,7 +31,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from . import hashgrid, patch, tires
+from . import active, hashgrid, patch, tires
 from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
@@ -40,7 +40,7 @@ from .kernels import (coast_pass, copy_field, gather_vec, hash_and_tires, health
 from .runtime import init_taichi
 from .setup import hash_sizing, initial_rocks, scene_params
 from .timing import NO_TIMER
-from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, Par, World, acquire
+from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, IPar, Par, World, acquire
 
 __all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "HealthError", "Simulation", "shift_origin"]
 
@@ -88,7 +88,10 @@ class Simulation:
         self._tires_prev = self.fleet.rear_tires(self._poses, relative=True)
         self._upload_rays(self._tires_prev, self._tires_prev)
         self.last_launches = 0
-        if plan.splash:
+        self._check_all = True  # active stepping: the next step tests every rim tile's rocks
+        if plan.active:
+            self._settle_all()
+        elif plan.splash:
             self._initial_sort()
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
@@ -107,7 +110,30 @@ class Simulation:
         return acquire(self, self.n_rocks, self.real, hash_table=s.table, hash_entries=s.entries, n_tires=n_tires,
                        substeps=p.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
                        reorder=p.reorder_every > 0, tiles=s.tiles, tile_size=s.tile,
-                       patch=p.patch, throw=p.throw, fenders=p.fenders)
+                       patch=p.patch, throw=p.throw, fenders=p.fenders, store=self._store_layout())
+
+    def _store_layout(self):
+        """Active stepping's tile store (engine/active.py) as the World's layout argument, or None."""
+        if not self.plan.active:
+            return None
+        st = active.store_sizing(self.n_rocks, self.scene.bed.radius)
+        return (st.tile, st.grid, st.capacity, self.plan.recycle)
+
+    def _tile_shift(self) -> np.ndarray:
+        """The floating origin's shift in tiles (whole numbers, float64), for the store's keys."""
+        return self._shift / self.world.store_tile
+
+    def _settle_all(self) -> None:
+        """Active stepping: every rock is in the active list (just loaded); the resting ones go to the tiles."""
+        w = self.world
+        w.ipar[IPar.N_ROCKS] = self.n_rocks
+        active.settle(w, self._tile_shift())
+        self._check_all = True
+
+    @property
+    def active_count(self) -> int:
+        """Rocks in the active list (active stepping; all rocks with "full" stepping)."""
+        return int(self.world.ipar[IPar.N_ROCKS])
 
     def _start_clock(self) -> None:
         """Time 0: the vehicles' poses, the bed under the followed vehicle, facing its heading, and the
@@ -281,6 +307,9 @@ class Simulation:
             for s in range(0, n, 1 << 30):
                 coast_pass(self.world, self._switches["coast_pass"], min(n - s, 1 << 30), self.dt,
                            self._local_centre(), self._lead, step0 + s)
+        if self.plan.active:
+            with self.timer("settle"):
+                active.settle(self.world, self._tile_shift())
         self._poses = self.fleet.poses(self.time)
         self._tires_prev = self.fleet.rear_tires(self._poses, relative=True)
         self.last_launches = 0
@@ -297,6 +326,14 @@ class Simulation:
         rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
         self._tires_prev = tires_now
         self._poses = poses
+        if p.active and (p.flight or p.recycle or p.splash):
+            frame = active.frame_rows(self._local_centre(), move, self._lead, self._grid_origin(), self._shift,
+                                      self.world.store_tile)
+            with self.timer("active step"):
+                self.last_launches = active.active_step(self.world, self._switches["active_step"], rays, frame, dt,
+                                                        self.step_count, int(self._check_all))
+            self._check_all = False
+            return
         if self.n_rocks and (p.flight or p.recycle or p.splash):
             with self.timer("rock pass"):
                 frame = np.array([self._local_centre(), move, self._lead, self._grid_origin()])  # CENTRE..GRID
@@ -327,29 +364,50 @@ class Simulation:
             if self.n_rocks:
                 with self.timer("origin shift"):
                     shift_origin(self.world, new - self._shift)
+                    if self.plan.active:
+                        active.shift_store(self.world, new - self._shift)
             self._set_shift(new)
 
     # ------------------------------------------------------------------------------------------------
+    def rock_arrays(self) -> dict:
+        """Every rock's fields in id order, wherever the rock is (active list or tiles): "pos" (local frame),
+        "vel", "radius", "friction" (the World's precision), "phase", and "hit_step" (splashing scenes; -1 for
+        a rock waiting in a tile: only this step's value matters)."""
+        w, n = self.world, self.n_rocks
+        m = self.active_count if self.plan.active else n
+        ids = w.rock_id.to_numpy()[:m]
+        names = ["pos", "vel", "radius", "friction", "phase"] + (["hit_step"] if self.plan.splash else [])
+        out = {}
+        for k in names:
+            a = getattr(w, k).to_numpy()[:m]
+            full = np.empty((n,) + a.shape[1:], a.dtype)
+            full[ids] = a
+            out[k] = full
+        if self.plan.active and m < n:
+            counts = w.ts_count.to_numpy()
+            cap = w.store_capacity
+            taken = (np.arange(cap)[None, :] < counts[:, None]).ravel()
+            sid = w.ts_id.to_numpy()[taken]
+            out["pos"][sid] = w.ts_pos.to_numpy()[taken]
+            out["radius"][sid] = w.ts_radius.to_numpy()[taken]
+            out["friction"][sid] = w.ts_friction.to_numpy()[taken]
+            out["vel"][sid] = 0.0
+            out["phase"][sid] = 0
+            if "hit_step" in out:
+                out["hit_step"][sid] = -1
+        return out
+
     def state(self) -> dict:
         """The current state as NumPy arrays, rocks in their original order (by rock id)."""
-        w, n = self.world, self.n_rocks
-        ids = w.rock_id.to_numpy()[:n]
-        pos = np.empty((n, 3))
-        vel = np.empty((n, 3), w.np_real())
-        radius = np.empty(n)
-        phase = np.empty(n, np.int8)
-        pos[ids] = w.pos.to_numpy()[:n].astype(np.float64) + self.origin
-        vel[ids] = w.vel.to_numpy()[:n]
-        radius[ids] = w.radius.to_numpy()[:n]
-        phase[ids] = w.phase.to_numpy()[:n]
+        r = self.rock_arrays()
         poses = self._poses
         return {
             "time": self.time,
             "step": self.step_count,
-            "positions": pos,
-            "velocities": vel,
-            "radii": radius,
-            "phase": phase,
+            "positions": r["pos"].astype(np.float64) + self.origin,
+            "velocities": r["vel"],
+            "radii": r["radius"].astype(np.float64),
+            "phase": r["phase"].astype(np.int8),
             "bed_center": self.bed_center.copy(),
             "vehicle_positions": np.array([p.position for p in poses]).reshape(-1, 3),
             "vehicle_headings": np.array([p.heading for p in poses]),
@@ -359,14 +417,14 @@ class Simulation:
         }
 
     # ------------------------------------------------------------------------------------------------
-    _ROCK_FIELDS = ("pos", "vel", "radius", "friction", "rock_id", "phase")
-
     def checkpoint(self) -> dict:
-        """Everything needed to continue bit-identically: rock fields in memory order, clock, origin."""
-        w = self.world
-        data = {f"rock_{k}": getattr(w, k).to_numpy() for k in self._ROCK_FIELDS}
+        """Everything needed to continue bit-identically: every rock's fields in id order (the same for both
+        stepping modes: a checkpoint of one restores into the other), clock, origin."""
+        r = self.rock_arrays()
+        data = {f"rock_{k}": r[k] for k in ("pos", "vel", "radius", "friction", "phase")}
+        data["rock_rock_id"] = np.arange(max(self.n_rocks, 1), dtype=np.int32)[:self.n_rocks]
         if self.plan.splash:
-            data["rock_hit_step"] = w.hit_step.to_numpy()
+            data["rock_hit_step"] = r["hit_step"]
         data.update(step_count=np.int64(self.step_count), time=np.float64(self.time), origin=self.origin.copy(),
                     origin_anchor=self.anchor.copy(), origin_shift=self._shift.copy(),
                     bed_center=self.bed_center.copy(), bed_rel=self._bed_rel.copy(), lead=self._lead.copy(),
@@ -374,15 +432,29 @@ class Simulation:
                     scene=np.array(self.scene.name), seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
         return data
 
+    _ROCK_FIELDS = ("pos", "vel", "radius", "friction", "rock_id", "phase")
+
+    def _load_rock_fields(self, data: dict) -> None:
+        """The checkpoint's rock fields into the rock arrays (padded to the World's capacity)."""
+        w = self.world
+        for k in self._ROCK_FIELDS + (("hit_step",) if self.plan.splash else ()):
+            a = np.asarray(data[f"rock_{k}"])
+            f = getattr(w, k)
+            if len(a) < f.shape[0]:  # checkpoints hold n rocks; an empty World has one padding slot
+                pad = np.zeros((f.shape[0] - len(a),) + a.shape[1:], a.dtype)
+                if k == "radius":
+                    pad[:] = 1
+                a = np.concatenate([a, pad])
+            f.from_numpy(a.astype(f.to_numpy().dtype if k in ("pos", "vel", "radius", "friction") else np.int32))
+
     def restore(self, data: dict) -> None:
-        """Continue from a checkpoint() of a simulation of the same scene."""
+        """Continue from a checkpoint() of a simulation of the same scene (either stepping mode)."""
         if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
             raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
         w = self.world
-        for k in self._ROCK_FIELDS:
-            getattr(w, k).from_numpy(np.asarray(data[f"rock_{k}"]))
-        if self.plan.splash:
-            w.hit_step.from_numpy(np.asarray(data["rock_hit_step"]))
+        if self.plan.active:
+            w.ts_count.fill(0)
+        self._load_rock_fields(data)
         self.step_count = int(data["step_count"])
         self.time = float(data["time"])
         self.bed_center = np.array(data["bed_center"], dtype=np.float64)
@@ -400,6 +472,8 @@ class Simulation:
         par = self._par.copy()
         par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
         w.par.from_numpy(par.astype(w.np_real()))
+        if self.plan.active:
+            self._settle_all()
         self._poses = self.fleet.poses(self.time)
         self._tires_prev = self.fleet.rear_tires(self._poses, relative=True)
         if self.plan.splash:
@@ -416,14 +490,19 @@ class Simulation:
         eps = float(np.finfo(w.np_real()).eps)
         slack = 1e-3 + 8.0 * eps * (float(np.max(np.abs(lc))) + self.scene.bed.radius)
         health(w, self._switches["health"], lc, slack)
+        if self.plan.active:
+            active.store_health(w, lc, slack, self._tile_shift())
         out = w.health_out.to_numpy()
         if not out[:3].any():
             return
         kind = int(np.flatnonzero(out[:3])[0])
         i = int(out[3 + kind])
-        rid = int(w.rock_id[i])
-        p = w.pos[i].to_numpy().astype(np.float64) + self.origin
-        v = w.vel[i].to_numpy()
+        if i < 0:  # a rock in the tiles (engine/active.py: store_health)
+            j = -1 - i
+            rid, p, v = int(w.ts_id[j]), w.ts_pos[j].to_numpy(), np.zeros(3)
+        else:
+            rid, p, v = int(w.rock_id[i]), w.pos[i].to_numpy(), w.vel[i].to_numpy()
+        p = p.astype(np.float64) + self.origin
         what = ("non-finite state", "outside the bed", "below the ground")[kind]
         raise HealthError(
             f"step {self.step_count} (t = {self.time:.4f} s): {int(out[kind])} rock(s) {what}; "

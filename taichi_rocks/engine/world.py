@@ -134,7 +134,8 @@ class World:
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
-                 tile_size: float = 1.0, patch: bool = False, throw: str = "uniform", fenders: bool = False):
+                 tile_size: float = 1.0, patch: bool = False, throw: str = "uniform", fenders: bool = False,
+                 store=None):
         self.n = n
         # compile-time switches of the tire pass, from the Plan (part of the layout: see acquire)
         self.patch, self.throw, self.fenders = bool(patch), str(throw), bool(fenders)
@@ -186,6 +187,24 @@ class World:
             self.tmp_vec = trees.vector(3, real, cap)
             self.tmp_real = trees.field(real, cap)
             self.tmp_int = trees.field(ti.i32, cap)
+        # active stepping (engine/active.py): resting rocks in ground tiles; the rock arrays above are the
+        # active list (ipar[N_ROCKS] rocks). ``store``: (tile edge, slots per axis, rocks per slot, recycle?)
+        self.stored = store is not None
+        if self.stored:
+            tile, grid, capacity, recycle = store
+            self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
+            self.recycles_rocks = bool(recycle)
+            slots = self.store_grid * self.store_grid
+            self.ts_pos = trees.vector(3, real, slots * self.store_capacity)
+            self.ts_radius = trees.field(real, slots * self.store_capacity)
+            self.ts_friction = trees.field(real, slots * self.store_capacity)
+            self.ts_id = trees.field(ti.i32, slots * self.store_capacity)
+            self.ts_count = trees.field(ti.i32, slots)
+            self.ts_key = trees.vector(2, ti.i32, slots)
+            self.ts_sel = trees.field(ti.i32, slots)
+            self.a_hole = trees.field(ti.i32, cap)
+            self.a_mover = trees.field(ti.i32, cap)
+            self.a_counts = trees.field(ti.i32, 3)
         self.health_out = trees.field(ti.i32, 6)  # the runtime guard's counts (Simulation.check_health)
         trees.finalize()
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)

@@ -1,0 +1,386 @@
+"""Activity-proportional stepping (``[sim] stepping = "active"``): a step visits only the rocks something happens
+to. Resting rocks wait in ground tiles; the rocks in the air, sliding or about to be touched are in a compact
+active list, which is the World's rock arrays (``pos``, ``vel``, ... and ``ipar[N_ROCKS]`` their count), so the
+passes of "full" stepping run on it unchanged.
+
+Tiles. The ground is cut into square tiles of edge s (a power of two metres: 64 m is a whole number of tiles, so
+the floating origin's shifts, whole multiples of 64 m, move no tile boundary). A tile's key is its integer
+coordinates relative to the origin's anchor, key = floor(p_local / s) + shift / s. Keys live in a G x G table
+addressed modulo G (a toroidal grid, G s > 2R + 2s): the tiles the bed covers never share a slot, and the slots
+the bed's rim leaves behind are taken by the tiles it reaches. Each slot holds up to C rocks stored together
+(position, radius, static friction, id: a resting rock has no velocity), its key and its count.
+
+One step (one kernel launch, :func:`active_step`; its loops run in order):
+  1. classify the occupied tiles (one thread per slot), with the bed's new centre c, its move d (old centre
+     c - d) and a margin eps for rounding:
+     - rim: the tile reaches outside the new disk (farthest point > R) and into the trailing crescent, the
+       half-plane (q - m).d < 2 R eps behind the midpoint m = c - d / 2 of the two centres: a rock inside the
+       old disk and outside the new one is there (|q - c|^2 - |q - c + d|^2 = 2 (q - m).d). A bed that did not
+       move has no crescent: no rim tiles;
+     - gone: the tile lies wholly outside the new disk (a jump, or the rim passed it in one step);
+     - tire: the tile meets a tire's query box (the XY box of its rays at the previous and the current step,
+       the swept parallelogram's fourth corner and the tread's swept footprint, grown by r_max + eps);
+  2. gather: rocks of gone and tire tiles move to the active list in bulk (a block reserved by one atomic add per
+     tile); in rim tiles each rock is tested with the rock pass's own test (bed.outside_bed) and only those
+     outside move, the others are compacted in place;
+  3. the rock pass of "full" stepping over the active list: flight, recycling, counting for the hash;
+  4. the hash build and the tire pass (unchanged, over the active list);
+  5. settle: active rocks at rest go to their tile (atomic slot count; a full tile keeps the rock active);
+  6. compaction of the active list (survivors above the new count fill the holes below it).
+Same results as "full": every rock that "full" would change this step is in the active list when the rock pass
+and the tire pass run, and each one goes through the same functions with the same arguments (the random
+numbers are hashes of the rock's id and the step, the tire pass tests tires in the same order, first tire wins);
+a resting rock in the tiles is not touched by a step of "full" either (no flight, inside the bed, under no
+tire). Only the memory order of the rocks differs (``state()`` is by rock id). Cost per step: the active rocks,
+the rim tiles' rocks (a band one tile wide along half the rim), the tire tiles' rocks and one pass over the G^2
+slots; not N.
+Every loop is parallel (atomic counters, parallel compaction); the serial loops are the hash's prefix sum over
+its table (sized to the active list) and the tire pass over tires, as in "full" stepping.
+"""
+
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from . import hashgrid, tires
+from .bed import outside_bed, recycle_to_leading_edge
+from .flight import fly
+from .patch import footprint_box
+from .world import A0, A1, ACTIVE, B0, B1, HALF_L, HALF_W, RAY_FIELDS, RESTING, IPar, Par
+
+__all__ = ["StoreSizing", "store_sizing", "active_step", "settle", "shift_store", "store_health",
+           "CENTRE", "MOVE", "LEAD", "GRID", "TILES", "FRAME_ROWS"]
+
+ROCKS_PER_TILE = 64  # the tile edge is the power of two giving about this many rocks per tile
+NONE, RIM, MOVE_ALL = 0, 1, 2  # tile classes of a step
+
+# Rows of active_step's ``frame`` (2-vectors, float64): those of kernels.rock_pass, then the tile shift
+# (shift / s: whole numbers).
+CENTRE, MOVE, LEAD, GRID, TILES = 0, 1, 2, 3, 4
+FRAME_ROWS = 5
+
+vec2 = ti.types.vector(2, ti.f64)
+
+
+@dataclass(frozen=True)
+class StoreSizing:
+    """The tile store of a scene: tile edge (m), slots per axis, rocks per slot."""
+
+    tile: float
+    grid: int
+    capacity: int
+
+    def memory(self, real_bytes: int = 4) -> int:
+        """Bytes of the store: per rock slot 3 + 2 reals and an id; per tile slot a key, a count, a class."""
+        return self.grid * self.grid * (self.capacity * (5 * real_bytes + 4) + 16)
+
+
+def store_sizing(n: int, bed_radius: float) -> StoreSizing:
+    """Tile edge s: the power of two (1/64 m .. 64 m) nearest to sqrt(ROCKS_PER_TILE / density); G: the
+    smallest grid with G s >= 2 R + 3 s; C: the mean count m plus room for Poisson scatter and landing rocks
+    (1.5 m + 4 sqrt(m) + 8; a rock finding its tile full stays in the active list)."""
+    area = math.pi * bed_radius ** 2
+    density = max(n, 1) / area
+    s = 2.0 ** round(math.log2(math.sqrt(ROCKS_PER_TILE / density)))
+    s = min(64.0, max(1.0 / 64.0, s))
+    grid = int(math.ceil(2.0 * bed_radius / s)) + 3
+    m = density * s * s
+    cap = int(math.ceil(1.5 * m + 4.0 * math.sqrt(m) + 8.0))
+    return StoreSizing(tile=s, grid=grid, capacity=cap)
+
+
+# ------------------------------------------------------------------------------------------------ tiles
+@ti.func
+def tile_key(w: ti.template(), p, shift_tiles):
+    """Anchor-relative integer key of the tile holding the local point p."""
+    inv = 1.0 / w.store_tile  # a power of two: exact
+    return ti.Vector([ti.cast(ti.floor(p[0] * inv), ti.i32), ti.cast(ti.floor(p[1] * inv), ti.i32)]) + shift_tiles
+
+
+@ti.func
+def same_key(a, b):
+    return a[0] == b[0] and a[1] == b[1]
+
+
+@ti.func
+def slot_of(w: ti.template(), key):
+    g = w.store_grid
+    return ((key[0] % g + g) % g) * g + ((key[1] % g + g) % g)
+
+
+@ti.func
+def rounding_margin(w: ti.template(), c):
+    """A margin (m) for the tile tests: 1 mm plus many float spacings at the bed's distance from the origin."""
+    eps = ti.static(1.2e-7 if w.real == ti.f32 else 2.3e-16)
+    return 1e-3 + 64.0 * eps * (ti.abs(c[0]) + ti.abs(c[1]) + w.par[Par.BED_RADIUS])
+
+
+@ti.func
+def classify_rim(w: ti.template(), c, d, shift_tiles, check_all):
+    """Step 1 for the bed: mark rim and gone tiles (module docstring)."""
+    s = w.store_tile
+    radius = w.par[Par.BED_RADIUS]
+    eps = rounding_margin(w, c)
+    moved = check_all != 0 or d[0] != 0.0 or d[1] != 0.0
+    mid = c - 0.5 * d
+    for t in range(w.store_grid * w.store_grid):
+        sel = NONE
+        if ti.static(w.recycles_rocks):
+            if moved and w.ts_count[t] > 0:
+                key = w.ts_key[t] - shift_tiles
+                lo = ti.Vector([ti.cast(key[0], w.real) * s, ti.cast(key[1], w.real) * s]) - eps
+                hi = lo + s + 2.0 * eps
+                far = ti.max(ti.abs(lo - c), ti.abs(hi - c))
+                near = ti.max(ti.max(lo - c, c - hi), 0.0)
+                if near.norm_sqr() > radius * radius:
+                    sel = MOVE_ALL
+                elif far.norm_sqr() > radius * radius:
+                    if check_all != 0:
+                        sel = RIM
+                    else:  # the smallest (q - mid).d over the box is at a corner
+                        lead = ti.min((lo[0] - mid[0]) * d[0], (hi[0] - mid[0]) * d[0]) + ti.min(
+                            (lo[1] - mid[1]) * d[1], (hi[1] - mid[1]) * d[1])
+                        if lead < 2.0 * radius * eps + eps * d.norm():
+                            sel = RIM
+        w.ts_sel[t] = sel
+
+
+@ti.func
+def tire_box(w: ti.template(), t, reach):
+    """XY box (lo, hi) of everything tire t can hit this step: its rays, the swept parallelogram's fourth
+    corner, the tread's footprint; grown by ``reach``."""
+    lo = ti.Vector([w.ray[t, A0], w.ray[t, A0 + 1]])
+    hi = lo
+    for k in ti.static((B0, A1, B1)):
+        q = ti.Vector([w.ray[t, k], w.ray[t, k + 1]])
+        lo = ti.min(lo, q)
+        hi = ti.max(hi, q)
+    q = ti.Vector([w.ray[t, A1] + w.ray[t, B0] - w.ray[t, A0], w.ray[t, A1 + 1] + w.ray[t, B0 + 1] - w.ray[t, A0 + 1]])
+    lo = ti.min(lo, q)
+    hi = ti.max(hi, q)
+    if ti.static(w.patch):
+        if w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0:
+            f_lo, f_hi = footprint_box(w, t)
+            lo = ti.min(lo, f_lo)
+            hi = ti.max(hi, f_hi)
+    return lo - reach, hi + reach
+
+
+@ti.func
+def classify_tires(w: ti.template(), c, shift_tiles):
+    """Step 1 for the tires: mark the occupied tiles under every active tire's query box."""
+    if ti.static(w.n_tires > 0):
+        reach = w.par[Par.R_MAX] + rounding_margin(w, c)
+        g = w.store_grid
+        for t in range(w.n_tires):
+            if w.ray[t, ACTIVE] != 0.0:
+                lo, hi = tire_box(w, t, reach)
+                k_lo = tile_key(w, lo, shift_tiles)
+                k_hi = tile_key(w, hi, shift_tiles)
+                for a in range(k_lo[0], ti.min(k_hi[0], k_lo[0] + g - 1) + 1):
+                    for b in range(k_lo[1], ti.min(k_hi[1], k_lo[1] + g - 1) + 1):
+                        key = ti.Vector([a, b])
+                        sl = slot_of(w, key)
+                        if w.ts_count[sl] > 0 and same_key(w.ts_key[sl], key):
+                            ti.atomic_max(w.ts_sel[sl], MOVE_ALL)
+
+
+@ti.func
+def to_active(w: ti.template(), j, a):
+    """Copy stored rock j (store index) to active index a, at rest."""
+    w.pos[a] = w.ts_pos[j]
+    w.vel[a] = w.ts_pos[j] * 0.0
+    w.radius[a] = w.ts_radius[j]
+    w.friction[a] = w.ts_friction[j]
+    w.rock_id[a] = w.ts_id[j]
+    w.phase[a] = RESTING
+    if ti.static(w.hashed):
+        w.hit_step[a] = -1
+
+
+@ti.func
+def store_copy(w: ti.template(), src, dst):
+    w.ts_pos[dst] = w.ts_pos[src]
+    w.ts_radius[dst] = w.ts_radius[src]
+    w.ts_friction[dst] = w.ts_friction[src]
+    w.ts_id[dst] = w.ts_id[src]
+
+
+@ti.func
+def gather(w: ti.template(), c):
+    """Step 2: move the marked tiles' rocks to the active list (module docstring)."""
+    cap = w.store_capacity
+    radius = w.par[Par.BED_RADIUS]
+    ground = w.par[Par.GROUND_Z]
+    for t in range(w.store_grid * w.store_grid):
+        sel = w.ts_sel[t]
+        if sel != NONE:
+            n = w.ts_count[t]
+            base = t * cap
+            if sel == MOVE_ALL:
+                a0 = ti.atomic_add(w.ipar[IPar.N_ROCKS], n)
+                for j in range(n):
+                    to_active(w, base + j, a0 + j)
+                w.ts_count[t] = 0
+            else:
+                keep = 0
+                for j in range(n):
+                    if outside_bed(w.ts_pos[base + j], c, radius, ground):
+                        to_active(w, base + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
+                    else:
+                        if keep != j:
+                            store_copy(w, base + j, base + keep)
+                        keep += 1
+                w.ts_count[t] = keep
+
+
+@ti.func
+def settle_rocks(w: ti.template(), shift_tiles):
+    """Step 5: active rocks at rest join their tile (they are inside the bed: the rock pass recycled those
+    outside); one whose tile is full (or, never in a bed, taken by another key) stays active. Settled rocks
+    get id -1 in the active list, for the compaction."""
+    cap = w.store_capacity
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        if w.phase[i] == RESTING:
+            key = tile_key(w, w.pos[i], shift_tiles)
+            sl = slot_of(w, key)
+            if w.ts_count[sl] == 0:
+                w.ts_key[sl] = key
+            if same_key(w.ts_key[sl], key):
+                k = ti.atomic_add(w.ts_count[sl], 1)
+                if k < cap:
+                    j = sl * cap + k
+                    w.ts_pos[j] = w.pos[i]
+                    w.ts_radius[j] = w.radius[i]
+                    w.ts_friction[j] = w.friction[i]
+                    w.ts_id[j] = w.rock_id[i]
+                    w.rock_id[i] = -1
+    for t in range(w.store_grid * w.store_grid):
+        if w.ts_count[t] > cap:
+            w.ts_count[t] = cap
+
+
+@ti.func
+def active_copy(w: ti.template(), src, dst):
+    w.pos[dst] = w.pos[src]
+    w.vel[dst] = w.vel[src]
+    w.radius[dst] = w.radius[src]
+    w.friction[dst] = w.friction[src]
+    w.rock_id[dst] = w.rock_id[src]
+    w.phase[dst] = w.phase[src]
+    if ti.static(w.hashed):
+        w.hit_step[dst] = w.hit_step[src]
+
+
+@ti.func
+def compact(w: ti.template()):
+    """Step 6: the active rocks still listed (id >= 0) end up in 0 .. count - 1: those above the new count
+    fill the holes below it (atomic lists of both, paired by their order in the lists)."""
+    cnt = ti.static(w.a_counts)  # [0] survivors, [1] holes, [2] movers
+    for k in ti.static(range(3)):
+        cnt[k] = 0
+    n = w.ipar[IPar.N_ROCKS]
+    for i in range(n):
+        if w.rock_id[i] >= 0:
+            ti.atomic_add(cnt[0], 1)
+    keep = cnt[0]
+    for i in range(n):
+        alive = w.rock_id[i] >= 0
+        if i < keep and not alive:
+            w.a_hole[ti.atomic_add(cnt[1], 1)] = i
+        elif i >= keep and alive:
+            w.a_mover[ti.atomic_add(cnt[2], 1)] = i
+    for k in range(cnt[1]):
+        active_copy(w, w.a_mover[k], w.a_hole[k])
+    w.ipar[IPar.N_ROCKS] = keep
+
+
+# ------------------------------------------------------------------------------------------------ kernels
+@ti.kernel
+def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
+                frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32, check_all: ti.i32) -> ti.i32:
+    """One step of active stepping (module docstring); returns the rocks launched. ``check_all``: test every
+    rim tile's rocks against the new disk whatever the move (the first step after rocks were loaded)."""
+    if ti.static(plan.splash):
+        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
+            w.ray[t, k] = ti.cast(rays[t, k], w.real)
+    h = ti.cast(dt, w.real)
+    c = ti.cast(frame[CENTRE], w.real)
+    m = ti.cast(frame[MOVE], w.real)
+    d = ti.cast(frame[LEAD], w.real)
+    st = ti.cast(frame[TILES], ti.i32)
+    classify_rim(w, c, m, st, check_all)
+    if ti.static(plan.splash):
+        classify_tires(w, c, st)
+    gather(w, c)
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        if ti.static(plan.flight):
+            fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+        if ti.static(plan.recycle):
+            recycle_to_leading_edge(w, i, c, m, d, step)
+        if ti.static(plan.splash):
+            hashgrid.count_rock(w, i, plan.center, c)
+    launched = 0
+    if ti.static(plan.splash):
+        hashgrid.scan_counts(w)
+        hashgrid.scatter_all(w, plan.center)
+        if ti.static(not plan.swept):
+            tires.trace_all(w)
+        launched = tires.launch_all(w, step, plan.swept, plan.center, plan.ground)
+        hashgrid.clear_all(w)
+    settle_rocks(w, st)
+    compact(w)
+    return launched
+
+
+@ti.kernel
+def settle(w: ti.template(), tiles: vec2):
+    """Steps 5 and 6 alone: after rocks were loaded into the active list, and after coasting."""
+    settle_rocks(w, ti.cast(tiles, ti.i32))
+    compact(w)
+
+
+@ti.kernel
+def shift_store(w: ti.template(), shift: vec2):
+    """The floating origin moved by ``shift`` (whole multiples of 64 m): stored rocks' local positions move by
+    -shift (keys are anchor-relative and stay)."""
+    dv = ti.Vector([ti.cast(shift[0], w.real), ti.cast(shift[1], w.real), 0.0])
+    cap = w.store_capacity
+    for t, k in ti.ndrange(w.store_grid * w.store_grid, cap):
+        if k < w.ts_count[t]:
+            w.ts_pos[t * cap + k] -= dv
+
+
+@ti.kernel
+def store_health(w: ti.template(), centre: vec2, slack: ti.f64, tiles: vec2):
+    """The runtime guard over the stored rocks, into ``w.health_out`` after kernels.health: non-finite [0],
+    outside the bed [1], below the ground or off its tile [2] (indices are not recorded: -1 - store index in
+    [3..5] when the active list had none)."""
+    out = ti.static(w.health_out)
+    radius = w.par[Par.BED_RADIUS] + ti.cast(slack, w.real)
+    cap = w.store_capacity
+    st = ti.cast(tiles, ti.i32)
+    for t, k in ti.ndrange(w.store_grid * w.store_grid, cap):
+        if k < w.ts_count[t]:
+            j = t * cap + k
+            p = w.ts_pos[j]
+            if not (ti.abs(p[0]) < 1e30 and ti.abs(p[1]) < 1e30 and ti.abs(p[2]) < 1e30):
+                out[0] += 1
+                ti.atomic_min(out[3], -1 - j)
+            else:
+                d2 = (p[0] - centre[0]) ** 2 + (p[1] - centre[1]) ** 2
+                if ti.static(w.recycles_rocks):
+                    if d2 > radius * radius:
+                        out[1] += 1
+                        ti.atomic_min(out[4], -1 - j)
+                if not same_key(tile_key(w, p, st), w.ts_key[t]) or p[2] < w.par[Par.GROUND_Z] - ti.cast(slack, w.real):
+                    out[2] += 1
+                    ti.atomic_min(out[5], -1 - j)
+
+
+def frame_rows(centre, move, lead, grid, shift, tile: float) -> np.ndarray:
+    """active_step's ``frame`` (float64, FRAME_ROWS x 2)."""
+    return np.array([centre, move, lead, grid, np.asarray(shift, np.float64) / tile])
