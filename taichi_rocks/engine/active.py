@@ -20,9 +20,10 @@ One step (one kernel launch, :func:`active_step`; its loops run in order):
      - gone: the tile lies wholly outside the new disk (a jump, or the rim passed it in one step);
      - tire: the tile meets a tire's query box (the XY box of its rays at the previous and the current step,
        the swept parallelogram's fourth corner and the tread's swept footprint, grown by r_max + eps);
-  2. gather: rocks of gone and tire tiles move to the active list in bulk (a block reserved by one atomic add per
-     tile); in rim tiles each rock is tested with the rock pass's own test (bed.outside_bed) and only those
-     outside move, the others are compacted in place;
+  2. gather: the rocks of gone tiles move to the active list in bulk (a block reserved by one atomic add per
+     tile); in rim tiles each rock is tested with the rock pass's own test (bed.outside_bed), in tire tiles
+     also against the boxes of the tires that marked the tile, and only those that pass move, the others are
+     compacted in place;
   3. the rock pass of "full" stepping over the active list: flight, recycling, counting for the hash;
   4. the hash build and the tire pass (unchanged, over the active list);
   5. settle: active rocks at rest go to their tile (atomic slot count; a full tile keeps the rock active);
@@ -49,13 +50,13 @@ from . import hashgrid, tires
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from .patch import footprint_box
-from .world import A0, A1, ACTIVE, B0, B1, HALF_L, HALF_W, RAY_FIELDS, RESTING, IPar, Par
+from .world import A0, A1, ACTIVE, B0, B1, FLYING, HALF_L, HALF_W, RAY_FIELDS, RESTING, IPar, Par
 
 __all__ = ["StoreSizing", "store_sizing", "active_step", "settle", "shift_store", "store_health",
            "CENTRE", "MOVE", "LEAD", "GRID", "TILES", "FRAME_ROWS"]
 
-ROCKS_PER_TILE = 64  # the tile edge is the power of two giving about this many rocks per tile
-NONE, RIM, MOVE_ALL = 0, 1, 2  # tile classes of a step
+ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many rocks per tile
+NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
 
 # Rows of active_step's ``frame`` (2-vectors, float64): those of kernels.rock_pass, then the tile shift
 # (shift / s: whole numbers).
@@ -81,14 +82,14 @@ class StoreSizing:
 def store_sizing(n: int, bed_radius: float) -> StoreSizing:
     """Tile edge s: the power of two (1/64 m .. 64 m) nearest to sqrt(ROCKS_PER_TILE / density); G: the
     smallest grid with G s >= 2 R + 3 s; C: the mean count m plus room for Poisson scatter and landing rocks
-    (1.5 m + 4 sqrt(m) + 8; a rock finding its tile full stays in the active list)."""
+    (1.25 m + 3 sqrt(m) + 8; a rock finding its tile full stays in the active list)."""
     area = math.pi * bed_radius ** 2
     density = max(n, 1) / area
     s = 2.0 ** round(math.log2(math.sqrt(ROCKS_PER_TILE / density)))
     s = min(64.0, max(1.0 / 64.0, s))
     grid = int(math.ceil(2.0 * bed_radius / s)) + 3
     m = density * s * s
-    cap = int(math.ceil(1.5 * m + 4.0 * math.sqrt(m) + 8.0))
+    cap = int(math.ceil(1.25 * m + 3.0 * math.sqrt(m) + 8.0))
     return StoreSizing(tile=s, grid=grid, capacity=cap)
 
 
@@ -119,33 +120,80 @@ def rounding_margin(w: ti.template(), c):
 
 
 @ti.func
+def mark(w: ti.template(), sl, code):
+    """Raise slot sl's class to ``code``; the first mark of a step lists the slot for the gather."""
+    if ti.atomic_max(w.ts_sel[sl], code) == NONE:
+        w.ts_list[ti.atomic_add(w.a_counts[3], 1)] = sl
+
+
+@ti.func
+def rim_class(w: ti.template(), lo, hi, c, mid, d, radius, eps, check_all):
+    """The class of the tile [lo, hi] (grown by eps) for the bed's rim (module docstring)."""
+    sel = NONE
+    far = ti.max(ti.abs(lo - c), ti.abs(hi - c))
+    near = ti.max(ti.max(lo - c, c - hi), 0.0)
+    if near.norm_sqr() > radius * radius:
+        sel = MOVE_ALL
+    elif far.norm_sqr() > radius * radius:
+        if check_all != 0:
+            sel = RIM
+        else:  # the smallest (q - mid).d over the box is at a corner
+            lead = ti.min((lo[0] - mid[0]) * d[0], (hi[0] - mid[0]) * d[0]) + ti.min(
+                (lo[1] - mid[1]) * d[1], (hi[1] - mid[1]) * d[1])
+            if lead < 2.0 * radius * eps + eps * d.norm():
+                sel = RIM
+    return sel
+
+
+@ti.func
+def classify_slot(w: ti.template(), sl, c, mid, d, shift_tiles, radius, eps, check_all):
+    if w.ts_count[sl] > 0:
+        key = w.ts_key[sl] - shift_tiles
+        lo = ti.Vector([ti.cast(key[0], w.real), ti.cast(key[1], w.real)]) * w.store_tile - eps
+        sel = rim_class(w, lo, lo + w.store_tile + 2.0 * eps, c, mid, d, radius, eps, check_all)
+        if sel != NONE:
+            mark(w, sl, sel)
+
+
+@ti.func
 def classify_rim(w: ti.template(), c, d, shift_tiles, check_all):
-    """Step 1 for the bed: mark rim and gone tiles (module docstring)."""
+    """Step 1 for the bed: mark rim and gone tiles (module docstring). A bed that moved less than a few tiles
+    visits only the band of tiles the circle |q - c| = R crosses, widened by the move (a tile whose rocks were
+    inside the old disk and are not all inside the new one lies in it); a bigger move, or ``check_all``,
+    visits every slot. (Both loops are at the top level: Taichi runs only those in parallel.)"""
     s = w.store_tile
     radius = w.par[Par.BED_RADIUS]
     eps = rounding_margin(w, c)
-    moved = check_all != 0 or d[0] != 0.0 or d[1] != 0.0
     mid = c - 0.5 * d
-    for t in range(w.store_grid * w.store_grid):
-        sel = NONE
-        if ti.static(w.recycles_rocks):
-            if moved and w.ts_count[t] > 0:
-                key = w.ts_key[t] - shift_tiles
-                lo = ti.Vector([ti.cast(key[0], w.real) * s, ti.cast(key[1], w.real) * s]) - eps
-                hi = lo + s + 2.0 * eps
-                far = ti.max(ti.abs(lo - c), ti.abs(hi - c))
-                near = ti.max(ti.max(lo - c, c - hi), 0.0)
-                if near.norm_sqr() > radius * radius:
-                    sel = MOVE_ALL
-                elif far.norm_sqr() > radius * radius:
-                    if check_all != 0:
-                        sel = RIM
-                    else:  # the smallest (q - mid).d over the box is at a corner
-                        lead = ti.min((lo[0] - mid[0]) * d[0], (hi[0] - mid[0]) * d[0]) + ti.min(
-                            (lo[1] - mid[1]) * d[1], (hi[1] - mid[1]) * d[1])
-                        if lead < 2.0 * radius * eps + eps * d.norm():
-                            sel = RIM
-        w.ts_sel[t] = sel
+    dist = d.norm()
+    every = 0
+    rows = 0
+    outer = radius + dist + eps
+    ky0 = ti.cast(ti.floor((c[1] - outer) / s), ti.i32)
+    if ti.static(w.recycles_rocks):
+        if check_all != 0 or dist > 4.0 * s:
+            every = w.store_grid * w.store_grid
+        elif dist > 0.0:
+            rows = ti.cast(ti.floor((c[1] + outer) / s), ti.i32) - ky0 + 1
+    for t in range(every):
+        classify_slot(w, t, c, mid, d, shift_tiles, radius, eps, check_all)
+    for r, side in ti.ndrange(rows, 2):
+        ky = ky0 + r
+        y_lo = ti.cast(ky, w.real) * s - eps
+        y_hi = y_lo + s + 2.0 * eps
+        dy_min = ti.max(ti.max(y_lo - c[1], c[1] - y_hi), 0.0)
+        dy_max = ti.max(ti.abs(y_lo - c[1]), ti.abs(y_hi - c[1]))
+        x_out = ti.sqrt(ti.max(outer * outer - dy_min * dy_min, 0.0))
+        inner = ti.max(radius - eps, 0.0)
+        x_in = ti.sqrt(ti.max(inner * inner - dy_max * dy_max, 0.0))
+        sg = 1.0 - 2.0 * side
+        ka = ti.cast(ti.floor((c[0] + sg * x_in) / s), ti.i32)
+        kb = ti.cast(ti.floor((c[0] + sg * x_out) / s), ti.i32)
+        for kx in range(ti.min(ka, kb), ti.max(ka, kb) + 1):
+            key = ti.Vector([kx, ky]) + shift_tiles
+            sl = slot_of(w, key)
+            if same_key(w.ts_key[sl], key):
+                classify_slot(w, sl, c, mid, d, shift_tiles, radius, eps, check_all)
 
 
 @ti.func
@@ -171,13 +219,16 @@ def tire_box(w: ti.template(), t, reach):
 
 @ti.func
 def classify_tires(w: ti.template(), c, shift_tiles):
-    """Step 1 for the tires: mark the occupied tiles under every active tire's query box."""
+    """Step 1 for the tires: mark the occupied tiles under every active tire's query box; the boxes go to
+    ``w.tire_box`` and each tile notes which tires (bit t mod 32 of ``w.ts_tires``) marked it."""
     if ti.static(w.n_tires > 0):
         reach = w.par[Par.R_MAX] + rounding_margin(w, c)
         g = w.store_grid
         for t in range(w.n_tires):
-            if w.ray[t, ACTIVE] != 0.0:
-                lo, hi = tire_box(w, t, reach)
+            lo, hi = tire_box(w, t, reach)
+            on = w.ray[t, ACTIVE] != 0.0
+            w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
+            if on:
                 k_lo = tile_key(w, lo, shift_tiles)
                 k_hi = tile_key(w, hi, shift_tiles)
                 for a in range(k_lo[0], ti.min(k_hi[0], k_lo[0] + g - 1) + 1):
@@ -185,7 +236,19 @@ def classify_tires(w: ti.template(), c, shift_tiles):
                         key = ti.Vector([a, b])
                         sl = slot_of(w, key)
                         if w.ts_count[sl] > 0 and same_key(w.ts_key[sl], key):
-                            ti.atomic_max(w.ts_sel[sl], MOVE_ALL)
+                            ti.atomic_or(w.ts_tires[sl], 1 << (t & 31))
+                            mark(w, sl, TIRE)
+
+
+@ti.func
+def under_a_tire(w: ti.template(), p, bits):
+    """Is the point p in the query box of one of the tires whose bits (t mod 32) are set?"""
+    hit = False
+    for t in range(w.n_tires):
+        if not hit and (bits >> (t & 31)) & 1 != 0:
+            b = w.tire_box[t]
+            hit = b[0] <= p[0] <= b[2] and b[1] <= p[1] <= b[3]
+    return hit
 
 
 @ti.func
@@ -215,26 +278,39 @@ def gather(w: ti.template(), c):
     cap = w.store_capacity
     radius = w.par[Par.BED_RADIUS]
     ground = w.par[Par.GROUND_Z]
-    for t in range(w.store_grid * w.store_grid):
+    for k in range(w.a_counts[3]):
+        t = w.ts_list[k]
         sel = w.ts_sel[t]
-        if sel != NONE:
-            n = w.ts_count[t]
-            base = t * cap
-            if sel == MOVE_ALL:
-                a0 = ti.atomic_add(w.ipar[IPar.N_ROCKS], n)
-                for j in range(n):
-                    to_active(w, base + j, a0 + j)
-                w.ts_count[t] = 0
-            else:
-                keep = 0
-                for j in range(n):
-                    if outside_bed(w.ts_pos[base + j], c, radius, ground):
-                        to_active(w, base + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
-                    else:
-                        if keep != j:
-                            store_copy(w, base + j, base + keep)
-                        keep += 1
-                w.ts_count[t] = keep
+        w.ts_sel[t] = NONE
+        n = w.ts_count[t]
+        base = t * cap
+        if sel == MOVE_ALL:
+            a0 = ti.atomic_add(w.ipar[IPar.N_ROCKS], n)
+            for j in range(n):
+                to_active(w, base + j, a0 + j)
+            w.ts_count[t] = 0
+            if ti.static(w.n_tires > 0):
+                w.ts_tires[t] = 0
+        else:
+            bits = 0
+            if ti.static(w.n_tires > 0):
+                bits = w.ts_tires[t]
+                w.ts_tires[t] = 0
+            keep = 0
+            for j in range(n):
+                p = w.ts_pos[base + j]
+                leave = outside_bed(p, c, radius, ground)
+                if ti.static(w.n_tires > 0):
+                    if sel == TIRE and not leave:
+                        leave = under_a_tire(w, p, bits)
+                if leave:
+                    to_active(w, base + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
+                else:
+                    if keep != j:
+                        store_copy(w, base + j, base + keep)
+                    keep += 1
+            w.ts_count[t] = keep
+    w.a_counts[3] = 0
 
 
 @ti.func
@@ -251,16 +327,15 @@ def settle_rocks(w: ti.template(), shift_tiles):
                 w.ts_key[sl] = key
             if same_key(w.ts_key[sl], key):
                 k = ti.atomic_add(w.ts_count[sl], 1)
-                if k < cap:
+                if k >= cap:  # full: undo (the count never drops below cap again, so slots stay distinct)
+                    ti.atomic_sub(w.ts_count[sl], 1)
+                else:
                     j = sl * cap + k
                     w.ts_pos[j] = w.pos[i]
                     w.ts_radius[j] = w.radius[i]
                     w.ts_friction[j] = w.friction[i]
                     w.ts_id[j] = w.rock_id[i]
                     w.rock_id[i] = -1
-    for t in range(w.store_grid * w.store_grid):
-        if w.ts_count[t] > cap:
-            w.ts_count[t] = cap
 
 
 @ti.func
@@ -279,7 +354,7 @@ def active_copy(w: ti.template(), src, dst):
 def compact(w: ti.template()):
     """Step 6: the active rocks still listed (id >= 0) end up in 0 .. count - 1: those above the new count
     fill the holes below it (atomic lists of both, paired by their order in the lists)."""
-    cnt = ti.static(w.a_counts)  # [0] survivors, [1] holes, [2] movers
+    cnt = ti.static(w.a_counts)  # [0] survivors, [1] holes, [2] movers ([3]: marked slots, see mark())
     for k in ti.static(range(3)):
         cnt[k] = 0
     n = w.ipar[IPar.N_ROCKS]
@@ -322,7 +397,8 @@ def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dt
         if ti.static(plan.recycle):
             recycle_to_leading_edge(w, i, c, m, d, step)
         if ti.static(plan.splash):
-            hashgrid.count_rock(w, i, plan.center, c)
+            if w.phase[i] != FLYING:  # a flying rock is never launched (tires.try_launch): no need to hash it
+                hashgrid.count_rock(w, i, plan.center, c)
     launched = 0
     if ti.static(plan.splash):
         hashgrid.scan_counts(w)

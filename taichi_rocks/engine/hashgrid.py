@@ -19,7 +19,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 
 import taichi as ti
 
-from .world import A0, ACTIVE, IPar, P1, P2, P3, Par
+from .world import A0, ACTIVE, FLYING, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -40,6 +40,16 @@ def hash_cell(c, n):
 def aabb_cells(p, r, cell):
     """First and last cell of the AABB of a sphere."""
     return cell_of(p - r, cell), cell_of(p + r, cell)
+
+
+@ti.func
+def table_n(w: ti.template()):
+    """Slots of the table in use: its size, or with active stepping the runtime size ``ipar[TABLE]`` (<= the
+    size; the simulation fits it to the active list)."""
+    n = w.table_size
+    if ti.static(w.stored):
+        n = w.ipar[IPar.TABLE]
+    return n
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -94,7 +104,7 @@ def count_rock(w: ti.template(), i, center: ti.template(), grid_origin):
         cell = w.par[Par.CELL]
         p = w.pos[i]
         if ti.static(center):
-            s = hash_cell(cell_of(p, cell), w.table_size)
+            s = hash_cell(cell_of(p, cell), table_n(w))
             w.slot[i] = s
             ti.atomic_add(w.cell_start[s], 1)
         else:
@@ -102,13 +112,17 @@ def count_rock(w: ti.template(), i, center: ti.template(), grid_origin):
             for a in range(lo[0], hi[0] + 1):
                 for b in range(lo[1], hi[1] + 1):
                     for c in range(lo[2], hi[2] + 1):
-                        ti.atomic_add(w.cell_start[hash_cell(ti.Vector([a, b, c]), w.table_size)], 1)
+                        ti.atomic_add(w.cell_start[hash_cell(ti.Vector([a, b, c]), table_n(w))], 1)
 
 
 @ti.func
 def clear_all(w: ti.template()):
-    for s in w.cell_start:
-        w.cell_start[s] = 0
+    if ti.static(w.stored):
+        for s in range(table_n(w) + 1):
+            w.cell_start[s] = 0
+    else:
+        for s in w.cell_start:
+            w.cell_start[s] = 0
     if ti.static(w.masked):
         w.n_listed[None] = 0
 
@@ -135,7 +149,7 @@ def scan_counts(w: ti.template()):
     ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
     about a nanosecond per slot there.
     """
-    n = w.table_size
+    n = table_n(w)
     ti.loop_config(serialize=True)
     for s in range(1, n):
         w.cell_start[s] += w.cell_start[s - 1]
@@ -146,7 +160,7 @@ def scan_counts(w: ti.template()):
 def inclusive_scan(w: ti.template()) -> ti.i32:
     """The scan alone; returns the number of (rock, cell) entries."""
     scan_counts(w)
-    return w.cell_start[w.table_size]
+    return w.cell_start[table_n(w)]
 
 
 @ti.func
@@ -159,7 +173,7 @@ def scatter_rock(w: ti.template(), i, center: ti.template()):
         for a in range(lo[0], hi[0] + 1):
             for b in range(lo[1], hi[1] + 1):
                 for c in range(lo[2], hi[2] + 1):
-                    e = ti.atomic_sub(w.cell_start[hash_cell(ti.Vector([a, b, c]), w.table_size)], 1) - 1
+                    e = ti.atomic_sub(w.cell_start[hash_cell(ti.Vector([a, b, c]), table_n(w))], 1) - 1
                     w.entries[e] = i
 
 
@@ -172,7 +186,11 @@ def scatter_all(w: ti.template(), center: ti.template()):
             scatter_rock(w, w.listed[k], center)
     else:
         for i in range(w.ipar[IPar.N_ROCKS]):
-            scatter_rock(w, i, center)
+            if ti.static(w.stored):  # active stepping counts only the rocks not flying (engine/active.py)
+                if w.phase[i] != FLYING:
+                    scatter_rock(w, i, center)
+            else:
+                scatter_rock(w, i, center)
 
 
 @ti.kernel

@@ -141,7 +141,7 @@ def hash_sizing(scene, plan, radius, n_tires: int) -> HashSizing:
 def pack_params(*, n_rocks: int, cell: float, r_max: float, center: bool, gravity: float = 0.0,
                 ground_z: float = 0.0, bed_radius: float = 0.0, restitution: float = 0.0,
                 ground_friction: float = 0.0, rest_speed: float = 0.0, release_angle=(0.0, 0.0),
-                spread: float = 0.0, drag=(0.0, 0.0), margin: float = 0.0, seed: int = 0):
+                spread: float = 0.0, drag=(0.0, 0.0), margin: float = 0.0, seed: int = 0, table: int = 0):
     """``World.par`` (float64) and ``World.ipar`` (int64) as NumPy arrays: angles in degrees, ``ground_z``
     in the kernels' local frame, ``drag`` = (LINEAR_DRAG, QUAD_DRAG)."""
     par = np.zeros(Par.COUNT)
@@ -162,6 +162,7 @@ def pack_params(*, n_rocks: int, cell: float, r_max: float, center: bool, gravit
     ipar[IPar.SEED] = seed & 0x7FFFFFFF
     ipar[IPar.DILATE] = dilation_cells(r_max, cell) if center else 0
     ipar[IPar.N_ROCKS] = n_rocks
+    ipar[IPar.TABLE] = table
     return par, ipar
 
 
@@ -173,7 +174,7 @@ def scene_params(scene, plan, sizing: HashSizing, ground_z: float):
                             restitution=wd.restitution, ground_friction=wd.ground_friction,
                             rest_speed=wd.rest_speed, release_angle=scene.launch.release_angle,
                             spread=scene.launch.spread, drag=drag_coefficients(scene), margin=sizing.margin,
-                            seed=scene.seed)
+                            seed=scene.seed, table=sizing.table)
     for k, value in tread_params(scene).items():
         par[k] = value
     # a rock resting on the ground: its bottom is the ground's height up to a few float spacings

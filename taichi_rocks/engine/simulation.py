@@ -40,7 +40,7 @@ from .kernels import (coast_pass, copy_field, gather_vec, hash_and_tires, health
 from .runtime import init_taichi
 from .setup import hash_sizing, initial_rocks, scene_params
 from .timing import NO_TIMER
-from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, IPar, Par, World, acquire
+from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, IPar, Par, World, acquire, next_prime
 
 __all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "HealthError", "Simulation", "shift_origin"]
 
@@ -129,6 +129,15 @@ class Simulation:
         w.ipar[IPar.N_ROCKS] = self.n_rocks
         active.settle(w, self._tile_shift())
         self._check_all = True
+        self._fit_table()
+
+    def _fit_table(self) -> None:
+        """Active stepping with an "auto" table: the hash's slots in use follow the active list (a prime about
+        1.5 times its length, at least 1024, at most the table allocated); a different table size changes which
+        rocks share a slot, never which ones a tire finds."""
+        if self.plan.splash and self.scene.sim.hash.table_size == "auto":
+            want = next_prime(max(1024, int(1.5 * self.active_count)))
+            self.world.ipar[IPar.TABLE] = min(want, self.table_size)
 
     @property
     def active_count(self) -> int:
@@ -333,6 +342,8 @@ class Simulation:
                 self.last_launches = active.active_step(self.world, self._switches["active_step"], rays, frame, dt,
                                                         self.step_count, int(self._check_all))
             self._check_all = False
+            if self.step_count % 32 == 0:
+                self._fit_table()
             return
         if self.n_rocks and (p.flight or p.recycle or p.splash):
             with self.timer("rock pass"):

@@ -29,7 +29,7 @@ import taichi as ti
 
 from . import patch, throw
 from .geometry import closest_on_segment
-from .hashgrid import cell_of, hash_cell, segment_cells
+from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .randomness import uniform01
 from .world import A0, A1, ACTIVE, B0, B1, FLYING, FWD, HALF_L, HALF_W, SLIDING, SPIN, VEL, IPar, Par
 
@@ -123,7 +123,7 @@ def try_launch(w: ti.template(), i, t, step, ground: ti.template()):
 
 @ti.func
 def slot_range(w: ti.template(), c):
-    s = hash_cell(c, w.table_size)
+    s = hash_cell(c, table_n(w))
     return w.cell_start[s], w.cell_start[s + 1]
 
 

@@ -69,7 +69,8 @@ class IPar:
     SEED = 0
     DILATE = 1
     N_ROCKS = 2
-    COUNT = 3
+    TABLE = 3  # hash slots in use (active stepping; the table's size otherwise)
+    COUNT = 4
 
 
 def next_prime(n: int) -> int:
@@ -137,6 +138,7 @@ class World:
                  tile_size: float = 1.0, patch: bool = False, throw: str = "uniform", fenders: bool = False,
                  store=None):
         self.n = n
+        self.stored = store is not None  # active stepping's tile store (below)
         # compile-time switches of the tire pass, from the Plan (part of the layout: see acquire)
         self.patch, self.throw, self.fenders = bool(patch), str(throw), bool(fenders)
         self.real = real
@@ -189,7 +191,6 @@ class World:
             self.tmp_int = trees.field(ti.i32, cap)
         # active stepping (engine/active.py): resting rocks in ground tiles; the rock arrays above are the
         # active list (ipar[N_ROCKS] rocks). ``store``: (tile edge, slots per axis, rocks per slot, recycle?)
-        self.stored = store is not None
         if self.stored:
             tile, grid, capacity, recycle = store
             self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
@@ -204,7 +205,11 @@ class World:
             self.ts_sel = trees.field(ti.i32, slots)
             self.a_hole = trees.field(ti.i32, cap)
             self.a_mover = trees.field(ti.i32, cap)
-            self.a_counts = trees.field(ti.i32, 3)
+            self.ts_list = trees.field(ti.i32, slots)  # the slots marked this step
+            if n_tires > 0:
+                self.ts_tires = trees.field(ti.i32, slots)  # which tires marked a slot (bit t mod 32)
+                self.tire_box = trees.vector(4, real, n_tires)  # each tire's query box (lo, hi) this step
+            self.a_counts = trees.field(ti.i32, 4)
         self.health_out = trees.field(ti.i32, 6)  # the runtime guard's counts (Simulation.check_health)
         trees.finalize()
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
