@@ -160,7 +160,9 @@ def classify_rim(w: ti.template(), c, d, shift_tiles, check_all):
     """Step 1 for the bed: mark rim and gone tiles (module docstring). A bed that moved less than a few tiles
     visits only the band of tiles the circle |q - c| = R crosses, widened by the move (a tile whose rocks were
     inside the old disk and are not all inside the new one lies in it); a bigger move, or ``check_all``,
-    visits every slot. (Both loops are at the top level: Taichi runs only those in parallel.)"""
+    visits every slot. Both loops are flat and at the top level: Taichi runs only those in parallel, and on
+    Vulkan (Taichi 1.7.4) an atomic on one address inside an inner loop whose trip count differs between
+    threads loses iterations, so no loop here has a varying inner loop around an atomic."""
     s = w.store_tile
     radius = w.par[Par.BED_RADIUS]
     eps = rounding_margin(w, c)
@@ -177,19 +179,23 @@ def classify_rim(w: ti.template(), c, d, shift_tiles, check_all):
             rows = ti.cast(ti.floor((c[1] + outer) / s), ti.i32) - ky0 + 1
     for t in range(every):
         classify_slot(w, t, c, mid, d, shift_tiles, radius, eps, check_all)
-    for r, side in ti.ndrange(rows, 2):
+    # tiles a row side can hold: x_out - x_in is largest where x_in = 0, dy_min >= inner - s - 2 eps
+    inner = ti.max(radius - eps, 0.0)
+    low = ti.max(inner - s - 2.0 * eps, 0.0)
+    width = ti.cast(ti.sqrt(ti.max(outer * outer - low * low, 0.0)) / s, ti.i32) + 2
+    for r, side, u in ti.ndrange(rows, 2, width):
         ky = ky0 + r
         y_lo = ti.cast(ky, w.real) * s - eps
         y_hi = y_lo + s + 2.0 * eps
         dy_min = ti.max(ti.max(y_lo - c[1], c[1] - y_hi), 0.0)
         dy_max = ti.max(ti.abs(y_lo - c[1]), ti.abs(y_hi - c[1]))
         x_out = ti.sqrt(ti.max(outer * outer - dy_min * dy_min, 0.0))
-        inner = ti.max(radius - eps, 0.0)
         x_in = ti.sqrt(ti.max(inner * inner - dy_max * dy_max, 0.0))
         sg = 1.0 - 2.0 * side
         ka = ti.cast(ti.floor((c[0] + sg * x_in) / s), ti.i32)
         kb = ti.cast(ti.floor((c[0] + sg * x_out) / s), ti.i32)
-        for kx in range(ti.min(ka, kb), ti.max(ka, kb) + 1):
+        kx = ti.min(ka, kb) + u
+        if kx <= ti.max(ka, kb):
             key = ti.Vector([kx, ky]) + shift_tiles
             sl = slot_of(w, key)
             if same_key(w.ts_key[sl], key):
@@ -220,7 +226,8 @@ def tire_box(w: ti.template(), t, reach):
 @ti.func
 def classify_tires(w: ti.template(), c, shift_tiles):
     """Step 1 for the tires: mark the occupied tiles under every active tire's query box; the boxes go to
-    ``w.tire_box`` and each tile notes which tires (bit t mod 32 of ``w.ts_tires``) marked it."""
+    ``w.tire_box`` and each tile notes which tires (bit t mod 32 of ``w.ts_tires``) marked it. One flat loop
+    over (tire, tile of the largest box) (see classify_rim on inner loops)."""
     if ti.static(w.n_tires > 0):
         reach = w.par[Par.R_MAX] + rounding_margin(w, c)
         g = w.store_grid
@@ -228,16 +235,24 @@ def classify_tires(w: ti.template(), c, shift_tiles):
             lo, hi = tire_box(w, t, reach)
             on = w.ray[t, ACTIVE] != 0.0
             w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
-            if on:
-                k_lo = tile_key(w, lo, shift_tiles)
-                k_hi = tile_key(w, hi, shift_tiles)
-                for a in range(k_lo[0], ti.min(k_hi[0], k_lo[0] + g - 1) + 1):
-                    for b in range(k_lo[1], ti.min(k_hi[1], k_lo[1] + g - 1) + 1):
-                        key = ti.Vector([a, b])
-                        sl = slot_of(w, key)
-                        if w.ts_count[sl] > 0 and same_key(w.ts_key[sl], key):
-                            ti.atomic_or(w.ts_tires[sl], 1 << (t & 31))
-                            mark(w, sl, TIRE)
+            k_lo = tile_key(w, lo, shift_tiles)
+            k_hi = ti.min(tile_key(w, hi, shift_tiles), k_lo + g - 1)
+            w.tire_keys[t] = ti.Vector([k_lo[0], k_lo[1], k_hi[0], k_hi[1]]) if on else ti.Vector([0, 0, -1, -1])
+        span = ti.static(w.a_counts)
+        span[4] = 0
+        span[5] = 0
+        for t in range(w.n_tires):
+            k = w.tire_keys[t]
+            ti.atomic_max(span[4], k[2] - k[0] + 1)
+            ti.atomic_max(span[5], k[3] - k[1] + 1)
+        for t, a, b in ti.ndrange(w.n_tires, span[4], span[5]):
+            k = w.tire_keys[t]
+            if k[0] + a <= k[2] and k[1] + b <= k[3]:
+                key = ti.Vector([k[0] + a, k[1] + b])
+                sl = slot_of(w, key)
+                if w.ts_count[sl] > 0 and same_key(w.ts_key[sl], key):
+                    ti.atomic_or(w.ts_tires[sl], 1 << (t & 31))
+                    mark(w, sl, TIRE)
 
 
 @ti.func
@@ -274,42 +289,45 @@ def store_copy(w: ti.template(), src, dst):
 
 @ti.func
 def gather(w: ti.template(), c):
-    """Step 2: move the marked tiles' rocks to the active list (module docstring)."""
+    """Step 2: move the marked tiles' rocks to the active list (module docstring): gone tiles in bulk, then one
+    flat loop over (marked tile, rock) for the others (see classify_rim on inner loops), then each tile's
+    remaining rocks compacted in place."""
     cap = w.store_capacity
     radius = w.par[Par.BED_RADIUS]
     ground = w.par[Par.GROUND_Z]
-    for k in range(w.a_counts[3]):
+    listed = w.a_counts[3]
+    for k in range(listed):
         t = w.ts_list[k]
-        sel = w.ts_sel[t]
-        w.ts_sel[t] = NONE
-        n = w.ts_count[t]
-        base = t * cap
-        if sel == MOVE_ALL:
+        if w.ts_sel[t] == MOVE_ALL:
+            n = w.ts_count[t]
             a0 = ti.atomic_add(w.ipar[IPar.N_ROCKS], n)
             for j in range(n):
-                to_active(w, base + j, a0 + j)
-            w.ts_count[t] = 0
+                to_active(w, t * cap + j, a0 + j)
+    for k, j in ti.ndrange(listed, cap):
+        t = w.ts_list[k]
+        sel = w.ts_sel[t]
+        if sel != MOVE_ALL and j < w.ts_count[t]:
+            p = w.ts_pos[t * cap + j]
+            leave = outside_bed(p, c, radius, ground)
             if ti.static(w.n_tires > 0):
-                w.ts_tires[t] = 0
-        else:
-            bits = 0
-            if ti.static(w.n_tires > 0):
-                bits = w.ts_tires[t]
-                w.ts_tires[t] = 0
-            keep = 0
-            for j in range(n):
-                p = w.ts_pos[base + j]
-                leave = outside_bed(p, c, radius, ground)
-                if ti.static(w.n_tires > 0):
-                    if sel == TIRE and not leave:
-                        leave = under_a_tire(w, p, bits)
-                if leave:
-                    to_active(w, base + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
-                else:
+                if sel == TIRE and not leave:
+                    leave = under_a_tire(w, p, w.ts_tires[t])
+            if leave:
+                to_active(w, t * cap + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
+                w.ts_id[t * cap + j] = -1
+    for k in range(listed):
+        t = w.ts_list[k]
+        keep = 0
+        if w.ts_sel[t] != MOVE_ALL:
+            for j in range(w.ts_count[t]):
+                if w.ts_id[t * cap + j] >= 0:
                     if keep != j:
-                        store_copy(w, base + j, base + keep)
+                        store_copy(w, t * cap + j, t * cap + keep)
                     keep += 1
-            w.ts_count[t] = keep
+        w.ts_count[t] = keep
+        w.ts_sel[t] = NONE
+        if ti.static(w.n_tires > 0):
+            w.ts_tires[t] = 0
     w.a_counts[3] = 0
 
 
@@ -354,7 +372,8 @@ def active_copy(w: ti.template(), src, dst):
 def compact(w: ti.template()):
     """Step 6: the active rocks still listed (id >= 0) end up in 0 .. count - 1: those above the new count
     fill the holes below it (atomic lists of both, paired by their order in the lists)."""
-    cnt = ti.static(w.a_counts)  # [0] survivors, [1] holes, [2] movers ([3]: marked slots, see mark())
+    cnt = ti.static(w.a_counts)  # [0] survivors, [1] holes, [2] movers ([3]: marked slots, see mark(); [4, 5]:
+    # the largest tire box in tiles, see classify_tires)
     for k in ti.static(range(3)):
         cnt[k] = 0
     n = w.ipar[IPar.N_ROCKS]

@@ -209,7 +209,8 @@ class World:
             if n_tires > 0:
                 self.ts_tires = trees.field(ti.i32, slots)  # which tires marked a slot (bit t mod 32)
                 self.tire_box = trees.vector(4, real, n_tires)  # each tire's query box (lo, hi) this step
-            self.a_counts = trees.field(ti.i32, 4)
+                self.tire_keys = trees.vector(4, ti.i32, n_tires)  # and its tiles (first and last key)
+            self.a_counts = trees.field(ti.i32, 6)
         self.health_out = trees.field(ti.i32, 6)  # the runtime guard's counts (Simulation.check_health)
         trees.finalize()
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
