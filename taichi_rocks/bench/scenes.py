@@ -12,7 +12,9 @@ from ..config.scene import parse_scene, scene_with
 from ..engine.setup import drag_coefficients
 from .config import TAU_LINEAR, Config
 
-BASE = {"name": "bench", "seed": 3, "vehicle": [{"name": "player"}]}
+# The studies of passes and accuracy run "full" stepping (its passes can be timed and probed one by one,
+# engine/probes.py); the speed and activity studies set the stepping they measure.
+BASE = {"name": "bench", "seed": 3, "sim": {"stepping": "full"}, "vehicle": [{"name": "player"}]}
 LINEAR_RADIUS = 0.03  # m: the rock whose Stokes time constant is TAU_LINEAR in the lanes scene
 LANES_DENSITY = 2600.0  # kg/m^3
 

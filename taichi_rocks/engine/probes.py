@@ -11,6 +11,8 @@ or reaches into a Simulation.
   recycling, no hash), the rock fields restored afterwards; :func:`set_flying` - every rock flying with given
   velocities; :func:`active_rocks` - the rock loops limited to the first n rock slots inside a ``with`` block.
 
+The pass-level probes take the rocks from the World's rock arrays: they need ``[sim] stepping = "full"``
+(every rock in those arrays) and raise ValueError otherwise; :func:`set_flying` works in both modes.
 Whole steps are timed by the step itself (engine/timing.py); settings change by building a Simulation from a
 changed Scene (the World pool, engine/world.py ``acquire``, hands a released World back without recompiling).
 """
@@ -26,6 +28,12 @@ import numpy as np
 from . import hashgrid, tires
 from .kernels import READS, Switches, rock_pass
 from .world import FLYING, RAY_FIELDS, IPar
+
+
+def _full_only(sim) -> None:
+    if sim.plan.active:
+        raise ValueError("this probe runs the passes of full stepping: build the scene with "
+                         "[sim] stepping = \"full\"")
 
 
 def _pass_args(sim) -> tuple:
@@ -55,6 +63,7 @@ def rock_pass_call(sim, *, flight: bool = False, recycle: bool = False, count: b
     """A callable that runs the rock pass once with only the chosen parts (flight, recycle, count for the
     hash) and the plan's switches unless given, with the arguments of the step just taken (bound now: a call
     costs one launch and nothing else). It holds the World, not the Simulation."""
+    _full_only(sim)
     p = sim.plan
     switches = _switches(bool(flight), bool(recycle), bool(count), p.center, integrator or p.integrator,
                          p.gravity if gravity is None else bool(gravity), drag or p.drag, ground or p.ground)
@@ -75,6 +84,7 @@ def separate_passes(sim) -> list[tuple[str, Callable]]:
     "recycle" (parts of the rock pass), then "hash clear", "hash count" (the rock pass counting alone),
     "hash scan", "hash scatter", "trace rays" (single-ray detection) and "tire pass". Call them in this order
     (each needs the ones before it), then :func:`clear_hash`. Passes the plan does not run are left out."""
+    _full_only(sim)
     p, w = sim.plan, sim.world
     args = _pass_args(sim)
     step = int(sim.step_count)
@@ -105,6 +115,7 @@ def clear_hash(sim) -> None:
 def reorder(sim) -> None:
     """Re-sort the rocks in memory by hash slot, as the step does every ``reorder_every`` steps (plans that
     reorder only: centre insert, every rock hashed)."""
+    _full_only(sim)
     if not sim.plan.reorder_every:
         raise ValueError("this simulation's plan does not reorder the rocks (reorder_every = 0)")
     sim._reorder()
@@ -113,6 +124,7 @@ def reorder(sim) -> None:
 @contextlib.contextmanager
 def active_rocks(sim, n: int):
     """Inside the block the rock loops of every kernel run over the first ``n`` rock slots only."""
+    _full_only(sim)
     w = sim.world
     saved = int(w.ipar[IPar.N_ROCKS])
     w.ipar[IPar.N_ROCKS] = int(n)
@@ -124,13 +136,8 @@ def active_rocks(sim, n: int):
 
 def set_flying(sim, velocities) -> None:
     """Every rock flying, with these velocities ((n_rocks, 3), m/s), from where it is."""
-    w, n = sim.world, sim.n_rocks
-    vel = w.vel.to_numpy()
-    vel[:n] = np.asarray(velocities, np.float64).astype(w.np_real())
-    phase = w.phase.to_numpy()
-    phase[:n] = FLYING
-    w.vel.from_numpy(vel)
-    w.phase.from_numpy(phase)
+    n = sim.n_rocks
+    sim.set_rocks(np.arange(n), velocities=velocities, phase=FLYING)
 
 
 _ROCK = ("pos", "vel", "radius", "phase")
@@ -142,6 +149,7 @@ def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integ
     no hash): rock slots 0..k-1 get these positions (local frame), velocities and radii, flying; ``steps``
     passes of ``dt`` run over those k slots only. The rock fields and the rock count are restored afterwards.
     Returns the local positions every ``every`` steps, float64, shape (k, steps // every, 3)."""
+    _full_only(sim)
     w = sim.world
     k = len(x0_local)
     npr = w.np_real()

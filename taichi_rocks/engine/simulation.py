@@ -408,6 +408,26 @@ class Simulation:
                 out["hit_step"][sid] = -1
         return out
 
+    def set_rocks(self, ids, positions=None, velocities=None, phase=None) -> None:
+        """Set rocks ``ids``' positions (world coordinates, m), velocities (m/s) and phases (engine/world.py
+        codes), whichever are given, in either stepping mode (tests and probes put rocks in flight this way;
+        O(N): every rock is reloaded)."""
+        r = self.rock_arrays()
+        ids = np.atleast_1d(np.asarray(ids, np.int64))
+        if positions is not None:
+            r["pos"][ids] = (np.asarray(positions, np.float64).reshape(len(ids), 3) - self.origin).astype(r["pos"].dtype)
+        if velocities is not None:
+            r["vel"][ids] = np.asarray(velocities, np.float64).reshape(len(ids), 3).astype(r["vel"].dtype)
+        if phase is not None:
+            r["phase"][ids] = phase
+        data = {f"rock_{k}": v for k, v in r.items()}
+        data["rock_rock_id"] = np.arange(self.n_rocks, dtype=np.int32)
+        if self.plan.active:
+            self.world.ts_count.fill(0)
+        self._load_rock_fields(data)
+        if self.plan.active:
+            self._settle_all()
+
     def state(self) -> dict:
         """The current state as NumPy arrays, rocks in their original order (by rock id)."""
         r = self.rock_arrays()

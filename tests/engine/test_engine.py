@@ -142,10 +142,7 @@ def flying_rock_sim(integrator, dt, drag="none", ground="none", gravity=True, pr
 
 
 def launch_one(sim, x0, v0):
-    w = sim.world
-    w.pos[0] = (np.asarray(x0) - sim.origin).tolist()
-    w.vel[0] = list(v0)
-    w.phase[0] = FLYING
+    sim.set_rocks([0], positions=[x0], velocities=[v0], phase=FLYING)
 
 
 @pytest.mark.parametrize("integrator", ["heun", "rk4"])
