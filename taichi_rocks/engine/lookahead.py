@@ -11,6 +11,8 @@ by step) and parks the tires far from the bed, so a shift in the middle of a bat
 A batch is used only while it is the continuation of the steps taken: the same dt, the clock at the time
 its next row was computed for, and the previous tires the ones it served last. Anything else (restore, a
 shorter last step of ``advance_to``, coasting, a step taken without it) starts a new batch on the next step.
+Batches adapt to how long they last: one left after u steps is followed by one of u + 1 (the whole steps of
+an ``advance_to`` frame, then its short step), one used up by one twice as long (up to ``lookahead``).
 """
 
 from __future__ import annotations
@@ -94,6 +96,7 @@ class Lookahead:
 
     def __init__(self):
         self.batches = 0  # batches computed so far
+        self._size = 1 << 30  # steps of the next batch (at most Simulation.lookahead)
         self.clear()
 
     def clear(self) -> None:
@@ -105,16 +108,18 @@ class Lookahead:
         b = self._batch
         if (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != sim.time
                 or b.prev is not sim._tires_prev):
-            b = self._batch = self._compute(sim, dt)
+            if b is not None:  # a batch used up: the next twice as long; left early: as long as was used
+                self._size = 2 * len(b.times) if b.next >= len(b.times) else b.next + 1
+            b = self._batch = self._compute(sim, dt, max(1, min(self._size, int(sim.lookahead))))
         k = b.next
         tires = RearTires(*(a[k] for a in tire_fields(b.tires)))
         b.next, b.prev = k + 1, tires
         rows = None if b.rows is None else b.rows[k]
         return Ahead(TablePoses(sim.fleet, b.table, k), tires, rows, None if b.far is None else b.far[k])
 
-    def _compute(self, sim, dt: float) -> _Batch:
+    def _compute(self, sim, dt: float, steps: int) -> _Batch:
         times = [sim.time]
-        for _ in range(max(int(sim.lookahead), 1) - 1):
+        for _ in range(steps - 1):
             times.append(times[-1] + dt)
         fleet = sim.fleet
         table = fleet.pose_table(times)

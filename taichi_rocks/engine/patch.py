@@ -124,6 +124,13 @@ def swept_footprint_hulls(b0, f0, b1, f1, half_width, half_length) -> np.ndarray
     repeating its last vertex (a zero-length edge changes neither the inside test nor the distance)."""
     corners = np.concatenate([footprint_corners(b0, f0, half_width, half_length),
                               footprint_corners(b1, f1, half_width, half_length)], axis=1)
+    if len(corners) < 64:  # few tires: the per-tire chain costs less than NumPy's per-call overhead
+        out = np.zeros((len(corners), HULL_VERTICES, 2))
+        for t, pts in enumerate(corners):
+            h = _hull(pts)
+            out[t, :len(h)] = h
+            out[t, len(h):] = h[-1]
+        return out
     return hulls(corners)
 
 

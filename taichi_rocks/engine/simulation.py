@@ -49,7 +49,7 @@ __all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "HealthError", "Simulation", "shift_or
 
 ORIGIN_SNAP = 64.0  # m: the origin moves from its anchor in whole multiples of this, so a shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
-LOOKAHEAD = 32  # steps whose host side (poses, tires, ray rows) is computed at once (engine/lookahead.py)
+LOOKAHEAD = 64  # at most this many steps have their host side computed at once (engine/lookahead.py)
 
 
 def _snapped(xy: np.ndarray) -> np.ndarray:

@@ -186,12 +186,12 @@ class Fleet:
         vel = np.stack([table.vx[:, vi] + yaw * -r1, table.vy[:, vi] + yaw * r0], axis=-1)
         fwd = np.stack([c, s], axis=-1)
         spin = (vel[..., None, :] @ fwd[..., :, None])[..., 0, 0] * slip  # as vel @ fwd, tire by tire
-        centre = np.stack([table.rx[:, vi] + r0, table.ry[:, vi] + r1, np.broadcast_to(cz, (k, n))], axis=-1)
+        centre = np.stack([table.rx[:, vi] + r0, table.ry[:, vi] + r1, np.tile(cz, (k, 1))], axis=-1)
         bottom = centre.copy()
         bottom[..., 2] = self.ground_z
         velocity = np.concatenate([vel, np.zeros((k, n, 1))], axis=-1)
-        tread = np.broadcast_to(np.array(tread, dtype=np.float64).reshape(n, 5), (k, n, 5))
-        return RearTires(centre, bottom, velocity, fwd, spin, *(tread[..., q].copy() for q in range(5)))
+        tread = np.tile(np.array(tread, dtype=np.float64).reshape(1, n, 5), (k, 1, 1))
+        return RearTires(centre, bottom, velocity, fwd, spin, *(tread[..., q] for q in range(5)))
 
     def rear_tires(self, poses: list[VehiclePose], relative: bool = False) -> RearTires:
         """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor."""
