@@ -12,8 +12,9 @@ the turn (of order the step's heading change squared times the half-diagonal: mi
 A rock (centre c, radius r) is run over when the XY distance from c to the swept footprint is <= r and its
 bottom c_z - r is at most the tire's bottom + PATCH_TOL (a rock on the ground, not one flying over it).
 
-The hull is computed once per tire and step on the host (Andrew's monotone chain, float64) and passed in the
-tire's ray row (world.HULL: 8 vertices counter-clockwise, padded by repeating the last one). The kernel's
+The hull is computed once per tire and step on the host (Andrew's monotone chain, float64; ``hulls`` runs it
+with NumPy over all tires and steps at once) and passed in the tire's ray row (world.HULL: 8 vertices
+counter-clockwise, padded by repeating the last one). The kernel's
 distance: c is inside iff it lies left of (or on) every edge and the hull has an area; otherwise the distance
 is that to the nearest edge (the closest point of a convex polygon to an outside point is on its boundary). A
 degenerate hull (zero area: a zero-width footprint that does not move sideways) is a segment or a point, and
@@ -60,17 +61,77 @@ def _hull(points: np.ndarray) -> np.ndarray:
     return np.array(lower[:-1] + upper[:-1])
 
 
+def _chains(px: np.ndarray, py: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The monotone chain of each row's first ``n`` points (px, py: (M, V), in the chain's order), all rows at
+    once, with the same cross products and pops as ``_hull``: the stacks (x, y: (M, V + 2), the chain from
+    column 2 on) and their sizes."""
+    m, v = px.shape
+    width = v + 2  # two unused slots first: the second from the top of a stack of fewer than 2 is in range
+    sx, sy = np.zeros(m * width), np.zeros(m * width)
+    top = np.arange(m) * width + 1  # flat index of each stack's top (its size is top - row start - 1)
+    size = np.zeros(m, np.int64)
+    for j in range(v):
+        act = j < n
+        if not act.any():
+            break
+        x, y = px[:, j], py[:, j]
+        while True:
+            can = act & (size >= 2)
+            if not can.any():
+                break
+            ax, ay, ox, oy = sx[top], sy[top], sx[top - 1], sy[top - 1]
+            pop = can & ((ax - ox) * (y - oy) - (ay - oy) * (x - ox) <= 0)
+            if not pop.any():
+                break
+            size -= pop
+            top -= pop
+        top += act
+        size += act
+        sx[top[act]] = x[act]
+        sy[top[act]] = y[act]
+    return sx.reshape(m, width)[:, 2:], sy.reshape(m, width)[:, 2:], size
+
+
+def hulls(points: np.ndarray) -> np.ndarray:
+    """(N, V, 2): ``_hull`` of each row of ``points`` (N, V, 2), padded by repeating its last vertex; NumPy
+    over all rows at once, the same bits and vertex order as ``_hull`` row by row."""
+    pts = np.asarray(points, np.float64)
+    rows, v = pts.shape[:2]
+    if rows == 0:
+        return np.zeros((0, v, 2))
+    # sorted by (x, y), stable: of equal points the first in row order stays, as in _hull's set
+    pts = np.take_along_axis(pts, np.lexsort((pts[..., 1], pts[..., 0]), axis=-1)[..., None], axis=1)
+    dup = np.zeros((rows, v), bool)
+    dup[:, 1:] = (pts[:, 1:, 0] == pts[:, :-1, 0]) & (pts[:, 1:, 1] == pts[:, :-1, 1])
+    pts = np.take_along_axis(pts, np.argsort(dup, axis=1, kind="stable")[..., None], axis=1)  # distinct first
+    n = v - dup.sum(axis=1)
+    back = np.clip(n[:, None] - 1 - np.arange(v)[None, :], 0, v - 1)  # the upper chain runs backwards
+    rev = np.take_along_axis(pts, back[..., None], axis=1)
+    sx, sy, size = _chains(np.concatenate([pts[..., 0], rev[..., 0]]), np.concatenate([pts[..., 1], rev[..., 1]]),
+                           np.concatenate([n, n]))
+    both = np.stack([np.concatenate([sx[:rows], sx[rows:]], axis=1),
+                     np.concatenate([sy[:rows], sy[rows:]], axis=1)], axis=-1)  # lower | upper
+    lo = size[:rows] - 1
+    m = np.maximum(lo + size[rows:] - 1, 1)  # one distinct point: the hull is that point
+    k = np.minimum(np.arange(v)[None, :], m[:, None] - 1)
+    src = np.where(k < lo[:, None], k, v + k - lo[:, None])
+    src[n == 1] = 0
+    return np.take_along_axis(both, src[..., None], axis=1)
+
+
 def swept_footprint_hulls(b0, f0, b1, f1, half_width, half_length) -> np.ndarray:
     """(T, HULL_VERTICES, 2) hull of the footprints at the previous and the current step, per tire, padded by
     repeating its last vertex (a zero-length edge changes neither the inside test nor the distance)."""
     corners = np.concatenate([footprint_corners(b0, f0, half_width, half_length),
                               footprint_corners(b1, f1, half_width, half_length)], axis=1)
-    out = np.zeros((len(corners), HULL_VERTICES, 2))
-    for t, pts in enumerate(corners):
-        h = _hull(pts)
-        out[t, :len(h)] = h
-        out[t, len(h):] = h[-1]
-    return out
+    if len(corners) < 64:  # few tires: the per-tire chain costs less than NumPy's per-call overhead
+        out = np.zeros((len(corners), HULL_VERTICES, 2))
+        for t, pts in enumerate(corners):
+            h = _hull(pts)
+            out[t, :len(h)] = h
+            out[t, len(h):] = h[-1]
+        return out
+    return hulls(corners)
 
 
 # ------------------------------------------------------------------------------------------------ kernels

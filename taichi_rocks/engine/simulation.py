@@ -14,6 +14,8 @@ is engine/setup.py.
 Coasting: once every vehicle that matters has stopped for good, no tire can launch and the bed stands
 still; the rocks are then independent and any number of steps runs as one ``coast_pass`` launch,
 bit-identical to stepping (``Simulation.coast = False`` turns it off).
+Lookahead: the host side of a step (poses, tires, ray rows) is computed ``lookahead`` steps at a time
+(engine/lookahead.py), the same bits as step by step (``Simulation.lookahead = 0`` computes it per step).
 Coordinates: kernels work in a local frame, world = origin + local. With ``origin = "floating"`` the origin
 is anchor + shift: the anchor is the point the followed path is computed from (its first waypoint, where the
 bed starts; a circle's centre), exact as the scene gives it; the shift moves in whole multiples of
@@ -31,21 +33,23 @@ import math
 import numpy as np
 import taichi as ti
 
-from . import active, hashgrid, patch, tires
+from . import active, hashgrid, tires
 from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
+from .lookahead import Lookahead, local_rays, ray_rows, reach
 from .kernels import (coast_pass, copy_field, gather_vec, hash_and_tires, health, identity_entries, rock_pass,
                       shift_origin, switches)
 from .runtime import init_taichi
 from .setup import hash_sizing, initial_rocks, scene_params
 from .timing import NO_TIMER
-from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS, IPar, Par, World, acquire, next_prime
+from .world import RAY_FIELDS, IPar, Par, World, acquire, next_prime
 
 __all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "HealthError", "Simulation", "shift_origin"]
 
 ORIGIN_SNAP = 64.0  # m: the origin moves from its anchor in whole multiples of this, so a shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
+LOOKAHEAD = 64  # at most this many steps have their host side computed at once (engine/lookahead.py)
 
 
 def _snapped(xy: np.ndarray) -> np.ndarray:
@@ -98,6 +102,9 @@ class Simulation:
         self._no_rays = np.zeros((1, RAY_FIELDS))
         self.steps_coasted = 0
         self._matter = sorted({self.follow, *(self.fleet.splashing if plan.splash else ())})
+        # the host side of the coming steps (poses, tires, ray rows) computed this many at a time (0: per step)
+        self.lookahead = LOOKAHEAD
+        self._ahead = Lookahead()
 
     def _allocate(self, radius: np.ndarray) -> World:
         """The World of this scene's layout (a released one from the pool if there is one), sized for the
@@ -189,37 +196,18 @@ class Simulation:
     def _ray_data(self, prev, cur, dt: float = 0.0) -> np.ndarray:
         """The rays of every splashing rear tire, float64 (T, RAY_FIELDS) in the World.ray layout, in the
         kernels' frame; ``prev`` and ``cur`` are relative to the anchor (``Fleet.rear_tires(relative=True)``)."""
-        n_tires = self.world.n_tires
-        data = np.zeros((max(n_tires, 1), RAY_FIELDS))
-        if n_tires == 0:
-            return data
-        o = np.array([self._shift[0], self._shift[1], 0.0])
-        # a tire that moved much farther than its speed allows (a path that jumps, e.g. a looping arc) did
-        # not sweep the ground in between: its previous ray is taken to be the current one
-        moved = np.linalg.norm(cur.center - prev.center, axis=1)
-        speed = np.maximum(np.linalg.norm(cur.velocity, axis=1), np.linalg.norm(prev.velocity, axis=1))
-        jumped = moved > 2.0 * speed * dt + 0.05
-        data[:, 0:3] = np.where(jumped[:, None], cur.center, prev.center) - o
-        data[:, 3:6] = np.where(jumped[:, None], cur.bottom, prev.bottom) - o
-        data[:, 6:9] = cur.center - o
-        data[:, 9:12] = cur.bottom - o
-        data[:, 12:15] = cur.velocity
-        data[:, 15:17] = cur.forward
-        data[:, 17] = cur.spin
-        data[:, HALF_W:] = patch.tread_columns(prev, cur, ~jumped, o)
-        data[:, HALF_W:] = patch.tread_columns(prev, cur, ~jumped, o)
-        # tires far from the bed cannot touch a rock: park their rays, degenerate, high above the bed
-        reach = self.scene.bed.radius + 2.0 * float(self.scene.bed.rock_radius[1]) + 2.0
-        far = np.hypot(cur.center[:, 0] - self._bed_rel[0], cur.center[:, 1] - self._bed_rel[1]) > reach
-        if far.any():
-            lc = self._local_centre()
-            park = np.array([lc[0], lc[1], self.bed_center[2] - self.origin[2] + 1000.0])
-            data[far, 0:12] = np.tile(park, 4)
-            data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
-            data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
-            data[far, 17] = 0.0
-        data[:, ACTIVE] = ~far
-        return data
+        if self.world.n_tires == 0:
+            return np.zeros((1, RAY_FIELDS))
+        return self._local_rays(*ray_rows(prev, cur, dt, self._bed_rel, reach(self.scene)))
+
+    def _local_rays(self, rows, far) -> np.ndarray:
+        """Ray rows relative to the anchor (engine/lookahead.py ``ray_rows``) in the kernels' frame now; the
+        tires far from the bed parked high above it."""
+        if rows is None:
+            return np.zeros((1, RAY_FIELDS))
+        lc = self._local_centre()
+        park = np.array([lc[0], lc[1], self.bed_center[2] - self.origin[2] + 1000.0])
+        return local_rays(rows, far, self._shift, park)
 
     def _local_centre(self) -> np.ndarray:
         """The bed centre (XY) in the kernels' local frame, from anchor-relative coordinates only."""
@@ -328,11 +316,17 @@ class Simulation:
         dt = self.dt if dt is None else float(dt)
         self.step_count += 1
         self.time += dt
-        poses = self.fleet.poses(self.time)
+        # the step's poses, tires and rays: from the lookahead's batch (the same bits), or computed here
+        ahead = self._ahead.take(self, dt) if self.lookahead and dt == self.dt else None
+        poses = self.fleet.poses(self.time) if ahead is None else ahead.poses
         move = self._follow(poses[self.follow])
         self._keep_origin_near()
-        tires_now = self.fleet.rear_tires(poses, relative=True)
-        rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
+        if ahead is None:
+            tires_now = self.fleet.rear_tires(poses, relative=True)
+            rays = self._ray_data(self._tires_prev, tires_now, dt) if p.splash else self._no_rays
+        else:
+            tires_now = ahead.tires
+            rays = self._local_rays(ahead.rows, ahead.far) if p.splash else self._no_rays
         self._tires_prev = tires_now
         self._poses = poses
         if p.active and (p.flight or p.recycle or p.splash):
@@ -480,6 +474,7 @@ class Simulation:
 
     def restore(self, data: dict) -> None:
         """Continue from a checkpoint() of a simulation of the same scene (either stepping mode)."""
+        self._ahead.clear()
         if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
             raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
         w = self.world

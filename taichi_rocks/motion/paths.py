@@ -18,7 +18,7 @@ world coordinates keep their precision: ``Pose.from_anchor`` is that relative po
 ``Pose.position = anchor + from_anchor``. The relative position depends only on the waypoints relative to
 the first one (a circle's radius and angles), not on where the path is: a path moved by an offset its
 waypoints take exactly gives the same bits (the simulation's floating origin relies on it).
-``pose(t)`` only does bisections and closed forms.
+``pose(t)`` only does bisections and closed forms; ``pose_values(t)`` gives the same as plain floats.
 """
 
 from __future__ import annotations
@@ -127,7 +127,9 @@ class _ProfiledPath(Path):
         tm = self._timing
         return math.inf if tm.period is not None else tm.t_end
 
-    def pose(self, t: float) -> Pose:
+    def pose_values(self, t: float) -> tuple[float, float, float, float, float, float, float]:
+        """``pose(t)`` as plain floats (the same bits, none of the arrays): from_anchor x, y, heading, speed,
+        yaw rate, velocity x, y."""
         t = float(t)
         if not math.isfinite(t):
             raise ValueError(f"pose time must be finite, got {t}")
@@ -137,8 +139,12 @@ class _ProfiledPath(Path):
         if self._reverse:
             tangent, v = tangent + math.pi, -v if v > 0.0 else 0.0
         h = _wrap(tangent)
-        return Pose(np.array([self._origin[0] + x, self._origin[1] + y]), h, v, yaw,
-                    np.array([v * math.cos(h), v * math.sin(h)]), np.array([x, y]))
+        return x, y, h, v, yaw, v * math.cos(h), v * math.sin(h)
+
+    def pose(self, t: float) -> Pose:
+        x, y, h, v, yaw, vx, vy = self.pose_values(t)
+        return Pose(np.array([self._origin[0] + x, self._origin[1] + y]), h, v, yaw, np.array([vx, vy]),
+                    np.array([x, y]))
 
 
 def _speeds(speed, n: int) -> np.ndarray:

@@ -14,7 +14,8 @@ steers the body centre). Its tread speed is omega R = (v_wheel . heading) * (1 +
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -47,6 +48,51 @@ class RearTires:
     radius: np.ndarray  # (T,) tire radius, m
     fender: np.ndarray  # (T,) fender angle, rad up the back of the tire
     flap: np.ndarray  # (T,) mud flap's lower edge above the ground, m; -1: no mud flap
+
+
+def tire_fields(tires: RearTires) -> list[np.ndarray]:
+    """The arrays of ``tires`` in field order (``RearTires(*tire_fields(t))`` is ``t`` again)."""
+    return [getattr(tires, f.name) for f in fields(RearTires)]
+
+
+@dataclass(frozen=True)
+class PoseTable:
+    """Every vehicle's pose at each of a few times, float64 (K, V) arrays with the bits of ``Fleet.poses``:
+    world position (x, y), position relative to the fleet's anchor (rx, ry), heading, speed, yaw rate and
+    velocity (vx, vy)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    rx: np.ndarray
+    ry: np.ndarray
+    heading: np.ndarray
+    speed: np.ndarray
+    yaw_rate: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+
+
+class TablePoses(Sequence):
+    """Row ``k`` of a PoseTable as the list ``Fleet.poses`` gives (VehiclePose objects, built when read)."""
+
+    def __init__(self, fleet: "Fleet", table: PoseTable, k: int):
+        self._fleet, self._table, self._k = fleet, table, k
+        self._built: dict = {}
+
+    def __len__(self) -> int:
+        return len(self._fleet.specs)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        i = range(len(self))[i]
+        if i not in self._built:
+            t, k, z = self._table, self._k, self._fleet.ground_z
+            self._built[i] = VehiclePose(
+                self._fleet.specs[i].name, np.array([t.x[k, i], t.y[k, i], z]), float(t.heading[k, i]),
+                float(t.speed[k, i]), float(t.yaw_rate[k, i]), np.array([t.vx[k, i], t.vy[k, i], 0.0]),
+                np.array([t.rx[k, i], t.ry[k, i], z]))
+        return self._built[i]
 
 
 def _path_kwargs(path) -> dict:
@@ -96,6 +142,56 @@ class Fleet:
                                    float(p.heading), float(p.speed), float(p.yaw_rate), vel,
                                    self._relative(path, p)))
         return out
+
+    def pose_table(self, times) -> PoseTable:
+        """The poses at each of ``times`` (K), the same bits as ``poses(t)`` for each t."""
+        cols = []
+        for path in self.paths:
+            a = getattr(path, "anchor", None)
+            if hasattr(path, "pose_values") and a is not None:  # a profiled path: plain floats, no arrays
+                v = np.array([path.pose_values(t) for t in times], dtype=np.float64).reshape(-1, 7)
+                cols.append((a[0] + v[:, 0], a[1] + v[:, 1], (a[0] - self.anchor[0]) + v[:, 0],
+                             (a[1] - self.anchor[1]) + v[:, 1], *v[:, 2:].T))
+                continue
+            rows = []
+            for t in times:
+                p = path.pose(t)
+                rel = self._relative(path, p)
+                rows.append((p.position[0], p.position[1], rel[0], rel[1], float(p.heading), float(p.speed),
+                             float(p.yaw_rate), p.velocity[0], p.velocity[1]))
+            cols.append(tuple(np.array(rows, dtype=np.float64).reshape(-1, 9).T))
+        k = len(times)
+        return PoseTable(*(np.array([c[q] for c in cols]).reshape(-1, k).T.copy() for q in range(9)))
+
+    def rear_tires_table(self, table: PoseTable) -> RearTires:
+        """``rear_tires(poses, relative=True)`` at every time of ``table`` at once: arrays (K, T, ...), the
+        same bits as the per-time call."""
+        k = table.heading.shape[0]
+        vi, bx, by, cz, slip, tread = [], [], [], [], [], []
+        for i in self.splashing:
+            spec = self.specs[i]
+            for side in (1.0, -1.0):
+                vi.append(i)
+                bx.append(-0.5 * spec.wheelbase)
+                by.append(side * 0.5 * spec.track)
+                cz.append(self.ground_z + spec.tire_radius)
+                slip.append(1.0 + spec.slip)
+                tread.append(self._tread[i])
+        n = len(vi)
+        bx, by, cz, slip = (np.array(a, dtype=np.float64) for a in (bx, by, cz, slip))
+        h = table.heading[:, vi]
+        c, s = np.cos(h), np.sin(h)
+        r0, r1 = c * bx - s * by, s * bx + c * by
+        yaw = table.yaw_rate[:, vi]
+        vel = np.stack([table.vx[:, vi] + yaw * -r1, table.vy[:, vi] + yaw * r0], axis=-1)
+        fwd = np.stack([c, s], axis=-1)
+        spin = (vel[..., None, :] @ fwd[..., :, None])[..., 0, 0] * slip  # as vel @ fwd, tire by tire
+        centre = np.stack([table.rx[:, vi] + r0, table.ry[:, vi] + r1, np.tile(cz, (k, 1))], axis=-1)
+        bottom = centre.copy()
+        bottom[..., 2] = self.ground_z
+        velocity = np.concatenate([vel, np.zeros((k, n, 1))], axis=-1)
+        tread = np.tile(np.array(tread, dtype=np.float64).reshape(1, n, 5), (k, 1, 1))
+        return RearTires(centre, bottom, velocity, fwd, spin, *(tread[..., q] for q in range(5)))
 
     def rear_tires(self, poses: list[VehiclePose], relative: bool = False) -> RearTires:
         """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor."""
