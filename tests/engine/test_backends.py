@@ -36,7 +36,8 @@ CASES = {
     # one car, patch detection and the tread model with fenders (the shipped scenes'), rocks hashed near the
     # tires (scope "tires"): the default passes
     "minimal": ("minimal.toml", 16, 60, [("rocks = 2000\n", "rocks = 8000\n")]),
-    # swept detection and every rock hashed with re-sorting (tire_pass runs as a kernel of its own)
+    # swept detection and every rock hashed; Vulkan runs it with full stepping (the reference, with its
+    # re-sorting of the rocks: tire_pass runs as a kernel of its own), the CPU with active stepping
     "minimal-swept-all": ("minimal.toml", 16, 60, [
         ("rocks = 2000\n", "rocks = 8000\n"), ('detection = "patch"', 'detection = "swept"'),
         ("dt = 0.004\n", 'dt = 0.004\n\n[sim.hash]\nscope = "all"\nreorder_every = 8\n')]),
@@ -62,9 +63,20 @@ def vulkan():
     return arch
 
 
-def _run_both(scene, frames, fps, tmp_path) -> dict:
-    """Run ``scene`` on cpu and vulkan at once; per arch the .npz arrays and the reported launch total."""
-    procs = {a: start_cli("simulate", scene, "--arch", a, "--frames", frames, "--fps", fps,
+# per case, the stepping each arch runs (the scene's default, "active", unless given)
+STEPPING = {"minimal-swept-all": {"vulkan": "full"}}
+
+
+def _run_both(scene, frames, fps, tmp_path, stepping=None) -> dict:
+    """Run ``scene`` on cpu and vulkan at once (with ``stepping[arch]``, if given: a copy of the scene with
+    that [sim] stepping); per arch the .npz arrays and the reported launch total."""
+    files = {}
+    for a in ("cpu", "vulkan"):
+        files[a] = scene
+        if stepping and a in stepping:
+            files[a] = tmp_path / f"{a}-{scene.name}"
+            files[a].write_text(_edited(scene.read_text(), [("[sim]\n", f'[sim]\nstepping = "{stepping[a]}"\n')]))
+    procs = {a: start_cli("simulate", files[a], "--arch", a, "--frames", frames, "--fps", fps,
                           "--out", tmp_path / f"{a}.npz") for a in ("cpu", "vulkan")}
     out = {}
     for arch, stdout in _finish(procs).items():
@@ -111,7 +123,7 @@ def test_cpu_and_vulkan_agree(case, vulkan, scenes_dir, tmp_path):
     name, frames, fps, edits = CASES[case]
     scene = tmp_path / name
     scene.write_text(_edited((scenes_dir / name).read_text(), edits))
-    run = _run_both(scene, frames, fps, tmp_path)
+    run = _run_both(scene, frames, fps, tmp_path, STEPPING.get(case))
     cpu, vk = run["cpu"], run["vulkan"]
 
     # the scene does something: rocks are thrown in several frames, not only at the start
