@@ -284,14 +284,7 @@ def test_coasting_is_bit_identical_to_stepping():
         for sim in sims:
             sim.advance_to(t)
             if t == 1.9:  # throw a third of the rocks, the same in both
-                mem = np.empty(sim.n_rocks, np.int64)
-                mem[sim.world.rock_id.to_numpy()[: sim.n_rocks]] = np.arange(sim.n_rocks)
-                v = sim.world.vel.to_numpy()
-                ph = sim.world.phase.to_numpy()
-                v[mem[throw]] = vel
-                ph[mem[throw]] = FLYING
-                sim.world.vel.from_numpy(v)
-                sim.world.phase.from_numpy(ph)
+                sim.set_rocks(throw, velocities=vel, phase=FLYING)
         a, b = (s.state() for s in sims)
         assert a["step"] == b["step"] and a["time"] == b["time"]
         for k in ("positions", "velocities", "phase", "bed_center", "launches_total"):

@@ -45,21 +45,8 @@ def memory_index(sim):
 
 
 def set_rocks(sim, ids, pos=None, vel=None, phase=None):
-    """Overwrite the state of rocks (by id): world positions, velocities, phases."""
-    w = sim.world
-    j = memory_index(sim)[np.asarray(ids, np.int64)]
-    if pos is not None:
-        a = w.pos.to_numpy()
-        a[j] = (np.asarray(pos, np.float64) - sim.origin).astype(a.dtype)
-        w.pos.from_numpy(a)
-    if vel is not None:
-        a = w.vel.to_numpy()
-        a[j] = np.asarray(vel, np.float64).astype(a.dtype)
-        w.vel.from_numpy(a)
-    if phase is not None:
-        a = w.phase.to_numpy()
-        a[j] = phase
-        w.phase.from_numpy(a)
+    """Overwrite the state of rocks (by id): world positions, velocities, phases (either stepping mode)."""
+    sim.set_rocks(ids, positions=pos, velocities=vel, phase=phase)
 
 
 def energy(st, ground_z=0.0, g=G):
@@ -781,7 +768,9 @@ def test_scene_without_vehicles_is_rejected_clearly():
 
 # ------------------------------------------------------------------------------------------ 13. the guard
 def test_runtime_guard_names_step_rock_and_kind():
-    sim = Simulation(scene(rocks=50, radius=3.0, vehicles=[parked()]))
+    # full stepping: the faults are written into the rock arrays directly (test_runtime_guard_sees_the_tiles
+    # covers active stepping)
+    sim = Simulation(scene(rocks=50, radius=3.0, vehicles=[parked()], sim={"stepping": "full"}))
     sim.step(3)
     sim.check_health()
     w = sim.world
@@ -820,4 +809,21 @@ def test_runtime_guard_names_step_rock_and_kind():
     w.pos[k] = [float(p[0]), float(p[1]), float(p[2] - 0.01)]
     expect(31, "below the ground")
     w.pos[k] = p.tolist()
+    sim.check_health()
+
+
+def test_runtime_guard_sees_the_tiles():
+    """Active stepping: a bad rock resting in a tile is found too, named by its id."""
+    sim = Simulation(scene(rocks=50, radius=3.0, vehicles=[parked()]))
+    assert sim.plan.active
+    sim.step(3)
+    sim.check_health()
+    p = sim.state()["positions"][23].copy()
+    c = sim.bed_center
+    set_rocks(sim, [23], pos=[[c[0] + 3.5, c[1], p[2]]])
+    assert sim.active_count == 0  # it rests in a tile
+    with pytest.raises(HealthError) as err:
+        sim.check_health()
+    assert re.search(r"\brock 23\b", str(err.value)) and "outside the bed" in str(err.value), str(err.value)
+    set_rocks(sim, [23], pos=[p])
     sim.check_health()
