@@ -24,7 +24,7 @@ from ..config.scene import scene_with
 from .setup import scene_params
 from .world import Par
 
-__all__ = ["RUNTIME_KEYS", "SWITCH_KEYS", "set_runtime", "runtime_values", "rebuilder"]
+__all__ = ["RUNTIME_KEYS", "SWITCH_KEYS", "set_runtime", "runtime_values", "scene_value", "rebuilder"]
 
 # key -> (Par index or pair of indices, factor from the scene's unit to the kernels')
 _DEG = math.pi / 180.0
@@ -68,6 +68,14 @@ def set_runtime(sim, values: dict):
     sim._par = par  # what restore() uploads again
     sim.world.set_params(par, ipar)
     return scene
+
+
+def scene_value(scene, key: str):
+    """The value of a dotted key of the tables (e.g. "world.wetness") in ``scene``; pairs as lists."""
+    node = scene
+    for part in key.split("."):
+        node = getattr(node, part)
+    return list(node) if isinstance(node, tuple) else node
 
 
 def runtime_values(sim) -> dict:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import taichi as ti
 
-__all__ = ["VULKAN_HINT", "ggui", "HiddenWindow", "ShownWindow"]
+__all__ = ["VULKAN_HINT", "ggui", "HiddenWindow", "ShownWindow", "trim_heap"]
 
 VULKAN_HINT = ("GGUI needs Vulkan: install Mesa's software driver with "
                "`apt-get install -y mesa-vulkan-drivers libvulkan1`")
@@ -45,6 +45,9 @@ def _trim_heap() -> None:
             _LIBC.append(None)
     if _LIBC[0] is not None:
         _LIBC[0](0)
+
+
+trim_heap = _trim_heap  # for windows that are never recreated (render/viewer.py)
 
 
 class HiddenWindow:
