@@ -70,9 +70,10 @@ def main() -> None:
                 except (OSError, ValueError):
                     break
                 samples.append({"s": round(t), "rss_mb": round(rss, 1), "frame": st["frame"],
-                                "shown": st["shown"], "fps": round(st["fps"], 1)})
-                print(f"{t:6.0f} s  RSS {rss:7.1f} MB  frames shown {st['shown']:6d}  fps {st['fps']:5.1f}",
-                      flush=True)
+                                "shown": st["shown"], "fps": round(st["fps"], 1),
+                                "window_refreshes": st.get("window_refreshes", 0)})
+                print(f"{t:6.0f} s  RSS {rss:7.1f} MB  frames shown {st['shown']:6d}  fps {st['fps']:5.1f}  "
+                      f"window refreshes {st.get('window_refreshes', 0)}", flush=True)
                 while proc.poll() is None and time.perf_counter() - t0 < t + args.every:
                     time.sleep(0.5)
         finally:
