@@ -3,7 +3,7 @@
 * "taichi-rocks" (bottom left): the HUD (time and frame, playing or paused and the speed, frames per second
   shown, rocks in the air, launches, the camera, notices such as "recompiling") and the time slider;
 * "tune" (right): the runtime parameters as sliders (engine/tuning.py RUNTIME_KEYS; they act at once), the
-  vehicle speed scale, the switches that need a recompile as buttons that step through their choices, the
+  switches that need a recompile as buttons that step through their choices, the
   camera presets as buttons and the overlays as check boxes.
 
 Widgets only read the viewer and return what the user changed (:class:`Changes`); the viewer applies it.
@@ -44,7 +44,6 @@ class Changes:
     runtime: dict = field(default_factory=dict)  # runtime key -> value
     switch: tuple = None  # (key, value) of a switch
     view: str = None  # camera preset (or "free")
-    vehicle_speed: float = None
     overlays: dict = field(default_factory=dict)
 
 
@@ -112,10 +111,6 @@ def _sliders(w, v, ch: Changes) -> None:
         new = w.slider_float(label, float(cur), lo, hi)
         if _moved(new, cur, lo, hi):
             ch.runtime[key] = new
-    if v.vehicle_speed is not None:
-        s = w.slider_float("car speed", v.vehicle_speed, 0.25, 2.0)
-        if _moved(s, v.vehicle_speed, 0.25, 2.0):
-            ch.vehicle_speed = s
 
 
 def _moved(new: float, old: float, lo: float, hi: float) -> bool:

@@ -18,7 +18,7 @@ Memory: GGUI 1.7.4 keeps ~0.1-0.3 MB of every 3D renderable it draws (measured h
 Vulkan arch alike, for particles, meshes and lines; ``malloc_trim`` and a new Scene object do not give it
 back; destroying the window does). So once the process has grown by REFRESH_MB since its window opened, the
 window is destroyed and opened again between two frames (a blink; the HUD says so, the panel keeps its
-values, the simulation and the camera are not touched), and frames are shown at most MAX_FPS times a second.
+values, the simulation and the camera are not touched), and frames are shown at most MAX_FPS times a second (each one drawn costs memory until then).
 RSS over a long session: README, "Looking around".
 """
 
@@ -48,7 +48,7 @@ STATUS_ENV = "TAICHI_ROCKS_VIEW_STATUS"
 READY_LINE = "view: ready"
 TRIM_EVERY = 100  # frames shown between giving freed heap memory back to the OS
 REFRESH_MB = 300.0  # growth of the resident set since the window opened that makes it open anew
-MAX_FPS = 60.0
+MAX_FPS = 30.0  # more would only feed GGUI's memory (the scene's fps is 30)
 
 
 def check_record_dir(path, overwrite: bool) -> None:
@@ -95,7 +95,6 @@ class Viewer:
         self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
         self.switches = {k: scene_value(scene, k) for k in SWITCH_KEYS}
         self.switch_choices = SWITCH_KEYS
-        self.vehicle_speed = None
         self.notice, self.pending, self._notice_shown = "", None, False
         self.panel_on, self.quit, self._shot = True, False, False
         self.fps, self.shown, self.in_air, self.rebuilds = 0.0, 0, 0, 0
