@@ -101,7 +101,7 @@ class Viewer:
         self.screenshots, self.record, self.recorded = [], None if record is None else Path(record), 0
         self.status_path = Path(status_path) if status_path else None
         self._times = []
-        self.refreshes, self._rss_base = 0, _rss_mb()
+        self.refreshes, self._rss_base = 0, None  # measured once the kernels are compiled (frame TRIM_EVERY)
 
     # -------------------------------------------------------------------------------------------- loop
     def run(self, quit_after=None) -> dict:
@@ -148,7 +148,9 @@ class Viewer:
             self._apply(changes)
         if self.shown % TRIM_EVERY == 0:
             trim_heap()
-            if _rss_mb() - self._rss_base > REFRESH_MB:
+            if self._rss_base is None:
+                self._rss_base = _rss_mb()
+            elif _rss_mb() - self._rss_base > REFRESH_MB:
                 self._refresh_window()
         pause = 1.0 / MAX_FPS - (time.perf_counter() - self._times[-1])
         if pause > 0:
@@ -169,7 +171,7 @@ class Viewer:
         trim_heap()
         self.win.open()
         self.refreshes += 1
-        self._rss_base = _rss_mb()
+        self._rss_base = None
         if self.free_on:  # the free camera's mouse state belonged to the old window
             self.free.cam.last_mouse_x = self.free.cam.last_mouse_y = None
 
