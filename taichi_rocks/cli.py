@@ -1,7 +1,7 @@
-"""Command line: ``taichi-rocks check | schema | simulate | export | render | bench``.
+"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench``.
 
 Exit status: 0 success; 1 the simulation went wrong (runtime guard); 2 bad input (scene, arguments,
-existing outputs, missing Vulkan); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
+existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
 never a traceback.
 """
 
@@ -103,6 +103,17 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--resume", action="store_true", help="continue an interrupted render")
     r.add_argument("--checkpoint-every", type=_positive_int, default=30, metavar="N",
                    help="save the simulation state every N frames, for --resume (default: 30)")
+
+    v = sub.add_parser("view", help="the simulation in a window: look, scrub and tweak (keys: README)")
+    v.add_argument("scene", metavar="SCENE")
+    v.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend (gpu falls back to cpu)")
+    v.add_argument("--seed", type=int, help="override the scene's seed")
+    v.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
+    v.add_argument("--record", type=Path, metavar="DIR", help="write every frame shown (panel included) as "
+                                                               "DIR/frame_00000.png ...")
+    v.add_argument("--overwrite", action="store_true", help="replace the frames in a --record DIR")
+    v.add_argument("--quit-after", type=_positive_float, metavar="SECONDS",
+                   help="close the window SECONDS after the first frame (automation, memory measurements)")
 
     b = sub.add_parser("bench", help="measure accuracy against cost and speed against peers")
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
@@ -228,6 +239,34 @@ def cmd_render(args) -> int:
     return EXIT_OK
 
 
+def cmd_view(args) -> int:
+    from .config.scene import load_scene, scene_with
+    from .render.display import NO_DISPLAY_HINT, display_problem
+
+    scene = load_scene(args.scene)
+    if args.seed is not None:
+        scene = scene_with(scene, {"seed": args.seed})
+    problem = display_problem()  # before Taichi starts: no window without a screen
+    if problem:
+        raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")
+    from .render.viewer import view_scene
+
+    if args.record is not None:
+        from .render.viewer import check_record_dir
+
+        check_record_dir(args.record, args.overwrite)  # before the window opens
+    from .engine.runtime import init_taichi
+
+    init_taichi(args.arch)
+    info = view_scene(scene, arch=args.arch, resolution=args.resolution, record=args.record,
+                      overwrite=args.overwrite, quit_after=args.quit_after)
+    shots = info["screenshots"]
+    print(f"view: {info['frames_shown']} frames shown in {info['seconds']:.1f} s"
+          + (f", {len(shots)} screenshot(s): {', '.join(shots)}" if shots else "")
+          + (f", {info['recorded']} frames written to {args.record}" if args.record is not None else ""))
+    return EXIT_OK
+
+
 def cmd_bench(args) -> int:
     if args.only == "launch":
         from .bench.launch import run_launch_study
@@ -251,6 +290,7 @@ _PRELOAD = {
     "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.export", "tqdm"),
     "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
+    "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
               "taichi_rocks.bench.launch"),
 }
@@ -299,7 +339,7 @@ def main(argv=None, *, held=None, restore=None) -> int:
     from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
-               "render": cmd_render, "bench": cmd_bench}[args.command]
+               "render": cmd_render, "view": cmd_view, "bench": cmd_bench}[args.command]
     try:
         if held:
             raise KeyboardInterrupt

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what taichi-rocks needs on a fresh Debian/Ubuntu machine: a Vulkan driver for the offscreen
-# renderer (Mesa's software lavapipe when no Vulkan device is present) and a virtualenv with the package.
+# renderer (Mesa's software lavapipe when no Vulkan device is present), a virtual X display with xdotool for
+# the tests of the window (`taichi-rocks view`) and a virtualenv with the package.
 set -euo pipefail
 venv=${1:-.venv}
 
@@ -17,6 +18,19 @@ if ! have_vulkan; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1 >/dev/null
   else
     echo "setup: no apt-get here: install a Vulkan driver (Mesa lavapipe) yourself to render" >&2
+  fi
+fi
+
+# `taichi-rocks view` opens an on-screen window; its tests run it under a virtual X display (Xvfb) and drive it
+# with xdotool (x11-utils: xdpyinfo, to wait for the display)
+if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command -v xdpyinfo >/dev/null; then
+  echo "setup: installing a virtual X display and input tools for the view tests (xvfb xdotool x11-utils)" >&2
+  if [ "$(id -u)" = 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else SUDO=""; fi
+  if command -v apt-get >/dev/null; then
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq xvfb xdotool x11-utils >/dev/null
+  else
+    echo "setup: no apt-get here: install Xvfb, xdotool and xdpyinfo yourself to run the view tests" >&2
   fi
 fi
 

@@ -174,3 +174,11 @@ def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integ
         for f in _ROCK:
             getattr(w, f).from_numpy(saved[f])
     return np.stack(samples, axis=1)
+
+
+def rocks_in_air(sim) -> int:
+    """How many rocks fly now (phase FLYING): one read-back of the phase field."""
+    n = int(sim.n_rocks)
+    if n == 0:
+        return 0
+    return int(np.count_nonzero(sim.world.phase.to_numpy()[:n] == FLYING))

@@ -96,11 +96,15 @@ def _yaw(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def camera_of(scene):
+def camera_of(scene, view=None):
     """The camera a scene asks for: (rig, index of the vehicle the eye rides with, index of the vehicle looked
     at). The chase view rides with ``camera.follow`` (default: bed.follow); side, low and orbit frame the
-    ``camera.target`` (default: follow) and ride with it. ValueError naming the key if a name is unknown."""
+    ``camera.target`` (default: follow) and ride with it. ValueError naming the key if a name is unknown.
+    ``view``: another preset than ``camera.view`` (its own eye and aim: the scene's offset and aim belong to
+    its view), with the scene's vehicles, look-ahead, smoothing and orbit period."""
     cam = scene.camera
+    own = view is None or view == cam.view
+    view = cam.view if view is None else view
     names = [v.name for v in scene.vehicles]
     follow = cam.follow or getattr(scene.bed, "follow", None) or names[0]
     target = cam.target or follow
@@ -108,9 +112,9 @@ def camera_of(scene):
         if name not in names:
             raise ValueError(f"camera.{key}: no vehicle named {name!r} (vehicles: {', '.join(names)})")
     j = names.index(target)
-    i = names.index(follow) if cam.view == "chase" else j
-    offset, aim = view_preset(cam.view, scene.vehicles[i], scene.vehicles[j], cam.look_ahead)
-    rig = CameraRig(offset if cam.offset is None else cam.offset, cam.look_ahead, cam.smoothing,
-                    aim=aim if cam.aim is None else cam.aim,
-                    orbit_period=cam.orbit_period if cam.view == "orbit" else None)
+    i = names.index(follow) if view == "chase" else j
+    offset, aim = view_preset(view, scene.vehicles[i], scene.vehicles[j], cam.look_ahead)
+    rig = CameraRig(offset if cam.offset is None or not own else cam.offset, cam.look_ahead, cam.smoothing,
+                    aim=aim if cam.aim is None or not own else cam.aim,
+                    orbit_period=cam.orbit_period if view == "orbit" else None)
     return rig, i, j

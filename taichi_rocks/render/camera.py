@@ -15,7 +15,7 @@ from ..motion.camera import CHASE_OFFSET, VIEWS, CameraRig, camera_of, view_pres
 from .looks import SUN_DIR_CAMERA
 
 __all__ = ["GL_UP", "NEAR", "VIEWS", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of", "View",
-           "Lens", "look", "sun_vector", "sun_direction"]
+           "Lens", "look", "frame_of", "sun_vector", "sun_direction"]
 
 GL_UP = (0.0, 0.0, 1.0)  # GGUI camera up: the simulation's +Z (no axis swap anywhere)
 NEAR = 0.05  # near plane, m (GGUI's and the rock culling's)
@@ -46,7 +46,12 @@ def look(rig: CameraRig, position, heading: float, t: float, origin, target=None
     at ``target`` = (position, heading), if given: see :meth:`CameraRig.update`); the view."""
     eye_w, target_w, heading = rig.update(position, heading, t, target)
     origin = np.asarray(origin, np.float64)
-    eye, target = to_gl(eye_w, origin), to_gl(target_w, origin)
+    return frame_of(to_gl(eye_w, origin), to_gl(target_w, origin), heading)
+
+
+def frame_of(eye, target, heading: float) -> View:
+    """The view from ``eye`` looking at ``target`` (local f32 points): the camera's unit basis, no roll
+    (``heading``, rad: the right vector's direction when looking straight down or up)."""
     fwd = (target - eye).astype(np.float64)
     fwd /= np.linalg.norm(fwd)
     right = np.cross(fwd, GL_UP)

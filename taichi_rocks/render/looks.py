@@ -20,6 +20,7 @@ BUMPER_COLOR = (0.13, 0.13, 0.14)
 BED_EDGE_COLOR = (1.0, 0.85, 0.1)
 RAY_COLOR = (1.0, 0.1, 0.1)
 CELL_COLOR = (0.1, 0.9, 1.0)
+PATCH_COLOR = (0.2, 1.0, 0.3)  # the tread's contact patch
 KEY = (3, 251, 5)  # GGUI's clear colour, 8-bit: where the read-back has it, the background image shows
 
 

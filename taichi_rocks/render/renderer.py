@@ -1,7 +1,8 @@
-"""Offscreen rendering of a :class:`~taichi_rocks.engine.simulation.Simulation` with Taichi GGUI.
+"""Rendering of a :class:`~taichi_rocks.engine.simulation.Simulation` with Taichi GGUI, offscreen or in a window.
 
 Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window
-(:mod:`.window`) and read back. A frame is made of two layers:
+(:mod:`.window`) and read back (``render``), or declared in a window on the screen (``view``,
+:mod:`.viewer`: the same code draws both). A frame is made of two layers:
 
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;
@@ -10,7 +11,8 @@ Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidd
    ``scene.particles`` from compact f32 fields (atomic-counter compaction in the same pass, ``index_count``
    = the count, power-of-two buckets), debug overlays (:mod:`.overlays`) as ``scene.lines``;
 
-merged by :func:`.kernels.to_u8` wherever GGUI left its clear colour.
+merged by :func:`.kernels.to_u8` wherever GGUI left its clear colour (offscreen); in a shown window the
+background image is the canvas's ``set_image`` under the 3D scene, which GGUI draws over it (same pixels).
 
 Why: lavapipe shades GGUI particles at ~2 us per particle plus ~0.2 us per covered pixel, so the ~40-60k
 visible rocks of a 200k-rock bed cost 150-200 ms a frame at 720p as particles, and a full-screen ground mesh
@@ -87,13 +89,19 @@ class Renderer:
     1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames between window
     re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass: culling, splatting,
     compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
-    ``last_count``: rocks GGUI drew in the last frame.
+    ``last_count``: rocks GGUI drew in the last frame. ``target``: the window to draw into (default: a
+    :class:`.window.HiddenWindow`, read back); a :class:`.window.ShownWindow` gets the frame declared and
+    nothing read back (:meth:`render_frame` returns None; never recreated). ``flags`` (bed_edge, tire_rays,
+    hash_cells, tread_patch) may change between frames.
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",
-                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY, shadows=None):
+                 lod_pixels: float = DEFAULT_LOD_PIXELS, window_every: int = WINDOW_EVERY, shadows=None,
+                 target=None):
         self.sim = sim
         self._settings(sim.scene, resolution, fps, rocks, lod_pixels, window_every)
+        if target is not None and tuple(target.resolution) != tuple(self.resolution):
+            raise ValueError(f"the window is {target.resolution}, the renderer {self.resolution}")
         self.shadows = bool(sim.scene.render.shadows if shadows is None else shadows)
         self._camera_setup(sim.scene)
         self.frames_drawn = 0
@@ -117,7 +125,9 @@ class Renderer:
         self._vehicle_fields()
         self._overlays = Overlays(self.flags)
         self._raw = None
-        self._win = HiddenWindow(self.resolution)
+        self._win = HiddenWindow(self.resolution) if target is None else target
+        if self._win.shown:
+            self.window_every = 0  # recreating a shown window would flash
         self._win.open()  # now, so that a machine without Vulkan fails before any frame is simulated
 
     def _settings(self, scene, resolution, fps, rocks, lod_pixels, window_every) -> None:
@@ -135,7 +145,7 @@ class Renderer:
         self.lod_pixels = float(lod_pixels)
         self.window_every = int(window_every)
         self.flags = SimpleNamespace(bed_edge=bool(rs.bed_edge), tire_rays=bool(rs.tire_rays),
-                                     hash_cells=bool(rs.hash_cells))
+                                     hash_cells=bool(rs.hash_cells), tread_patch=False)
 
     def _camera_setup(self, scene) -> None:
         """Which vehicle the camera follows and which it looks at, its view, lens and rig; the sun."""
@@ -145,6 +155,12 @@ class Renderer:
         self.tan_x, self.tan_y, self.px_per_rad = Lens.of(self.fov, *self.resolution)
         self.ground_z = float(scene.world.ground_z)
         self.sun = (scene.render.sun, scene.render.sun_frame)
+
+    def set_view(self, name: str) -> None:
+        """Frame the scene with another view preset (chase, side, low, orbit: :func:`.camera.camera_of`; the
+        scene's own view keeps its offset and aim). The new rig snaps to its place at the next frame."""
+        self.rig, self.follow, self.target = camera_of(self.sim.scene, name)
+        self.view_name = name
 
     def _vehicle_fields(self) -> None:
         """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer)."""
@@ -260,8 +276,10 @@ class Renderer:
         self._drawn = (bucket, count)
         return count
 
-    def render_frame(self) -> np.ndarray:
-        """Draw the simulation's current state; return the upright image, (H, W, 3) uint8.
+    def render_frame(self, view: View = None):
+        """Draw the simulation's current state; return the upright image, (H, W, 3) uint8 (None in a shown
+        window: the frame is declared there, for its owner to show). ``view``: look from there instead of the
+        rig's view (the rig still advances: its heading turns the sun, see :meth:`sun_direction`).
 
         The returned array is reused by the next call: copy it to keep it.
         """
@@ -269,6 +287,8 @@ class Renderer:
         sim = self.sim
         origin = np.asarray(sim.origin, np.float64)
         eye, target, fwd, right, up, heading = self.view()
+        if view is not None:
+            eye, target, fwd, right, up = view[:5]
         sd = self.sun_direction(heading)
         t1 = time.perf_counter()
         self.cull(eye, fwd, right, up, sd)
@@ -276,6 +296,12 @@ class Renderer:
 
         poses = sim.vehicle_poses()
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
+        if self._win.shown:  # nothing to read back: no glitch guard, no re-creation
+            self._declare_ggui(eye, target, sd, origin, poses)
+            self.frames_drawn += 1
+            self.timings["cull"] += t2 - t1
+            self.timings["draw"] += (t1 - t0) + (time.perf_counter() - t2)
+            return None
 
         drawn = self._draw_ggui(eye, target, sd, origin, poses)
         for _ in range(GLITCH_RETRIES):
@@ -299,10 +325,20 @@ class Renderer:
     def _draw_ggui(self, eye, target, sd, origin, poses) -> int:
         """Declare the 3D layer, draw it, read it back over the background into ``self._out``; return how many
         pixels GGUI drew."""
+        win = self._declare_ggui(eye, target, sd, origin, poses)
+        raw = win.window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
+        K.to_u8(raw, self._out, self._buf)
+        self._raw = raw
+        return int(self._buf.drawn_px[None])
+
+    def _declare_ggui(self, eye, target, sd, origin, poses):
+        """Declare the frame's GGUI layer (a shown window: over the background image); return the window."""
         win = self._win
         if not win.is_open:  # closed (or another renderer took over GGUI): reopen
             win.open()
         win.canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by the background in to_u8
+        if win.shown:
+            win.canvas.set_image(self._buf.sky)
         scene = win.scene
         cam = self._camera
         cam.position(*(float(x) for x in eye))
@@ -318,10 +354,7 @@ class Renderer:
                             index_count=count)
         self._overlays.draw(scene, self.sim, origin, self.ground_z)
         win.canvas.scene(scene)
-        raw = win.window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
-        K.to_u8(raw, self._out, self._buf)
-        self._raw = raw
-        return int(self._buf.drawn_px[None])
+        return win
 
     def _vehicle_lost(self, eye, fwd, right, up) -> bool:
         """True if a vehicle in full view (in front of the camera, its screen box at least 3 x 3 pixels and

@@ -1,4 +1,5 @@
-"""The hidden GGUI window a renderer draws into, one at a time.
+"""The GGUI windows a renderer draws into, one at a time: a hidden one (``render``: the frame is read back) or
+one shown on the screen (``view``: the frame is presented).
 
 GGUI draws through Vulkan; on a machine without a GPU, Mesa's software driver (lavapipe) does the work.
 GGUI 1.7.4 quirks handled here: never ``window.show()`` on a hidden window (segfault); destroying a window
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import taichi as ti
 
-__all__ = ["VULKAN_HINT", "ggui", "HiddenWindow"]
+__all__ = ["VULKAN_HINT", "ggui", "HiddenWindow", "ShownWindow", "trim_heap"]
 
 VULKAN_HINT = ("GGUI needs Vulkan: install Mesa's software driver with "
                "`apt-get install -y mesa-vulkan-drivers libvulkan1`")
@@ -46,6 +47,9 @@ def _trim_heap() -> None:
         _LIBC[0](0)
 
 
+trim_heap = _trim_heap  # for windows that are never recreated (render/viewer.py)
+
+
 class HiddenWindow:
     """A hidden ``resolution`` GGUI window with its canvas and scene, opened on demand.
 
@@ -53,6 +57,8 @@ class HiddenWindow:
     check :attr:`is_open`). GGUI's Dear ImGui layer saves its window settings to ./imgui.ini every few
     seconds: :meth:`release` removes that file if it was not there when this object was made.
     """
+
+    shown = False  # the renderer reads the frame back (and merges the background there)
 
     def __init__(self, resolution):
         self.resolution = tuple(resolution)
@@ -68,11 +74,14 @@ class HiddenWindow:
         other = _LIVE[0]
         if other is not None and other is not self:
             other.close()
-        self.window = ggui(ti.ui.Window, "taichi-rocks", self.resolution, show_window=False, vsync=False)
+        self.window = self._make()
         self.canvas = self.window.get_canvas()
         self.scene = self.window.get_scene()
         _LIVE[0] = self
         _trim_heap()
+
+    def _make(self):
+        return ggui(ti.ui.Window, "taichi-rocks", self.resolution, show_window=False, vsync=False)
 
     def close(self) -> None:
         if self.window is not None:
@@ -92,3 +101,24 @@ class HiddenWindow:
                 self._imgui_ini.unlink()
             except OSError:
                 pass
+
+
+class ShownWindow(HiddenWindow):
+    """An on-screen ``resolution`` GGUI window named ``title``: the renderer declares the background image
+    (``canvas.set_image``) and the 3D scene in it and reads nothing back; its owner adds the panel and calls
+    ``window.show()`` (which only a shown window may do). It is never recreated: that would flash on the
+    screen (see render/viewer.py for its memory)."""
+
+    shown = True
+
+    def __init__(self, resolution, title: str = "taichi-rocks"):
+        super().__init__(resolution)
+        self.title = str(title)
+
+    def _make(self):
+        return ggui(ti.ui.Window, self.title, self.resolution, show_window=True, vsync=False)
+
+    @property
+    def running(self) -> bool:
+        """False once the user closed the window."""
+        return self.window is not None and bool(self.window.running)

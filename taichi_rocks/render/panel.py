@@ -1,0 +1,124 @@
+"""The view's panel and HUD: GGUI (Dear ImGui) widgets drawn over the picture, in two sub-windows.
+
+* "taichi-rocks" (bottom left): the HUD (time and frame, playing or paused and the speed, frames per second
+  shown, rocks in the air, launches, the camera, notices such as "recompiling") and the time slider;
+* "tune" (right): the runtime parameters as sliders (engine/tuning.py RUNTIME_KEYS; they act at once), the
+  switches that need a recompile as buttons that step through their choices, the
+  camera presets as buttons and the overlays as check boxes.
+
+Widgets only read the viewer and return what the user changed (:class:`Changes`); the viewer applies it.
+The first widget of "tune" is the wetness slider, a fixed place the tests drag with the mouse.
+"""
+
+from dataclasses import dataclass, field
+
+from ..motion.camera import VIEWS
+
+__all__ = ["SLIDERS", "Changes", "draw_panel", "hud_lines", "panel_width"]
+
+# runtime key -> (label, min, max): the sliders of "tune", in order (release_angle: two sliders)
+SLIDERS = {
+    "world.wetness": ("wetness", 0.0, 1.0),
+    "world.gravity": ("gravity", 0.0, 20.0),  # m/s^2
+    "launch.release_angle": ("angle", 0.0, 90.0),  # deg: "angle min", "angle max"
+    "launch.spread": ("spread", 0.0, 90.0),  # deg
+    "launch.grip": ("grip", 0.0, 1.0e6),  # Pa
+    "launch.adhesion": ("adhesion", 0.0, 2.0e5),  # Pa
+    "launch.transfer": ("transfer", 0.0, 2.0),
+    "world.restitution": ("bounce", 0.0, 1.0),
+    "world.ground_friction": ("friction", 0.0, 2.0),
+}
+SWITCH_LABELS = {"sim.integrator": "integrator", "effects.drag": "drag", "effects.ground": "ground",
+                 "effects.gravity": "gravity", "effects.fenders": "fenders"}
+OVERLAYS = (("bed_edge", "bed edge"), ("tire_rays", "tire rays"), ("hash_cells", "hash cells"),
+            ("tread_patch", "tread patch"))
+PANEL_PX = 300  # width of "tune" in pixels (at most 45% of the window)
+HUD_PX = 150  # height of "taichi-rocks" in pixels
+
+
+@dataclass
+class Changes:
+    """What the user changed in the panel this frame."""
+
+    seek: int = None  # frame to go to
+    runtime: dict = field(default_factory=dict)  # runtime key -> value
+    switch: tuple = None  # (key, value) of a switch
+    view: str = None  # camera preset (or "free")
+    overlays: dict = field(default_factory=dict)
+
+
+def panel_width(width: int) -> float:
+    return min(0.45, PANEL_PX / float(width))
+
+
+def hud_lines(v) -> list:
+    """The HUD's lines for viewer ``v``."""
+    tl = v.timeline
+    state = "playing" if tl.playing else "paused"
+    lines = [f"t {tl.time:7.2f} s   frame {tl.frame} / {tl.frames - 1}",
+             f"{state} x{tl.speed:g}   {v.fps:5.1f} fps",
+             f"in the air {v.in_air}   launches {v.sim.launches_total}",
+             f"camera {v.camera_name}"]
+    if v.notice:
+        lines.append(v.notice)
+    return lines
+
+
+def draw_panel(gui, v) -> Changes:
+    """Declare both sub-windows for viewer ``v``; return the changes."""
+    ch = Changes()
+    w_px, h_px = v.resolution
+    pw = panel_width(w_px)
+    hh = min(0.5, HUD_PX / float(h_px))
+    with gui.sub_window("taichi-rocks", 0.0, 1.0 - hh, 1.0 - pw, hh) as w:
+        for i, line in enumerate(hud_lines(v)):
+            w.text(line, color=(1.0, 0.85, 0.3) if i == 4 else None)
+        tl = v.timeline
+        t = w.slider_float("time s", tl.time, 0.0, (tl.frames - 1) / tl.fps)
+        if abs(t - tl.time) * tl.fps >= 0.5:
+            ch.seek = int(round(t * tl.fps))
+    with gui.sub_window("tune", 1.0 - pw, 0.0, pw, 1.0) as w:
+        _sliders(w, v, ch)
+        w.text("recompile:")
+        for key, label in SWITCH_LABELS.items():
+            cur = v.switches[key]
+            if w.button(f"{label}: {_word(cur)}"):
+                choices = v.switch_choices[key]
+                ch.switch = (key, choices[(choices.index(cur) + 1) % len(choices)])
+        w.text("camera (c cycles, f free):")
+        for name in VIEWS + ("free",):
+            if w.button(("> " if v.camera_name == name else "  ") + name):
+                ch.view = name
+        w.text("overlays:")
+        for flag, label in OVERLAYS:
+            cur = bool(getattr(v.renderer.flags, flag))
+            new = w.checkbox(label, cur)
+            if new != cur:
+                ch.overlays[flag] = new
+    return ch
+
+
+def _sliders(w, v, ch: Changes) -> None:
+    values = v.runtime
+    for key, (label, lo, hi) in SLIDERS.items():
+        cur = values[key]
+        if key == "launch.release_angle":
+            a = w.slider_float(f"{label} min", float(cur[0]), lo, hi)
+            b = w.slider_float(f"{label} max", float(cur[1]), lo, hi)
+            if _moved(a, cur[0], lo, hi) or _moved(b, cur[1], lo, hi):
+                ch.runtime[key] = [min(a, b), b] if _moved(a, cur[0], lo, hi) else [a, max(a, b)]
+            continue
+        new = w.slider_float(label, float(cur), lo, hi)
+        if _moved(new, cur, lo, hi):
+            ch.runtime[key] = new
+
+
+def _moved(new: float, old: float, lo: float, hi: float) -> bool:
+    """A slider hands back its value as f32: a change is one of more than that rounding."""
+    return abs(float(new) - float(old)) > 1e-6 * (hi - lo)
+
+
+def _word(value) -> str:
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    return str(value)

@@ -1,0 +1,304 @@
+"""``taichi-rocks view``: the simulation in a window, drawn by the same Renderer as ``render``.
+
+Each frame shown: the keys, the clock (:mod:`.timeline`: play, step, scrub; the simulation only stands at
+frame times, so frame k here is ``render``'s frame k), the camera (the rig's presets or :mod:`.freecam`), the
+Renderer declaring the background image and the 3D scene in the shown window (render/window.py
+``ShownWindow``), the panel (:mod:`.panel`), then ``window.show()``. Runtime parameters go to the engine through
+engine/tuning.py ``set_runtime``; a switch is applied one frame after its "recompiling" notice was shown, by
+a new Simulation restored from a checkpoint (``rebuilder``).
+
+Keys (GGUI 1.7.4 reports letters, arrows, space, Tab and Escape, not digits or punctuation): space play/pause,
+Right/Left one frame forward/back, Up/Down speed x2 / x1/2 (x1/4 .. x4), c next camera preset, f free camera
+(W/A/S/D/E/Q, right mouse button to look), h hide/show the panel, p screenshot, Escape quit.
+
+Automation: ``TAICHI_ROCKS_VIEW_STATUS=PATH`` writes a JSON status (:meth:`Viewer.status`) atomically after
+every frame shown; "view: ready" goes to stderr once the first frame is on the screen.
+
+Memory: GGUI 1.7.4 keeps ~0.1-0.3 MB of every 3D renderable it draws (measured here on lavapipe, CPU and
+Vulkan arch alike, for particles, meshes and lines; ``malloc_trim`` and a new Scene object do not give it
+back; destroying the window does). So once the process has grown by REFRESH_MB since its window opened, the
+window is destroyed and opened again between two frames (a blink; the HUD says so, the panel keeps its
+values, the simulation and the camera are not touched), and frames are shown at most MAX_FPS times a second (each one drawn costs memory until then).
+RSS over a long session: README, "Looking around".
+"""
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import taichi as ti
+
+from ..engine.probes import rocks_in_air
+from ..engine.tuning import RUNTIME_KEYS, SWITCH_KEYS, rebuilder, scene_value, set_runtime
+from ..motion.camera import VIEWS
+from ..output.recording import write_atomically
+from ..output.video import frame_name, png_bytes
+from .freecam import FreeCamera
+from .panel import draw_panel
+from .renderer import Renderer
+from .timeline import Timeline
+from .window import ShownWindow, trim_heap
+
+__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "check_record_dir", "screenshot_path"]
+
+STATUS_ENV = "TAICHI_ROCKS_VIEW_STATUS"
+READY_LINE = "view: ready"
+TRIM_EVERY = 100  # frames shown between giving freed heap memory back to the OS
+REFRESH_MB = 300.0  # growth of the resident set since the window opened that makes it open anew
+MAX_FPS = 30.0  # more would only feed GGUI's memory (the scene's fps is 30)
+
+
+def check_record_dir(path, overwrite: bool) -> None:
+    """FileExistsError if ``path`` holds files and ``overwrite`` is off; with it, old frames go."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise FileExistsError(f"{path}: exists and is not a folder")
+    if path.is_dir() and any(path.iterdir()):
+        if not overwrite:
+            raise FileExistsError(f"{path} is not empty (pass --overwrite to replace its frames)")
+        for old in path.glob("frame_*.png"):
+            old.unlink()
+
+
+def screenshot_path(folder, scene_name: str, t: float) -> Path:
+    """``<scene>_t<time>.png`` in ``folder`` (e.g. convoy_t003.25.png), with _2, _3 ... if taken."""
+    base = f"{scene_name}_t{t:06.2f}"
+    path = Path(folder) / f"{base}.png"
+    k = 2
+    while path.exists():
+        path = Path(folder) / f"{base}_{k}.png"
+        k += 1
+    return path
+
+
+class Viewer:
+    """A window on a live simulation of ``scene``. See the module docstring."""
+
+    def __init__(self, scene, arch="cpu", resolution=None, record=None, status_path=None):
+        from ..engine.simulation import Simulation
+
+        self.sim = Simulation(scene, arch=arch)
+        res = tuple(resolution) if resolution is not None else tuple(int(x) for x in scene.render.resolution)
+        self.win = ShownWindow(res, title=f"taichi-rocks view: {scene.name}")
+        self.renderer = Renderer(self.sim, resolution=res, target=self.win)
+        self.resolution = self.renderer.resolution
+        fps = self.renderer.fps
+        self.timeline = Timeline(fps, max(1, int(round(scene.duration * fps))))
+        self.renderer.view()
+        self.timeline.save(self.sim, self.renderer.rig)
+        self.free = FreeCamera()
+        self.free_on = False
+        self.camera_name = self.renderer.view_name
+        self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
+        self.switches = {k: scene_value(scene, k) for k in SWITCH_KEYS}
+        self.switch_choices = SWITCH_KEYS
+        self.notice, self.pending, self._notice_shown = "", None, False
+        self.panel_on, self.quit, self._shot = True, False, False
+        self.fps, self.shown, self.in_air, self.rebuilds = 0.0, 0, 0, 0
+        self.screenshots, self.record, self.recorded = [], None if record is None else Path(record), 0
+        self.status_path = Path(status_path) if status_path else None
+        self._times = []
+        self.refreshes, self._rss_base = 0, None  # measured once the kernels are compiled (frame TRIM_EVERY)
+
+    # -------------------------------------------------------------------------------------------- loop
+    def run(self, quit_after=None) -> dict:
+        """Show frames until Escape, the window closing or ``quit_after`` seconds after the first frame."""
+        last = time.perf_counter()
+        start = None
+        try:
+            while self.win.running and not self.quit:
+                now = time.perf_counter()
+                wall_dt, last = now - last, now
+                self._keys()
+                if self.quit:
+                    break
+                if self.pending is not None and self._notice_shown:
+                    self._rebuild()
+                    last = time.perf_counter()  # the recompile is not playing time
+                self._frame(wall_dt)
+                if start is None:
+                    start = time.perf_counter()
+                    print(READY_LINE, file=sys.stderr, flush=True)
+                if quit_after is not None and time.perf_counter() - start >= quit_after:
+                    break
+        finally:
+            self.renderer.close()
+        return {"frames_shown": self.shown, "frame": self.timeline.frame, "screenshots": list(map(str, self.screenshots)),
+                "recorded": self.recorded, "seconds": 0.0 if start is None else time.perf_counter() - start}
+
+    def _frame(self, wall_dt: float) -> None:
+        tl, r = self.timeline, self.renderer
+        tl.tick(wall_dt, self.sim, r.rig, r.view)
+        view = None
+        if self.free_on:
+            view = self.free.update(self.win.window, self.sim.origin, r.view().heading)
+        r.render_frame(view)
+        self.in_air = rocks_in_air(self.sim)
+        changes = draw_panel(self.win.window.get_gui(), self) if self.panel_on else None
+        if self._shot or self.record is not None:
+            self._capture()
+        self.win.window.show()
+        self._notice_shown = bool(self.notice)
+        self.shown += 1
+        self._count_fps()
+        if changes is not None:
+            self._apply(changes)
+        if self.shown % TRIM_EVERY == 0:
+            trim_heap()
+            if self._rss_base is None:
+                self._rss_base = _rss_mb()
+            elif _rss_mb() - self._rss_base > REFRESH_MB:
+                self._refresh_window()
+        pause = 1.0 / MAX_FPS - (time.perf_counter() - self._times[-1])
+        if pause > 0:
+            time.sleep(pause)
+        if self.status_path is not None:
+            data = json.dumps(self.status()).encode()
+            write_atomically(self.status_path, lambda f: f.write(data))
+
+    def _count_fps(self) -> None:
+        now = time.perf_counter()
+        self._times = [t for t in self._times if now - t < 2.0] + [now]
+        span = now - self._times[0]
+        self.fps = (len(self._times) - 1) / span if span > 0 else 0.0
+
+    def _refresh_window(self) -> None:
+        """Open the window anew: GGUI frees what it kept of the frames drawn (see the module docstring)."""
+        self.win.close()
+        trim_heap()
+        self.win.open()
+        self.refreshes += 1
+        self._rss_base = None
+        if self.free_on:  # the free camera's mouse state belonged to the old window
+            self.free.cam.last_mouse_x = self.free.cam.last_mouse_y = None
+
+    # -------------------------------------------------------------------------------------------- input
+    def _keys(self) -> None:
+        tl = self.timeline
+        for e in self.win.window.get_events(ti.ui.PRESS):
+            k = e.key
+            if k == ti.ui.ESCAPE:
+                self.quit = True
+            elif k == ti.ui.SPACE:
+                tl.playing = not tl.playing
+            elif k in (ti.ui.RIGHT, ti.ui.LEFT):
+                tl.playing = False
+                self._seek((tl.frame + (1 if k == ti.ui.RIGHT else -1)) % tl.frames)  # round the loop
+            elif k in (ti.ui.UP, ti.ui.DOWN):
+                tl.faster(k == ti.ui.UP)
+            elif k == "c":
+                i = VIEWS.index(self.camera_name) + 1 if self.camera_name in VIEWS else 0
+                self.set_camera(VIEWS[i % len(VIEWS)])
+            elif k == "f":
+                self.set_camera(self.renderer.view_name if self.free_on else "free")
+            elif k == "h":
+                self.panel_on = not self.panel_on
+            elif k == "p":
+                self._shot = True
+
+    def _seek(self, frame: int) -> None:
+        r = self.renderer
+        self.timeline.seek(frame, self.sim, r.rig, r.view)
+
+    def set_camera(self, name: str) -> None:
+        """A preset of motion/camera.py VIEWS, or "free" (starting where the camera is now)."""
+        if name == "free":
+            if not self.free_on:
+                self.free.start(self.renderer.view(), self.sim.origin)
+            self.free_on = True
+        else:
+            self.free_on = False
+            self.renderer.set_view(name)
+            self.renderer.view()
+        self.camera_name = name
+
+    def _apply(self, ch) -> None:
+        from ..config.scene import SceneError
+
+        if ch.seek is not None:
+            self._seek(ch.seek)
+        if ch.runtime:
+            try:
+                scene = set_runtime(self.sim, ch.runtime)
+            except (SceneError, ValueError) as e:
+                self.notice = str(e).splitlines()[0][-80:]
+            else:
+                self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
+                self.timeline.forget_after(self.timeline.frame)
+        if ch.switch is not None and self.pending is None:
+            self.pending = ch.switch
+            key, value = ch.switch
+            self.notice = f"recompiling: {key} = {value} ..."
+            self._notice_shown = False
+        if ch.view is not None:
+            self.set_camera(ch.view)
+        for flag, on in ch.overlays.items():
+            setattr(self.renderer.flags, flag, bool(on))
+
+    def _rebuild(self) -> None:
+        """Apply the pending switch: a new Simulation of the changed scene, continuing from this state."""
+        key, value = self.pending
+        make = rebuilder(self.sim, {key: value})
+        self.sim = self.renderer.sim = None  # the old World goes back to the pool
+        self.sim = self.renderer.sim = make()
+        self.switches[key] = value
+        self.timeline.forget_after(self.timeline.frame)
+        self.rebuilds += 1
+        self.pending, self.notice, self._notice_shown = None, "", False
+
+    # -------------------------------------------------------------------------------------------- output
+    def _capture(self) -> None:
+        """What the window shows (panel included) as PNG: the screenshot asked for, the recorded frame."""
+        raw = self.win.window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; this frame's pixels
+        img = (np.clip(np.rot90(raw[:, :, :3]), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        data = png_bytes(img)
+        if self._shot:
+            path = screenshot_path(Path.cwd(), self.sim.scene.name, self.timeline.time)
+            write_atomically(path, lambda f: f.write(data))
+            self.screenshots.append(path)
+            self.notice = f"saved {path.name}" if not self.pending else self.notice
+            self._shot = False
+        if self.record is not None:
+            write_atomically(self.record / frame_name(self.recorded), lambda f: f.write(data))
+            self.recorded += 1
+
+    def status(self) -> dict:
+        """What the window shows now, for programs that drive it (the tests)."""
+        from ..engine.tuning import runtime_values
+
+        tl = self.timeline
+        return {"frame": tl.frame, "frames": tl.frames, "time": tl.time, "paused": not tl.playing, "speed": tl.speed,
+                "launches": self.sim.launches_total, "in_air": self.in_air, "camera": self.camera_name,
+                "fps": self.fps, "shown": self.shown, "panel": self.panel_on, "params": runtime_values(self.sim),
+                "switches": self.switches, "overlays": vars(self.renderer.flags).copy(), "notice": self.notice,
+                "recompiling": self.pending is not None, "rebuilds": self.rebuilds, "replayed": tl.replayed,
+                "window_refreshes": self.refreshes,
+                "screenshots": [str(p) for p in self.screenshots], "recorded": self.recorded,
+                "rss_mb": _rss_mb()}
+
+
+def _rss_mb() -> float:
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e6
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+def view_scene(scene, arch="cpu", resolution=None, record=None, overwrite=False, quit_after=None,
+               status_path=None) -> dict:
+    """Open the window on ``scene`` (a validated Scene) and run it until closed; see :class:`Viewer`.
+    ``record``: a folder to write every frame shown into (FileExistsError if it holds files, unless
+    ``overwrite``). Returns the summary of :meth:`Viewer.run`."""
+    from ..output.recording import new_folders
+
+    if record is not None:
+        check_record_dir(record, overwrite)
+    status_path = status_path if status_path is not None else os.environ.get(STATUS_ENV)
+    folders = (record,) if record is not None else ()
+    with new_folders(*folders):
+        viewer = Viewer(scene, arch=arch, resolution=resolution, record=record, status_path=status_path)
+        return viewer.run(quit_after=quit_after)

@@ -1,0 +1,112 @@
+"""engine/tuning.py: runtime parameters set on a running simulation act as if the scene had them, switches
+rebuild it from a checkpoint; probes.rocks_in_air counts the flying rocks."""
+
+import numpy as np
+import pytest
+
+STEPS = 250
+
+
+@pytest.fixture(scope="module")
+def scene(taichi_cpu, scenes_dir):
+    """The small test scene with stones the tread's grooves carry (where wetness and grip matter)."""
+    from taichi_rocks.config.scene import load_scene, scene_with
+
+    return scene_with(load_scene(scenes_dir / "minimal.toml"), {"bed.rock_radius": [0.006, 0.012]})
+
+
+def _run(sim, steps=STEPS):
+    sim.step(steps)
+    return sim.state()
+
+
+def _same(a, b):
+    for k in ("positions", "velocities", "phase", "launches_total"):
+        assert np.array_equal(a[k], b[k]), k
+
+
+@pytest.mark.parametrize("key, value", [("world.wetness", 0.9), ("world.gravity", 3.0), ("launch.grip", 5.0e4)])
+def test_set_at_start_equals_a_scene_with_the_value(scene, key, value):
+    from taichi_rocks.config.scene import scene_with
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.engine.tuning import runtime_values, set_runtime
+
+    tuned = Simulation(scene)
+    changed = set_runtime(tuned, {key: value})
+    assert tuned.scene is changed and np.allclose(runtime_values(tuned)[key], value, rtol=1e-6)
+    a = _run(tuned)
+    del tuned
+    b = _run(Simulation(scene_with(scene, {key: value})))
+    _same(a, b)
+    c = _run(Simulation(scene))
+    assert not np.array_equal(a["positions"], c["positions"])  # the value changed what the rocks do
+
+
+def test_set_mid_run_changes_only_what_follows_and_survives_restore(scene):
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.engine.tuning import runtime_values, set_runtime
+
+    sim = Simulation(scene)
+    sim.step(60)
+    saved = sim.checkpoint()
+    before = sim.state()
+    set_runtime(sim, {"world.gravity": 2.0})
+    now = sim.state()
+    assert np.array_equal(now["positions"], before["positions"])  # nothing moved yet
+    sim.restore(saved)  # restore uploads the parameters again: the new ones
+    assert runtime_values(sim)["world.gravity"] == pytest.approx(2.0)
+
+
+def test_bad_values_are_refused_and_change_nothing(scene):
+    from taichi_rocks.config.scene import SceneError
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.engine.tuning import runtime_values, set_runtime
+
+    sim = Simulation(scene)
+    before = runtime_values(sim)
+    with pytest.raises(SceneError, match="wetness"):
+        set_runtime(sim, {"world.wetness": 1.5})
+    with pytest.raises(ValueError, match="not a runtime key"):
+        set_runtime(sim, {"sim.integrator": "heun"})
+    assert runtime_values(sim) == before and sim.scene is scene
+
+
+def test_rebuild_continues_from_the_checkpoint_with_the_switch(scene):
+    from taichi_rocks.config.scene import scene_with
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.engine.tuning import rebuilder
+
+    sim = Simulation(scene)
+    sim.step(40)
+    state = sim.state()
+    world = sim.world
+    make = rebuilder(sim, {"sim.integrator": "heun"})
+    del sim
+    new = make()
+    assert new.world is world  # same layout: the World came back from the pool
+    assert new.plan.integrator == "heun" and new.step_count == 40
+    _same(new.state(), state)
+    a = _run(new)
+    ref = Simulation(scene_with(scene, {"sim.integrator": "heun"}))
+    ref.restore(_checkpoint_of(scene, 40))
+    _same(a, _run(ref))
+
+
+def _checkpoint_of(scene, steps):
+    from taichi_rocks.engine.simulation import Simulation
+
+    sim = Simulation(scene)
+    sim.step(steps)
+    return sim.checkpoint()
+
+
+def test_rocks_in_air_counts_the_flying_phase(scene):
+    from taichi_rocks.engine.probes import rocks_in_air
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.engine.world import FLYING
+
+    sim = Simulation(scene)
+    assert rocks_in_air(sim) == 0
+    sim.step(100)
+    n = rocks_in_air(sim)
+    assert n == int(np.count_nonzero(sim.state()["phase"] == FLYING)) and n > 0

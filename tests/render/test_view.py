@@ -1,0 +1,316 @@
+"""``taichi-rocks view`` in a real window, under a virtual X display (Xvfb), driven by xdotool.
+
+One viewer process of scenes/minimal.toml at 480x320 serves most tests (each first puts it in the state it
+needs: paused or playing, panel shown or hidden); the exit tests start their own. Every wait is on what the
+viewer reports: its status file (TAICHI_ROCKS_VIEW_STATUS, written after every frame shown). Xvfb, xdotool
+and xdpyinfo are required (tools/setup.sh installs them): without them these tests fail.
+"""
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+W, H = 480, 320
+TIMEOUT = 120.0  # s: the machine may be slow and loaded
+
+
+@pytest.fixture(scope="module")
+def xdisplay():
+    missing = [t for t in ("Xvfb", "xdotool", "xdpyinfo") if shutil.which(t) is None]
+    if missing:
+        pytest.fail(f"{', '.join(missing)} not installed: run tools/setup.sh (apt-get install xvfb xdotool "
+                    f"x11-utils)")
+    for n in range(40, 100):
+        if Path(f"/tmp/.X11-unix/X{n}").exists() or Path(f"/tmp/.X{n}-lock").exists():
+            continue
+        proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x720x24", "-nolisten", "tcp"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        deadline = time.time() + 60
+        while proc.poll() is None and time.time() < deadline:
+            if subprocess.run(["xdpyinfo", "-display", f":{n}"], capture_output=True).returncode == 0:
+                yield f":{n}"
+                proc.terminate()
+                proc.wait(timeout=30)
+                return
+            time.sleep(0.1)
+        proc.kill()
+    pytest.fail("could not start Xvfb on a free display")
+
+
+def _env(display, **extra):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **extra)
+    if display is None:
+        env.pop("DISPLAY", None)
+    else:
+        env["DISPLAY"] = display
+    return env
+
+
+class View:
+    """A running viewer: its status, its window (xdotool), its outputs in ``cwd``."""
+
+    def __init__(self, display, cwd: Path, *args):
+        self.display, self.cwd = display, cwd
+        self.status_file = cwd / "status.json"
+        self.out, self.err = open(cwd / "stdout.txt", "w+"), open(cwd / "stderr.txt", "w+")  # never a full pipe
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "taichi_rocks", "view", str(ROOT / "scenes" / "minimal.toml"), "--resolution",
+             f"{W}x{H}", *map(str, args)], cwd=cwd, env=_env(display, TAICHI_ROCKS_VIEW_STATUS=str(self.status_file)),
+            stdout=self.out, stderr=self.err, text=True)
+        self.wait(lambda s: s["shown"] >= 1)
+        self._window()
+
+    def stderr(self) -> str:
+        return (self.cwd / "stderr.txt").read_text()
+
+    def finish(self) -> int:
+        code = self.proc.wait(timeout=TIMEOUT)
+        self.out.close()
+        self.err.close()
+        return code
+
+    def status(self):
+        try:
+            return json.loads(self.status_file.read_text())
+        except (OSError, ValueError):
+            return None
+
+    def wait(self, cond, what="the viewer's status"):
+        deadline = time.time() + TIMEOUT
+        while True:
+            s = self.status()
+            if s is not None and cond(s):
+                return s
+            if self.proc.poll() is not None:
+                raise AssertionError(f"viewer ended (status {self.proc.returncode}) waiting for {what}:\n"
+                                     f"{self.stderr()}")
+            if time.time() > deadline:
+                raise AssertionError(f"timed out waiting for {what}; last status: {s}")
+            time.sleep(0.05)
+
+    def frames_later(self, n=3):
+        """Wait until ``n`` more frames were shown."""
+        shown = self.status()["shown"]
+        return self.wait(lambda s: s["shown"] >= shown + n, f"{n} more frames")
+
+    @property
+    def wid(self) -> str:
+        """The viewer's window now (it opens a new one now and then to free GGUI's memory: render/viewer.py)."""
+        return self._window()
+
+    def _window(self) -> str:
+        deadline = time.time() + TIMEOUT
+        while time.time() < deadline:
+            r = self.xdo("search", "--pid", str(self.proc.pid), "--name", "taichi-rocks view: minimal", check=False)
+            if r.returncode == 0 and r.stdout.split():
+                return r.stdout.split()[0]
+            time.sleep(0.1)
+        raise AssertionError("no viewer window found")
+
+    def xdo(self, *args, check=True):
+        r = subprocess.run(["xdotool", *args], env=_env(self.display), capture_output=True, text=True, timeout=60)
+        if check:
+            assert r.returncode == 0, r.stderr
+        return r
+
+    def key(self, name):
+        for _ in range(3):  # the window may be replaced between the search and the key
+            if self.xdo("key", "--window", self.wid, name, check=False).returncode == 0:
+                return
+        raise AssertionError(f"could not press {name}")
+
+    def toggle_until(self, key, cond, what):
+        """Press ``key`` unless ``cond(status)`` holds already; wait for it."""
+        if not cond(self.status()):
+            self.key(key)
+        return self.wait(cond, what)
+
+    def still(self, panel=False):
+        """Paused, panel shown or not."""
+        self.toggle_until("space", lambda s: s["paused"], "paused")
+        return self.toggle_until("h", lambda s: s["panel"] == panel, f"panel {panel}")
+
+    def screenshot(self) -> np.ndarray:
+        import imageio.v3 as iio
+
+        n = len(self.status()["screenshots"])
+        self.key("p")
+        s = self.wait(lambda s: len(s["screenshots"]) > n, "a screenshot")
+        return iio.imread(s["screenshots"][-1])
+
+
+@pytest.fixture(scope="module")
+def view(xdisplay, tmp_path_factory):
+    v = View(xdisplay, tmp_path_factory.mktemp("view"))
+    yield v
+    if v.proc.poll() is None:
+        v.proc.kill()
+    v.finish()
+
+
+def test_window_opens(view):
+    s = view.wait(lambda s: s["shown"] >= 3)
+    geometry = view.xdo("getwindowgeometry", view.wid).stdout
+    assert f"{W}x{H}" in geometry, geometry
+    assert s["camera"] == "chase" and s["panel"] is True and s["frames"] == 60  # 2 s at 30 fps
+    assert "view: ready" in view.stderr().splitlines()
+
+
+def test_pause_stops_time(view):
+    view.toggle_until("space", lambda s: not s["paused"], "playing")
+    f0 = view.status()["frame"]
+    view.wait(lambda s: s["frame"] != f0, "time to move while playing")
+    s = view.toggle_until("space", lambda s: s["paused"], "paused")
+    later = view.frames_later(10)
+    assert later["frame"] == s["frame"] and later["time"] == s["time"]
+    view.key("Right")  # one step while paused
+    stepped = view.wait(lambda x: x["frame"] != s["frame"], "one frame step")
+    assert stepped["frame"] == (s["frame"] + 1) % s["frames"] and stepped["paused"]
+
+
+def test_key_moves_camera(view):
+    view.still(panel=False)
+    assert view.status()["camera"] == "chase"  # the scene's view (each test that changes it goes back)
+    view.frames_later()
+    before = view.screenshot().astype(np.int16)
+    view.key("c")
+    s = view.wait(lambda s: s["camera"] == "side", "the side camera")
+    assert s["frame"] == view.status()["frame"]  # paused: only the camera moved
+    view.frames_later()
+    after = view.screenshot().astype(np.int16)
+    diff = np.abs(after - before).max(axis=2)
+    assert (diff > 30).mean() > 0.2, (diff > 30).mean()
+    view.key("c")
+    view.wait(lambda s: s["camera"] == "low", "the low camera")
+    while view.status()["camera"] != "chase":  # back to the scene's own view for the other tests
+        cam = view.status()["camera"]
+        view.key("c")
+        view.wait(lambda s: s["camera"] != cam, "the next camera")
+
+
+def test_p_writes_a_png_named_after_scene_and_time(view):
+    view.still(panel=True)
+    img = view.screenshot()
+    s = view.status()
+    path = Path(s["screenshots"][-1])
+    stem = f"minimal_t{s['time']:06.2f}"  # other tests may have taken this moment already: then _2, _3 ...
+    assert path.parent == view.cwd and re.fullmatch(re.escape(stem) + r"(_\d+)?\.png", path.name), path.name
+    assert img.shape[:2] == (H, W)
+    assert img.reshape(-1, img.shape[2])[:, :3].std(axis=0).min() > 10  # not blank: sky, ground, rocks, panel
+    view.screenshot()  # same moment: another file, the first kept
+    second = Path(view.status()["screenshots"][-1])
+    assert second.name.startswith(stem + "_") and second != path and path.exists() and second.exists()
+
+
+def test_scrubbing_back_shows_the_frame_render_draws(view, tmp_path):
+    import imageio.v3 as iio
+
+    k = 10
+    render = subprocess.run([sys.executable, "-m", "taichi_rocks", "render", str(ROOT / "scenes" / "minimal.toml"),
+                             "--frames", str(k + 1), "--resolution", f"{W}x{H}", "--format", "png", "--out",
+                             str(tmp_path)], env=_env(None), capture_output=True, text=True, timeout=600)
+    assert render.returncode == 0, render.stderr
+    offline = iio.imread(tmp_path / "frames" / f"frame_{k:05d}.png").astype(np.int16)
+    view.toggle_until("space", lambda s: not s["paused"], "playing")
+    view.wait(lambda s: s["frame"] >= k + 3, f"frame {k + 3}")
+    s = view.still(panel=False)
+    assert s["params"]["world.wetness"] == 0.0  # the scene's parameters, as render has them
+    replayed = s["replayed"]
+    while view.status()["frame"] != k:  # back, one frame at a time (Left)
+        f = view.status()["frame"]
+        view.key("Left" if f > k else "Right")
+        view.wait(lambda x: x["frame"] != f, "a frame step")
+    s = view.status()
+    assert s["replayed"] > replayed  # going back restored a saved state and simulated forward
+    shown = view.screenshot()[:, :, :3].astype(np.int16)
+    diff = np.abs(shown - offline[:, :, :3]).max(axis=2)
+    assert diff.mean() < 2.0 and (diff > 24).mean() < 0.005, (diff.mean(), (diff > 24).mean())
+
+
+def test_wetness_slider_dragged_with_the_mouse_reaches_the_kernels(view):
+    view.still(panel=True)
+    assert view.status()["params"]["world.wetness"] == 0.0
+    # the wetness slider is the first widget of the "tune" panel (render/panel.py): its row is 37 px down
+    # from the top, its bar starts 8 px inside the panel's left edge
+    x0 = int(round(W * (1 - min(0.45, 300 / W)))) + 12
+    y = 37
+    s = _drag(view, x0, x0 + 120, y, lambda s: s["params"]["world.wetness"] > 0.5)
+    assert s["params"]["world.wetness"] <= 1.0
+    assert s["params"]["world.gravity"] == pytest.approx(9.81, rel=1e-6)  # the other sliders did not move
+    # back to the scene's value (the far left: 0) for the other tests
+    _drag(view, x0 + 60, x0 - 60, y, lambda s: s["params"]["world.wetness"] == 0.0)
+
+
+def _drag(view, x_from, x_to, y, done):
+    """Drag the mouse along row ``y``, then wait until ``done(status)``; again if the viewer opened a new window
+    meanwhile (render/viewer.py: a drag across two windows is lost)."""
+    for _ in range(3):
+        before = view.status()["window_refreshes"]
+        _drag_once(view, x_from, x_to, y)
+        s = view.wait(lambda s: done(s) or s["window_refreshes"] != before, "the dragged value")
+        if done(s):
+            return s
+    raise AssertionError("the drag never took effect")
+
+
+def _drag_once(view, x_from, x_to, y):
+    view.xdo("mousemove", "--window", view.wid, str(x_from), str(y))
+    view.frames_later()
+    view.xdo("mousedown", "1")
+    view.frames_later()
+    step = 20 if x_to > x_from else -20
+    for x in range(x_from + step, x_to + step, step):
+        view.xdo("mousemove", "--window", view.wid, str(x), str(y))
+        view.frames_later(2)
+    view.xdo("mouseup", "1")
+    view.frames_later()
+    view.xdo("mousemove", "--window", view.wid, "5", "5")
+
+
+def test_escape_exits_0_and_record_writes_the_frames_shown(xdisplay, tmp_path):
+    rec = tmp_path / "rec"
+    v = View(xdisplay, tmp_path, "--record", rec)
+    s = v.wait(lambda s: s["recorded"] >= 3, "3 recorded frames")
+    for _ in range(3):  # a key sent while the viewer replaces its window is lost: press again
+        v.key("Escape")
+        try:
+            v.proc.wait(timeout=5)
+            break
+        except subprocess.TimeoutExpired:
+            if v.proc.poll() is None:
+                v.frames_later(5)
+    assert v.finish() == 0, v.stderr()
+    frames = sorted(rec.glob("frame_*.png"))
+    assert len(frames) >= s["recorded"] and frames[0].name == "frame_00000.png"
+    assert "Traceback" not in v.stderr() and "frames written to" in (tmp_path / "stdout.txt").read_text()
+
+
+def test_record_refuses_a_folder_with_files(xdisplay, tmp_path):
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    (rec / "keep.txt").write_text("x")
+    r = subprocess.run([sys.executable, "-m", "taichi_rocks", "view", str(ROOT / "scenes" / "minimal.toml"),
+                        "--record", str(rec)], env=_env(xdisplay), capture_output=True, text=True, timeout=TIMEOUT)
+    assert r.returncode == 2 and "not empty" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert sorted(p.name for p in rec.iterdir()) == ["keep.txt"]
+
+
+@pytest.mark.parametrize("display", [None, ":9999"])
+def test_no_display_exits_2_pointing_to_render(display):
+    t = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "taichi_rocks", "view", str(ROOT / "scenes" / "minimal.toml")],
+                       env=_env(display), capture_output=True, text=True, timeout=TIMEOUT)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert "display" in lines[0] and "taichi-rocks render" in lines[0]
+    assert "Starting on arch" not in r.stdout + r.stderr  # Taichi never started
+    assert time.perf_counter() - t < TIMEOUT
