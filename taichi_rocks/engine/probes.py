@@ -178,7 +178,7 @@ def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integ
 
 def rocks_in_air(sim) -> int:
     """How many rocks fly now (phase FLYING): one read-back of the phase field."""
-    n = int(sim.n_rocks)
+    n = int(sim.active_count)  # resting rocks in the tiles (active stepping) do not fly
     if n == 0:
         return 0
     return int(np.count_nonzero(sim.world.phase.to_numpy()[:n] == FLYING))

@@ -63,10 +63,10 @@ def set_runtime(sim, values: dict):
     scene = scene_with(sim.scene, dict(values))
     if Plan.from_scene(scene) != sim.plan:  # cannot happen for these keys; a guard for new ones
         raise ValueError("these values change what the kernels compile: build a new Simulation")
-    par, ipar = scene_params(scene, sim.plan, sim._sizing, ground_z=scene.world.ground_z - sim.origin[2])
+    par, _ = scene_params(scene, sim.plan, sim._sizing, ground_z=scene.world.ground_z - sim.origin[2])
     sim.scene = scene
     sim._par = par  # what restore() uploads again
-    sim.world.set_params(par, ipar)
+    sim.world.par.from_numpy(par.astype(sim.world.np_real()))  # ipar (rock and table counts) stays as it is
     return scene
 
 
