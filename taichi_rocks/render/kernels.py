@@ -17,14 +17,15 @@ below (local f32 coordinates, the simulation's Z up); the buffers live in a :cla
 
 import taichi as ti
 
-from ..engine.world import FLYING
+from ..engine.world import FLYING, RESTING, IPar, Par
 from .looks import KEY
 from .rocklook import _rock_color, _unit, rock_color, rock_shape
 from .shadows import SHADE_ONE, Shade, smooth01 as _smooth01, splat_shadow as _splat_shadow, \
     take_shade as _take_shade, vehicle_shadows as _vehicle_shadows
+from .tiles import Visible, tile_in_view
 
 __all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "Camera", "Frustum", "Sizing", "Light", "Ground",
-           "Palette", "Shade", "Buffers", "Bucket", "rock_color", "rocks_pass", "clear_buffers", "paint_ground",
+           "Palette", "Shade", "Buffers", "Bucket", "Visible", "rock_color", "rocks_pass", "clear_buffers", "paint_ground",
            "to_u8"]
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
@@ -251,59 +252,38 @@ def _compact(bucket, count, p, draw_r, col):
         bucket.col[j] = col
 
 
-@ti.kernel
-def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: Camera,
-               fr: Frustum, size: Sizing, light: Light, sh: Shade):
-    """Cull the first ``n`` rocks of ``world`` to the view frustum and the draw distance, then
-
-    * ``buf.splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`),
-      flying rocks are compacted into ``bucket`` for GGUI;
-    * otherwise every visible rock is compacted into ``bucket`` (atomic counter ``buf.count``; the first
-      ``count`` entries are valid, count may exceed the bucket's capacity: then the caller re-runs with a bigger
-      bucket), far resting rocks thinned (a fraction q^2 kept by a hash of rock_id and drawn 1/q larger,
-      q = projected radius / lod_px);
-    * ``buf.shadows``: every flying rock within the draw distance (in view or not) casts its shadow along the
-      sun (:func:`_splat_shadow`, channel 0), and every visible resting rock of at least ``sh.contact_px``
-      pixels its own, a contact shadow just beside it (channel 1).
-    """
-    buf.count[None] = 0
-    if ti.static(buf.splat):
-        buf.rows[0] = buf.zbuf.shape[1]
-        buf.rows[1] = -1
-    if ti.static(buf.shadows):
-        buf.rows[2] = buf.shade.shape[1]
-        buf.rows[3] = -1
+@ti.func
+def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
+    """One rock of the rock pass (:func:`rocks_pass`): local centre ``p`` and radius ``r`` (f32), phase ``ph``,
+    id ``rid``; its shadows, then culled to the view and splatted or compacted."""
     W = ti.cast(buf.zbuf.shape[0], ti.f32)
     H = ti.cast(buf.zbuf.shape[1], ti.f32)
-    for i in range(n):
-        p = ti.cast(world.pos[i], ti.f32)
-        r = ti.cast(world.radius[i], ti.f32)
-        ph = world.phase[i]
-        d = p - cam.eye
-        if ti.static(buf.shadows):
-            if ph == FLYING:
-                hgt = ti.max(p[2] - sh.z, 0.0)
-                c = ti.Vector([p[0], p[1]]) + sh.shift * hgt
-                if (c[0] - cam.eye[0]) ** 2 + (c[1] - cam.eye[1]) ** 2 < fr.far * fr.far:
-                    _splat_shadow(buf, c, r, 0.3 * r + 0.01 * hgt, 0, cam, fr, sh)
-        z = d.dot(cam.fwd)
-        if z > fr.near - r and d.norm_sqr() < fr.far * fr.far:
-            x = d.dot(cam.right)
-            y = d.dot(cam.up)
-            if ti.abs(x) < z * fr.tan_x + r * fr.sec_x and ti.abs(y) < z * fr.tan_y + r * fr.sec_y:
-                rid = world.rock_id[i]
-                if ti.static(buf.shadows):
-                    if ph != FLYING and r * fr.px_per_rad >= sh.contact_px * ti.max(z, fr.near):
-                        c = ti.Vector([p[0], p[1]]) + sh.shift * ti.max(p[2] - sh.z, 0.0)
-                        _splat_shadow(buf, c, r, 0.35 * r, 1, cam, fr, sh)
-                if ti.static(buf.splat):
-                    if ph != FLYING:
-                        if z > fr.near:
-                            zz = ti.max(z, fr.near)
-                            _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
-                                        (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
-                                        rid, ph, cam, light)
-                        continue
+    d = p - cam.eye
+    if ti.static(buf.shadows):
+        if ph == FLYING:
+            hgt = ti.max(p[2] - sh.z, 0.0)
+            c = ti.Vector([p[0], p[1]]) + sh.shift * hgt
+            if (c[0] - cam.eye[0]) ** 2 + (c[1] - cam.eye[1]) ** 2 < fr.far * fr.far:
+                _splat_shadow(buf, c, r, 0.3 * r + 0.01 * hgt, 0, cam, fr, sh)
+    z = d.dot(cam.fwd)
+    if z > fr.near - r and d.norm_sqr() < fr.far * fr.far:
+        x = d.dot(cam.right)
+        y = d.dot(cam.up)
+        if ti.abs(x) < z * fr.tan_x + r * fr.sec_x and ti.abs(y) < z * fr.tan_y + r * fr.sec_y:
+            if ti.static(buf.shadows):
+                if ph != FLYING and r * fr.px_per_rad >= sh.contact_px * ti.max(z, fr.near):
+                    c = ti.Vector([p[0], p[1]]) + sh.shift * ti.max(p[2] - sh.z, 0.0)
+                    _splat_shadow(buf, c, r, 0.35 * r, 1, cam, fr, sh)
+            splatted = False
+            if ti.static(buf.splat):
+                if ph != FLYING:
+                    splatted = True
+                    if z > fr.near:
+                        zz = ti.max(z, fr.near)
+                        _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
+                                    (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
+                                    rid, ph, cam, light)
+            if not splatted:
                 keep = True
                 draw_r = r
                 if ph != FLYING and size.lod_px > 0:
@@ -316,6 +296,59 @@ def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.t
                             keep = False
                 if keep:
                     _compact(bucket, buf.count, p, draw_r * size.radius_scale, _rock_color(rid, ph))
+
+
+@ti.kernel
+def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: Camera,
+               fr: Frustum, size: Sizing, light: Light, sh: Shade, vis: ti.template(), tiles: _vec2):
+    """Cull the rocks of ``world`` to the view frustum and the draw distance: the first ``n`` (or, with
+    active stepping, ``world.stored``, the active list: ``ipar[N_ROCKS]`` rocks), then with ``world.stored``
+    the rocks of the tile store's tiles in view (:mod:`.tiles`: the slots whose tile may be in view are listed
+    in ``vis``; ``tiles`` is the floating origin's shift in tiles, ``Simulation._tile_shift()``). Then
+
+    * ``buf.splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`),
+      flying rocks are compacted into ``bucket`` for GGUI;
+    * otherwise every visible rock is compacted into ``bucket`` (atomic counter ``buf.count``; the first
+      ``count`` entries are valid, count may exceed the bucket's capacity: then the caller re-runs with a bigger
+      bucket), far resting rocks thinned (a fraction q^2 kept by a hash of rock_id and drawn 1/q larger,
+      q = projected radius / lod_px);
+    * ``buf.shadows``: every flying rock within the draw distance (in view or not) casts its shadow along the
+      sun (:func:`_splat_shadow`, channel 0), and every visible resting rock of at least ``sh.contact_px``
+      pixels its own, a contact shadow just beside it (channel 1).
+
+    Every rock goes through :func:`_draw_rock`, and the buffers are order independent: the same rocks give the
+    same image whether they are in the active list or the tiles.
+    """
+    buf.count[None] = 0
+    if ti.static(buf.splat):
+        buf.rows[0] = buf.zbuf.shape[1]
+        buf.rows[1] = -1
+    if ti.static(buf.shadows):
+        buf.rows[2] = buf.shade.shape[1]
+        buf.rows[3] = -1
+    m = n
+    if ti.static(world.stored):
+        m = world.ipar[IPar.N_ROCKS]
+    for i in range(m):
+        _draw_rock(buf, bucket, ti.cast(world.pos[i], ti.f32), ti.cast(world.radius[i], ti.f32), world.phase[i],
+                   world.rock_id[i], cam, fr, size, light, sh)
+    if ti.static(world.stored):
+        s = ti.static(world.store_tile)
+        cap = ti.static(world.store_capacity)
+        vis.count[None] = 0
+        for t in range(world.store_grid * world.store_grid):
+            if world.ts_count[t] > 0:
+                key = world.ts_key[t]
+                lo = (ti.Vector([ti.cast(key[0], ti.f32), ti.cast(key[1], ti.f32)]) - tiles) * s
+                if tile_in_view(lo, s, ti.cast(world.par[Par.GROUND_Z], ti.f32),
+                                ti.cast(world.par[Par.R_MAX], ti.f32), cam, fr):
+                    vis.slots[ti.atomic_add(vis.count[None], 1)] = t
+        for v, k in ti.ndrange(vis.count[None], cap):
+            t = vis.slots[v]
+            if k < world.ts_count[t]:
+                j = t * cap + k
+                _draw_rock(buf, bucket, ti.cast(world.ts_pos[j], ti.f32), ti.cast(world.ts_radius[j], ti.f32),
+                           RESTING, world.ts_id[j], cam, fr, size, light, sh)
 
 
 @ti.kernel

@@ -106,6 +106,7 @@ class Renderer:
         self._camera_setup(sim.scene)
         self.frames_drawn = 0
         self.last_count = 0
+        self.tiles_in_view = 0  # tiles of the store the last rock pass visited (active stepping)
         self.timings = {"cull": 0.0, "draw": 0.0}
         self._camera = ggui(ti.ui.Camera)
         self._camera.up(*GL_UP)
@@ -119,6 +120,9 @@ class Renderer:
         w, h = self.resolution
         # background image, splat buffers, shadows
         self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows)
+        # active stepping: the tile store's slots in view, listed by the rock pass
+        wd = sim.world
+        self._visible = K.Visible(wd.store_grid * wd.store_grid if wd.stored else 1)
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
@@ -251,7 +255,9 @@ class Renderer:
 
     def cull(self, eye, fwd, right, up, sun) -> int:
         """Cull the rocks; splat the resting ones ("splat" mode) and compact those GGUI draws into a bucket.
-        Return how many GGUI draws (also ``self.last_count``)."""
+        Return how many GGUI draws (also ``self.last_count``). With active stepping the rocks are the active
+        list's and those of the tile store's tiles in view (:mod:`.tiles`); ``tiles_in_view``: how many tiles
+        the last pass visited (0 without a store)."""
         n = self.n_rocks
         self._drawn = None
         if n == 0:
@@ -262,10 +268,12 @@ class Renderer:
         size = K.Sizing(lod_px=self.lod_pixels, radius_scale=h / w)  # GGUI 1.7.4 draws particles w/h too large
         light = K.Light(sun=_vec(sun), ambient=ti.Vector(AMBIENT), sun_color=ti.Vector(SUN_COLOR))
         shade = self._shade(sun)
+        tiles = ti.Vector([float(x) for x in self.sim._tile_shift()] if self.sim.world.stored else [0.0, 0.0])
         need = max(int(self.last_count * 1.25), 1)
         while True:
             bucket = self._bucket(need)
-            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light, shade)
+            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light, shade,
+                         self._visible, tiles)
             count = int(self._buf.count[None])
             if count <= bucket.cap:
                 break
@@ -273,6 +281,7 @@ class Renderer:
             if self.rocks == "splat" or self.shadows:  # splats in the buffers already: clear them first
                 K.clear_buffers(self._buf)
         self.last_count = count
+        self.tiles_in_view = int(self._visible.count[None]) if self.sim.world.stored else 0
         self._drawn = (bucket, count)
         return count
 

@@ -1,0 +1,48 @@
+"""Culling the tile store of active stepping (``[sim] stepping = "active"``, :mod:`..engine.active`) by tiles.
+
+Under active stepping the World's rock arrays hold only the active list; the resting rocks wait in ground
+tiles of edge s. The rock pass (:func:`.kernels.rocks_pass`) draws the active list rock by rock, then the
+store tile by tile: one parallel loop over the G^2 slots keeps the occupied tiles whose rocks may be in view
+(:func:`tile_in_view`), compacted into a :class:`Visible` list by an atomic counter, then one parallel loop
+over (visible tile, rock of the tile) runs the same per-rock test and drawing as the active list.
+
+A tile's rocks have their centres in the box (key - shift / s) * s .. + s in XY (the store's keys,
+:func:`..engine.active.tile_key`) and, at rest, z = ground + r <= ground + r_max: the box's bounding sphere,
+grown by r_max, holds every one of their spheres. The per-rock test is a sphere against the frustum's side
+planes and the near plane (signed distances, 1-Lipschitz) plus the centre's distance against the draw
+distance; so a tile whose sphere fails the same tests holds no rock that passes them, and skipping it changes
+no pixel. The rounding margin keeps that true in f32.
+"""
+
+import taichi as ti
+
+__all__ = ["Visible", "tile_in_view"]
+
+
+@ti.data_oriented
+class Visible:
+    """The tile store's slots in view in the last rock pass: ``slots[:count]`` (``slots`` has one entry per
+    slot of the store, at least one)."""
+
+    def __init__(self, n_slots: int):
+        self.slots = ti.field(ti.i32, max(int(n_slots), 1))
+        self.count = ti.field(ti.i32, shape=())
+
+
+@ti.func
+def tile_in_view(lo, s, ground, r_max, cam, fr):
+    """True unless no rock (centre in the XY box lo .. lo + s, z in ground .. ground + 2 r_max, radius <= r_max)
+    can pass the rock pass's view test (near plane, side planes, draw distance): the test of the box's bounding
+    sphere grown by r_max, and by a margin for f32 rounding."""
+    half = 0.5 * s
+    c = ti.Vector([lo[0] + half, lo[1] + half, ground + r_max])
+    d = c - cam.eye
+    margin = 1e-3 + 1e-5 * (ti.abs(c[0]) + ti.abs(c[1]) + ti.abs(c[2]) + ti.abs(cam.eye[0]) + ti.abs(cam.eye[1])
+                            + ti.abs(cam.eye[2]) + fr.far)
+    rb = ti.sqrt(2.0 * half * half + r_max * r_max) + r_max + margin
+    z = d.dot(cam.fwd)
+    x = d.dot(cam.right)
+    y = d.dot(cam.up)
+    reach = fr.far + rb
+    return z > fr.near - rb and d.norm_sqr() < reach * reach and ti.abs(x) < z * fr.tan_x + rb * fr.sec_x and \
+        ti.abs(y) < z * fr.tan_y + rb * fr.sec_y
