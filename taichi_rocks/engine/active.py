@@ -270,7 +270,7 @@ def under_a_tire(w: ti.template(), p, bits):
 def to_active(w: ti.template(), j, a):
     """Copy stored rock j (store index) to active index a, at rest."""
     w.pos[a] = w.ts_pos[j]
-    w.vel[a] = w.ts_pos[j] * 0.0
+    w.vel[a] = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
     w.radius[a] = w.ts_radius[j]
     w.friction[a] = w.ts_friction[j]
     w.rock_id[a] = w.ts_id[j]

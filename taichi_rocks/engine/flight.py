@@ -67,7 +67,7 @@ def ground_contact(w: ti.template(), i, x, v, r, dt, ground: ti.template(), grav
         if x[2] < floor_z:
             if ti.static(ground == "stop"):
                 x[2] = floor_z
-                v = v * 0.0
+                v = ti.Vector([0.0, 0.0, 0.0], dt=w.real)  # +0: a resting rock's velocity is exactly zero
                 phase = RESTING
             else:
                 e = w.par[Par.RESTITUTION]
@@ -114,7 +114,7 @@ def slide(w: ti.template(), i, x, v, dt):
     phase = SLIDING
     if new_speed <= w.par[Par.REST_SPEED] or speed <= 0.0:
         phase = RESTING
-        vt *= 0.0
+        vt = ti.Vector([0.0, 0.0], dt=w.real)  # +0 (not -0): the same bits as a rock resting in a tile
     else:
         vt *= new_speed / speed
         x[0] += vt[0] * dt
