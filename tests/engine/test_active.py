@@ -76,6 +76,7 @@ def _assert_same(full, act):
     assert a["step"] == b["step"]
     for k in ("positions", "velocities", "radii", "phase", "bed_center", "vehicle_positions"):
         assert np.array_equal(a[k], b[k]), (k, a["step"], np.flatnonzero(np.any(np.atleast_2d(a[k] != b[k]), axis=-1))[:5])
+        assert a[k].tobytes() == b[k].tobytes(), (k, "the same values, other bits (signed zeros)")
     assert (a["launches_total"], a["recycles_total"]) == (b["launches_total"], b["recycles_total"])
     return a
 
