@@ -1,7 +1,8 @@
 """The benchmark on its tiny configuration: files, sections, identical hits across hash settings, sane ratios.
 
 No timing is asserted (the machine may be busy); only that every number that should be a positive finite ratio
-is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores.
+is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores, and its cost-against-activity section
+(tests/bench/test_activity.py) about 90 s more: each of its points compiles in a process of its own.
 """
 
 import json
@@ -13,15 +14,6 @@ import pytest
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
 
-@pytest.fixture(scope="module")
-def bench_run(tmp_path_factory, taichi_cpu):
-    from taichi_rocks.bench import run_bench
-
-    out = tmp_path_factory.mktemp("bench")
-    res = run_bench(out_dir=out, quick=True, tiny=True, progress=False)
-    return out, res
-
-
 def _positive_finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
 
@@ -31,20 +23,21 @@ def test_files_written(bench_run):
     assert (out / "report.md").is_file() and (out / "results.json").is_file()
     assert res["report"] == str(out / "report.md")
     pngs = sorted(p.name for p in out.glob("*.png"))
-    assert pngs == sorted(res["plots"]) and len(pngs) == 6
+    assert pngs == sorted(res["plots"]) and len(pngs) == 7
     for p in out.glob("*.png"):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
     report = (out / "report.md").read_text()
     for name in pngs:
         assert f"]({name})" in report
-    for heading in ("## Targets", "## Proposed presets", "## 1a.", "## 1b.", "## 1c.", "## 1d.", "## 2."):
+    for heading in ("## Targets", "## Proposed presets", "## 1a.", "## 1b.", "## 1c.", "## 1d.", "## 2.",
+                    "## 4. Cost against activity"):
         assert heading in report
 
 
 def test_every_section_present(bench_run):
     out, _ = bench_run
     data = json.loads((out / "results.json").read_text())
-    for key in ("machine", "config", "warp", "accuracy", "speed", "targets", "build_s", "elapsed_s"):
+    for key in ("machine", "config", "warp", "accuracy", "speed", "targets", "build_s", "elapsed_s", "activity"):
         assert key in data, key
     for key in ("integrator_dt", "detection", "precision", "hash_settings", "presets", "preset_costs",
                 "flight_cost"):
