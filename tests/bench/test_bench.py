@@ -212,3 +212,27 @@ def test_separate_passes_in_step_order():
     assert set(names) < set(ms) and all(_positive_finite(v) for v in ms.values())
     sim.step(3)  # the passes left a state the step carries on from
     sim.check_health()
+
+
+def test_rebuild_across_layouts_carries_on():
+    """Active stepping's tile store has a layout per recycling switch: a rebuild across it takes a World of the
+    other layout (new the first time, pooled after) and carries on from the same rocks and clock."""
+    from taichi_rocks.bench.measure import Built
+    from taichi_rocks.config.scene import scene_with
+
+    scene = _small_scene()
+    off = scene_with(scene, {"effects.recycle": False})
+    b = Built(scene, "cpu", "across layouts")
+    world = b.sim.world
+    b.sim.step(5)
+    before = b.sim.state()
+    b.rebuild(off)
+    assert b.sim.world is not world and b.sim.step_count == 5 and b.layout_switches == 1
+    now = b.sim.state()
+    for key in ("positions", "velocities", "phase"):
+        np.testing.assert_array_equal(now[key], before[key], err_msg=key)
+    b.sim.step(2)
+    b.rebuild(scene)
+    assert b.layout_switches == 2 and b.sim.step_count == 7 and b.sim.plan.recycle
+    b.sim.step(2)
+    b.sim.check_health()
