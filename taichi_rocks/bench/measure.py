@@ -23,7 +23,8 @@ from ..engine.timing import PassTimer
 from ..engine.world import FLYING
 
 # the engine's names of its fused passes, as the report has always called them
-_PASS_LABELS = {"rock pass": "rock pass (fused)", "hash + tires": "hash scan+scatter+tires (fused)"}
+_PASS_LABELS = {"rock pass": "rock pass (fused)", "hash + tires": "hash scan+scatter+tires (fused)",
+                "active step": "active step (one launch: tiles, rock pass, hash, tires, settle)"}
 
 
 def stats(seconds) -> dict:
@@ -89,17 +90,17 @@ class Built:
 
 
 def launched_ids(sim) -> np.ndarray:
-    """Rock ids launched so far (hit_step >= 0), sorted."""
-    w, n = sim.world, sim.n_rocks
-    if not hasattr(w, "hit_step"):
+    """Rock ids launched so far (hit_step >= 0), sorted. With active stepping a launched rock that has come to
+    rest in a tile again no longer counts (its hit step is not stored)."""
+    r = sim.rock_arrays()
+    if "hit_step" not in r:
         return np.zeros(0, np.int64)
-    hs = w.hit_step.to_numpy()[:n]
-    ids = w.rock_id.to_numpy()[:n]
-    return np.sort(ids[hs >= 0]).astype(np.int64)
+    return np.flatnonzero(r["hit_step"] >= 0).astype(np.int64)
 
 
 def n_flying(sim) -> int:
-    return int(np.sum(sim.world.phase.to_numpy()[:sim.n_rocks] == FLYING))
+    """Rocks flying now, wherever the rocks are kept (Simulation.rock_arrays)."""
+    return int(np.sum(sim.rock_arrays()["phase"] == FLYING))
 
 
 def in_step_profile(sim, steps: int) -> dict:
