@@ -119,7 +119,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
     b.add_argument("--out", type=Path, default=Path("renders/bench"))
     b.add_argument("--arch", choices=ARCHES, default="cpu")
-    b.add_argument("--only", choices=("launch",), help="run one study only: launch (what the tread throws)")
+    b.add_argument("--only", choices=("launch", "activity"),
+                   help="run one study only: launch (what the tread throws) or activity (cost against activity)")
     return p
 
 
@@ -273,6 +274,11 @@ def cmd_bench(args) -> int:
         info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
         print(f"wrote {info['report']}")
         return EXIT_OK
+    if args.only == "activity":
+        from .bench.activity import run_activity_study
+        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        print(f"wrote {info['report']}")
+        return EXIT_OK
     from .bench import run_bench
     info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
     print(f"wrote {info.get('report', args.out)}")
@@ -292,7 +298,7 @@ _PRELOAD = {
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
-              "taichi_rocks.bench.launch"),
+              "taichi_rocks.bench.launch", "taichi_rocks.bench.activity"),
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
 _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (

@@ -55,6 +55,24 @@ class Config:
     effects: tuple = ("gravity off", "drag none", "ground none", "recycle off")
     effects_all_flying: bool = True
     passes_all: bool = True  # per-pass breakdown for every grid configuration (else the main one only)
+    # 4. cost against activity (activity.py): N of the series, the largest N also timed with full stepping,
+    # bed radius of series (a), the N whose density series (b) keeps, the rear tires and speed of both series,
+    # the N of the activity sweep and its tires and speeds, seconds stepped before timing, rounds x steps timed
+    activity: bool = True
+    act_n: tuple = (100_000, 300_000, 1_000_000, 3_000_000, 10_000_000)
+    act_full_max: int = 10_000_000
+    act_full_min: int = 0  # N below this are timed with active stepping only
+    act_radius: float = 30.0
+    act_ref_n: int = 1_000_000
+    act_t: int = 20
+    act_speed: float = 25.0
+    act_fixed_n: int = 1_000_000
+    act_tires: tuple = (2, 6, 20, 40)
+    act_speeds: tuple = (10.0, 40.0)  # and act_speed (the 20-tire point of act_tires)
+    act_warm_s: float = 1.0
+    act_rounds: int = 7
+    act_steps: int = 25
+    act_balanced: bool = True
 
 
 HASH_SETTINGS = {  # name -> scene overrides (the default scene: centre insert, cell 2 r_max, auto table)
@@ -86,7 +104,10 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                       acc_dts=(1e-2, 2e-2), acc_f64=False, distances=(0.0, 1e5),
                       hash_settings=(DEFAULT_HASH, DESIGN_HASH), hash_n=20_000,
                       integ_cost=tuple((i, "quadratic") for i in INTEGRATORS), validate_presets=False,
-                      use_warp=False, substeps_mode=False, effects=("drag none",), effects_all_flying=False)
+                      use_warp=False, substeps_mode=False, effects=("drag none",), effects_all_flying=False,
+                      act_n=(10_000, 30_000), act_full_max=30_000, act_full_min=30_000, act_radius=8.0, act_ref_n=30_000, act_t=2,
+                      act_fixed_n=30_000, act_tires=(2, 6), act_speeds=(10.0,), act_warm_s=0.2, act_rounds=3,
+                      act_steps=10)
     if quick:
         return Config(mode="quick", grid_n=(10_000, 100_000), grid_t=(2, 20), bed_radius=30.0,
                       main=(100_000, 20), k_hits=20, warm=3, reps=10, pass_reps=4, numpy_reps=2, kdtree_reps=2,
@@ -96,7 +117,8 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                       distances=(0.0, 1e3, 1e4, 1e5),
                       hash_settings=(DEFAULT_HASH, DESIGN_HASH, "scope all"),
                       hash_n=100_000, integ_cost=tuple((i, "quadratic") for i in INTEGRATORS),
-                      validate_presets=False, passes_all=False)
+                      validate_presets=False, passes_all=False, act_n=(100_000, 1_000_000),
+                      act_full_max=1_000_000, act_tires=(2, 20), act_rounds=5, act_steps=20)
     return Config(mode="full", grid_n=(10_000, 100_000, 1_000_000), grid_t=(2, 20, 64), bed_radius=30.0,
                   main=(1_000_000, 20), k_hits=30, warm=5, reps=20, pass_reps=8, numpy_reps=3, kdtree_reps=3,
                   warp_reps=10, probe_n=200_000, probe_radius=16.0,
@@ -109,7 +131,9 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
 
 def count_tasks(cfg: Config) -> int:
     """Progress-bar steps of a run of this configuration."""
+    from .activity import count_jobs
+
     n_grid = len(cfg.grid_n) * len(cfg.grid_t)
     acc = (2 if cfg.acc_f64 else 1) * 9
     return (4 + acc + 2 + len(cfg.integ_cost) + n_grid * 5 + len(cfg.hash_settings) - 1 + 6 + 6
-            + (3 if cfg.validate_presets else 0) + 3)
+            + (3 if cfg.validate_presets else 0) + 3 + count_jobs(cfg))

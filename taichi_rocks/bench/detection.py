@@ -38,10 +38,10 @@ def rect_dist2(c, a0, a1, b0):
 
 
 def t0_state(sim) -> dict:
-    w, n = sim.world, sim.n_rocks
-    return {"ids": w.rock_id.to_numpy()[:n], "world": w.pos.to_numpy()[:n].astype(np.float64) + sim.origin,
-            "radius": w.radius.to_numpy()[:n].astype(np.float64),
-            "tires0": sim.fleet.rear_tires(sim.fleet.poses(0.0))}
+    """Every rock (by id, wherever it is: the active list or a tile) and the rear tires at t = 0."""
+    r = sim.rock_arrays()
+    return {"ids": np.arange(sim.n_rocks), "world": r["pos"].astype(np.float64) + sim.origin,
+            "radius": r["radius"].astype(np.float64), "tires0": sim.fleet.rear_tires(sim.fleet.poses(0.0))}
 
 
 def detection_result(built: Built, t0: dict, times: list, cfg: Config, label: str) -> dict:

@@ -23,7 +23,8 @@ from ..engine.timing import PassTimer
 from ..engine.world import FLYING
 
 # the engine's names of its fused passes, as the report has always called them
-_PASS_LABELS = {"rock pass": "rock pass (fused)", "hash + tires": "hash scan+scatter+tires (fused)"}
+_PASS_LABELS = {"rock pass": "rock pass (fused)", "hash + tires": "hash scan+scatter+tires (fused)",
+                "active step": "active step (one launch: tiles, rock pass, hash, tires, settle)"}
 
 
 def stats(seconds) -> dict:
@@ -70,8 +71,10 @@ class Built:
     def rebuild(self, scene) -> None:
         """Carry on under a changed scene: a new Simulation of ``scene`` continues from a checkpoint of the
         current one (same rocks, clock and origin). The current one is released first so that the new one
-        gets its World back from the pool, with the kernels compiled for it; a scene needing other fields
-        (another World layout) is refused."""
+        gets its World back from the pool, with the kernels compiled for it. A scene needing other fields
+        (another World layout: with active stepping, switching recycling off changes the tile store's layout)
+        gets a World of that layout, new the first time (allocated and compiled), from the pool after: A/B
+        switches between two layouts compile each once."""
         state = self.sim.checkpoint()
         world, timer = self.sim.world, self.sim.timer
         gone = weakref.ref(self.sim)
@@ -81,24 +84,23 @@ class Built:
         if gone() is not None:
             raise RuntimeError(f"{self.label}: the simulation is still referenced elsewhere; its World is not free")
         sim = Simulation(scene, arch=self.arch, timer=timer)
-        if sim.world is not world:
-            raise ValueError(f"{self.label}: the changed scene needs fields of another layout")
+        self.layout_switches = getattr(self, "layout_switches", 0) + (sim.world is not world)
         sim.restore(state)
         self.sim = sim
 
 
 def launched_ids(sim) -> np.ndarray:
-    """Rock ids launched so far (hit_step >= 0), sorted."""
-    w, n = sim.world, sim.n_rocks
-    if not hasattr(w, "hit_step"):
+    """Rock ids launched so far (hit_step >= 0), sorted. With active stepping a launched rock that has come to
+    rest in a tile again no longer counts (its hit step is not stored)."""
+    r = sim.rock_arrays()
+    if "hit_step" not in r:
         return np.zeros(0, np.int64)
-    hs = w.hit_step.to_numpy()[:n]
-    ids = w.rock_id.to_numpy()[:n]
-    return np.sort(ids[hs >= 0]).astype(np.int64)
+    return np.flatnonzero(r["hit_step"] >= 0).astype(np.int64)
 
 
 def n_flying(sim) -> int:
-    return int(np.sum(sim.world.phase.to_numpy()[:sim.n_rocks] == FLYING))
+    """Rocks flying now, wherever the rocks are kept (Simulation.rock_arrays)."""
+    return int(np.sum(sim.rock_arrays()["phase"] == FLYING))
 
 
 def in_step_profile(sim, steps: int) -> dict:

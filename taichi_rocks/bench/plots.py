@@ -1,6 +1,7 @@
-"""The benchmark's six plots (matplotlib, Agg): accuracy against cost per integrator, detection recall and
+"""The benchmark's seven plots (matplotlib, Agg): accuracy against cost per integrator, detection recall and
 miss rate against cost, precision against distance and cost, hash settings (step time and per-pass shares),
-the full step against its peers and in N, and where a step's time goes with the effects switched off."""
+the full step against its peers and in N, where a step's time goes with the effects switched off, and the
+cost against activity (time against N with the floor, against the rocks in the air, memory)."""
 
 from __future__ import annotations
 
@@ -283,3 +284,91 @@ def plot_passes(res, out: Path) -> str:
     n, t = res["config"]["main"]
     a2.set_title(f"Effects switched off one at a time (N={n:,}, T={t})")
     return _save(plt, fig, out, "speed_passes_effects.png")
+
+
+def _ok_ms(p, key="step_ms"):
+    return p.get(key) if p and "error" not in p else None
+
+
+def _activity_vs_n(ax, act) -> None:
+    """Step time against N, log-log: each series with active and full stepping, and the floor."""
+    style = {"a": ("tab:blue", "o"), "b": ("tab:orange", "s")}
+    for series, rows in act["series"].items():
+        col, mk = style[series]
+        for stepping, ls in (("active", "-"), ("full", "--")):
+            pts = [(r["n"], _ok_ms(r.get(stepping))) for r in rows if _ok_ms(r.get(stepping))]
+            if pts:
+                name = {"a": f"(a) R = {act['radius']:g} m", "b": "(b) fixed density"}[series]
+                ax.loglog(*zip(*pts), ls, marker=mk, color=col, ms=5, label=f"{name}, {stepping} stepping")
+        if series == "a":
+            fl = [(r["n"], r["floor_ms"]) for r in rows if r.get("floor_ms")]
+            if fl:
+                ax.loglog(*zip(*fl), ":", marker="x", color="gray", label="streaming floor (same N)")
+                ax.loglog(*zip(*[(n, 0.5 * m) for n, m in fl]), ":", color="tab:red", lw=1,
+                          label="target: 0.5x the floor")
+    for r in act["series"]["a"]:
+        a = r.get("active")
+        if _ok_ms(a):
+            ax.annotate(f"{a['in_air']:,} in air", (r["n"], a["step_ms"]), fontsize=7, xytext=(4, -10),
+                        textcoords="offset points", color="tab:blue")
+    ax.set_xlabel("rocks N")
+    ax.set_ylabel("ms per step (median of rounds)")
+    ax.set_title(f"Step time against N ({act['t_rear']} rear tires, {act['speed']:g} m/s)")
+    ax.legend(fontsize=7.5, loc="best", framealpha=0.6)
+
+
+def _activity_vs_air(ax, act) -> None:
+    """Step time against the rocks in the air: the activity sweep at the reference N, and series (a)."""
+    marks = {"tires": ("o", "tab:blue"), "speed": ("s", "tab:green"), "parked": ("X", "black"),
+             "balanced": ("P", "tab:purple")}
+    seen = set()
+    for p in act["sweep"]:
+        if not _ok_ms(p):
+            continue
+        mk, col = marks[p["group"]]
+        label = {"tires": "rear tires (vehicles)", "speed": "speed", "parked": "parked fleet",
+                 "balanced": "balanced preset (heun, swept)"}[p["group"]]
+        ax.plot(p["in_air"], p["step_ms"], mk, color=col, ms=8, label=None if label in seen else label)
+        seen.add(label)
+        ax.annotate(p["label"].replace(" rear tires", " tires"), (p["in_air"], p["step_ms"]), fontsize=7.5,
+                    xytext=(5, 4), textcoords="offset points")
+    ax.set_xlabel(f"rocks in the air (N = {act['reference_n']:,})")
+    ax.set_ylabel("ms per step (active stepping)")
+    ax.set_ylim(bottom=0)
+    ax.set_xlim(left=-0.05 * max([p.get("in_air", 0) or 0 for p in act["sweep"]] + [1]))
+    ax.set_title("Step time against activity at fixed N")
+    ax.legend(fontsize=7.5, loc="best", framealpha=0.6)
+
+
+def _activity_memory(ax, act) -> None:
+    style = {"active": "tab:blue", "full": "tab:gray"}
+    for stepping, col in style.items():
+        rows = [r for r in act["series"]["a"] if (r.get(stepping) or {}).get("memory")]
+        if not rows:
+            continue
+        n = [r["n"] for r in rows]
+        ax.loglog(n, [r[stepping]["memory"]["hwm_mb"] for r in rows], "o-", color=col,
+                  label=f"{stepping}: peak RSS")
+        ax.loglog(n, [r[stepping]["memory"]["field_mb"] for r in rows], "^--", color=col,
+                  label=f"{stepping}: fields")
+        m = act["memory"]["a"].get(stepping)
+        if m and m["largest_n"] < 10_000_000:
+            ax.loglog([m["largest_n"], 1e7], [m["hwm_mb_at_largest"], m["peak_10m_gb"] * 1e9 / 1024 ** 2], ":",
+                      marker="o", mfc="none", color=col, label=f"{stepping}: peak projected to 10M")
+    ax.axhline(24 * 1024, color="tab:red", lw=1, ls=":", label="24 GB (the machine)")
+    ax.set_xlabel("rocks N (series a)")
+    ax.set_ylabel("MB (log)")
+    ax.set_title("Memory (each point in a process of its own)")
+    ax.legend(fontsize=7.5, loc="lower right", framealpha=0.6)
+
+
+def plot_activity(res, out: Path) -> str:
+    """Cost against activity: step time against N (log-log, with the floor), against the rocks in the air at
+    fixed N, and the memory against N."""
+    plt = _plt()
+    act = res["activity"]
+    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(17, 5.2), gridspec_kw={"width_ratios": [5, 4, 3]})
+    _activity_vs_n(a1, act)
+    _activity_vs_air(a2, act)
+    _activity_memory(a3, act)
+    return _save(plt, fig, out, "activity.png")

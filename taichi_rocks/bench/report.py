@@ -270,6 +270,82 @@ def _effects(res: dict, plots: list) -> list:
     return L
 
 
+def _ms(p, key="step_ms"):
+    return p.get(key) if p and "error" not in p else None
+
+
+def _activity_n_table(act: dict) -> list:
+    L = ["| series | N | bed radius (m) | rocks in the air | active list | active ms | full ms | floor ms | "
+         "active/floor | full/active | simulated s per wall s |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for series in ("a", "b"):
+        for r in act["series"][series]:
+            a, f = r.get("active"), r.get("full")
+            am, fm, fl = _ms(a), _ms(f), r.get("floor_ms")
+            err = "; ".join(p["error"] for p in (a, f) if p and "error" in p)
+            L.append(f"| ({series}) | {r['n']:,} | {r['radius']:.1f} | {_fmt(_ms(a, 'in_air'))} | "
+                     f"{_fmt(_ms(a, 'active_count'))} | {_fmt(am)} | {_fmt(fm)} | {_fmt(fl)} | "
+                     f"{_fmt(am / fl if am and fl else None)} | {_fmt(fm / am if am and fm else None)} | "
+                     f"{_fmt(_ms(a, 'sim_s_per_wall_s'))} |" + (f" error: {err}" if err else ""))
+    return L + [""]
+
+
+def _activity_sweep_table(act: dict) -> list:
+    L = [f"Against activity at N = {act['reference_n']:,}, bed radius {act['radius']:g} m (active stepping):\n",
+         "| sweep | point | rear tires | speed (m/s) | integrator, detection | rocks in the air | active list | "
+         "step ms | simulated s per wall s |", "|---|---|---|---|---|---|---|---|---|"]
+    for p in act["sweep"]:
+        if "error" in p:
+            L.append(f"| {p['group']} | {p['label']} | error: {p['error']} |||||||")
+            continue
+        L.append(f"| {p['group']} | {p['label']} | {p['t_rear']} | {p['speed']:g} | {p['integrator']}, "
+                 f"{p['detection']} | {p['in_air']:,} | {p['active_count']:,} | {_fmt(p['step_ms'])} | "
+                 f"{_fmt(p['sim_s_per_wall_s'])} |")
+    return L + [""]
+
+
+def _activity_memory(act: dict) -> list:
+    L = ["Memory per rock (each point in a process of its own; growth = peak RSS (VmHWM) - the process's RSS "
+         "before the simulation was built, after 1 s of steps; fields = the bytes of the World's Taichi fields):\n",
+         "| series | stepping | N | fields MB | fields B/rock | RSS MB | peak RSS MB | peak growth B/rock |",
+         "|---|---|---|---|---|---|---|---|"]
+    for series in ("a", "b"):
+        for r in act["series"][series]:
+            for stepping in ("active", "full"):
+                m = (r.get(stepping) or {}).get("memory")
+                if m:
+                    L.append(f"| ({series}) | {stepping} | {r['n']:,} | {_fmt(m['field_mb'])} | "
+                             f"{_fmt(m['field_bytes_per_rock'])} | {_fmt(m['rss_mb'])} | {_fmt(m['hwm_mb'])} | "
+                             f"{_fmt(m['hwm_growth_bytes_per_rock'])} |")
+    L.append("")
+    for series, per in act["memory"].items():
+        for stepping, m in per.items():
+            L.append(f"- ({series}) {stepping}: {_fmt(m['slope_bytes_per_rock'])} B per rock of peak RSS between "
+                     f"the two largest N, {_fmt(m['field_bytes_per_rock'])} B per rock of fields; 10M rocks: "
+                     f"**{m['peak_10m_gb']:.2f} GB** peak ({m['peak_10m_basis']}), "
+                     f"{100 * m['peak_10m_gb'] / 24.0:.0f} % of 24 GB.")
+    return L + [""]
+
+
+def _activity(res: dict, plots: list) -> list:
+    act = res.get("activity")
+    if not act:
+        return []
+    png = next((p for p in plots if p and p.startswith("activity")), "")
+    L = ["## 4. Cost against activity\n"]
+    if png:
+        L.append(f"![activity]({png})\n")
+    L.append(f"Step time against N at fixed activity: {act['t_rear']} rear tires at {act['speed']:g} m/s, the "
+             f"same formation at every point. Series (a): bed radius {act['radius']:g} m (the density, and so "
+             "the rocks thrown and recycled per step, grow with N). Series (b): fixed density "
+             f"({act['density_b']:.0f} rocks/m^2, the bed radius grows as sqrt(N): the same rocks in the air; "
+             "the rim, and so the rocks recycled per step, grows as sqrt(N)). Each point runs in a process of "
+             "its own: build, 1 s of steps (steady state), memory, then rounds of steps timed as one block each "
+             "(ti.sync() around it), interleaved with two passes of the streaming floor of the same N; medians of "
+             "the rounds. Rocks in the air: phase != resting after the rounds; active list: its length then "
+             f"(all N with full stepping). Section time {act['elapsed_s']:.0f} s.\n")
+    return L + _activity_n_table(act) + _activity_sweep_table(act) + _activity_memory(act)
+
+
 def _tail(res: dict, plots: list) -> list:
     L = []
     L.append("## Build (compile) time per simulation\n")
@@ -282,7 +358,7 @@ def _tail(res: dict, plots: list) -> list:
     return L
 
 _SECTIONS = (_header, _targets, _presets, _integrators, _detection, _precision, _hash, _grid, _passes, _effects,
-             _tail)
+             _activity, _tail)
 
 
 def write_report(res: dict, out: Path, plots: list) -> Path:

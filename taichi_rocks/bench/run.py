@@ -1,9 +1,10 @@
-"""``run_bench``: the whole benchmark in order, and its outputs (report.md, results.json, six PNG plots).
+"""``run_bench``: the whole benchmark in order, and its outputs (report.md, results.json, seven PNG plots).
 
 Order: the lanes scenes (detection, in lockstep), then direct flights on their fields (integrator x dt,
 precision); the speed grid; the hash settings (on the grid's default simulation, before anything changes its
 state); effects and preset costs (the main scene rebuilt from changed scenes); launch overheads; last the flight
-cost with every rock flying (it leaves the main scene's rocks all flying); then presets and targets.
+cost with every rock flying (it leaves the main scene's rocks all flying); the cost against activity (its
+points in processes of their own); then presets and targets.
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ from .hashing import hash_settings_study
 from .machine import Progress, loadavg, machine, pin_sources
 from .measure import Built
 from .peers import Floor, start_warp
-from .plots import plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers, plot_precision
+from .activity import activity_section
+from .plots import (plot_activity, plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers,
+                    plot_precision)
 from .precision import precision_runs
 from .presets import choose_presets, preset_costs, validate_presets
 from .report import jsonable, write_report
@@ -32,7 +35,7 @@ from .scenes import fleet_scene
 from .speed import effects_costs, grid_entry, launch_overheads
 from .targets import evaluate_targets
 
-PLOTS = (plot_integrators, plot_detection, plot_precision, plot_hash, plot_peers, plot_passes)
+PLOTS = (plot_integrators, plot_detection, plot_precision, plot_hash, plot_peers, plot_passes, plot_activity)
 
 
 def _accuracy(res: dict, cfg: Config, arch: str, prog) -> dict:
@@ -80,6 +83,8 @@ def _main_scene_studies(res: dict, cfg: Config, arch: str, main: Built, det: dic
 def _plots(res: dict, out: Path, prog) -> list:
     plots = []
     for fn in PLOTS:
+        if fn is plot_activity and "activity" not in res:
+            continue
         try:
             plots.append(fn(res, out))
         except Exception as exc:
@@ -123,6 +128,10 @@ def _run_bench(out: Path, cfg: "Config", arch: str, progress) -> dict:
     for e in res["speed"]["grid"]:
         for k in ("launched_after_k", "_built"):
             e.pop(k, None)
+
+    if cfg.activity:
+        res["activity"] = activity_section(cfg, used, prog)
+        res["errors"] += res["activity"]["errors"]
 
     res["accuracy"]["presets"] = choose_presets(res)
     if cfg.validate_presets:

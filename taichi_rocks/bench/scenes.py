@@ -34,12 +34,14 @@ def _fleet_slots(k: int, radius: float) -> list:
     return cands[:k]
 
 
-def fleet_scene(n: int, t_rear: int, radius: float, overrides=None):
-    """N rocks, T/2 splashing vehicles spread over the bed, all at 25 m/s along +x (the bed follows the first)."""
+def fleet_scene(n: int, t_rear: int, radius: float, overrides=None, speed: float = 25.0, spread=None):
+    """N rocks, T/2 splashing vehicles spread over the bed, all at ``speed`` m/s along +x (the bed follows the
+    first; 0: a parked fleet). ``spread``: the bed radius the vehicles are spread as for (default: the bed's), so
+    that beds of different radii can carry the same formation."""
     k = max(1, t_rear // 2)
     vehicles = [{"name": "player" if i == 0 else f"v{i}",
-                 "path": {"points": [[float(x), float(y)], [float(x) + 5000.0, float(y)]], "speed": 25.0}}
-                for i, (x, y) in enumerate(_fleet_slots(k, radius))]
+                 "path": {"points": [[float(x), float(y)], [float(x) + 5000.0, float(y)]], "speed": float(speed)}}
+                for i, (x, y) in enumerate(_fleet_slots(k, radius if spread is None else spread))]
     s = scene_with(base_scene(), {"name": f"bench-n{n}-t{2 * k}", "bed.rocks": int(n), "bed.radius": float(radius),
                                   "vehicle": vehicles})
     return with_overrides(s, overrides or {})

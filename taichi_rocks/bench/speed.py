@@ -22,10 +22,10 @@ def reorder_cost(sim, reps: int = 3):
 
 def _peer_state(sim) -> dict:
     """The rocks and the rear-tire rays of the step just taken, float32, in the local frame."""
-    w, n = sim.world, sim.n_rocks
-    f32 = lambda f: np.ascontiguousarray(getattr(w, f).to_numpy()[:n], np.float32)
-    return {"pos": f32("pos"), "vel": f32("vel"), "rad": f32("radius"), "hit_step": w.hit_step.to_numpy()[:n],
-            "phase": w.phase.to_numpy()[:n], "rays": (sim.tire_rays() - sim.origin).astype(np.float32),
+    r = sim.rock_arrays()  # every rock by id, wherever it is kept (active list or tiles)
+    f32 = lambda f: np.ascontiguousarray(r[f], np.float32)
+    return {"pos": f32("pos"), "vel": f32("vel"), "rad": f32("radius"), "hit_step": r["hit_step"],
+            "phase": r["phase"], "rays": (sim.tire_rays() - sim.origin).astype(np.float32),
             "r_max": float(sim.scene.bed.rock_radius[1]), "step": sim.step_count}
 
 

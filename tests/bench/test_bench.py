@@ -1,7 +1,8 @@
 """The benchmark on its tiny configuration: files, sections, identical hits across hash settings, sane ratios.
 
 No timing is asserted (the machine may be busy); only that every number that should be a positive finite ratio
-is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores.
+is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores, and its cost-against-activity section
+(tests/bench/test_activity.py) about 90 s more: each of its points compiles in a process of its own.
 """
 
 import json
@@ -13,15 +14,6 @@ import pytest
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
 
-@pytest.fixture(scope="module")
-def bench_run(tmp_path_factory, taichi_cpu):
-    from taichi_rocks.bench import run_bench
-
-    out = tmp_path_factory.mktemp("bench")
-    res = run_bench(out_dir=out, quick=True, tiny=True, progress=False)
-    return out, res
-
-
 def _positive_finite(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
 
@@ -31,20 +23,21 @@ def test_files_written(bench_run):
     assert (out / "report.md").is_file() and (out / "results.json").is_file()
     assert res["report"] == str(out / "report.md")
     pngs = sorted(p.name for p in out.glob("*.png"))
-    assert pngs == sorted(res["plots"]) and len(pngs) == 6
+    assert pngs == sorted(res["plots"]) and len(pngs) == 7
     for p in out.glob("*.png"):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
     report = (out / "report.md").read_text()
     for name in pngs:
         assert f"]({name})" in report
-    for heading in ("## Targets", "## Proposed presets", "## 1a.", "## 1b.", "## 1c.", "## 1d.", "## 2."):
+    for heading in ("## Targets", "## Proposed presets", "## 1a.", "## 1b.", "## 1c.", "## 1d.", "## 2.",
+                    "## 4. Cost against activity"):
         assert heading in report
 
 
 def test_every_section_present(bench_run):
     out, _ = bench_run
     data = json.loads((out / "results.json").read_text())
-    for key in ("machine", "config", "warp", "accuracy", "speed", "targets", "build_s", "elapsed_s"):
+    for key in ("machine", "config", "warp", "accuracy", "speed", "targets", "build_s", "elapsed_s", "activity"):
         assert key in data, key
     for key in ("integrator_dt", "detection", "precision", "hash_settings", "presets", "preset_costs",
                 "flight_cost"):
@@ -135,11 +128,17 @@ def test_closed_forms():
 
 def test_passes_inside_a_step_are_timed_by_the_engine(bench_run):
     """The per-pass breakdown inside real steps comes from the engine's timing hook (PassTimer): the fused rock
-    pass and the fused hash + tire pass are there, each a positive share of the step."""
+    pass and the fused hash + tire pass are there (full stepping), or the one launch of active stepping, each
+    a positive share of the step."""
     _, res = bench_run
     for e in res["speed"]["grid"]:
         prof = e["in_step"]["per_pass_ms"]
-        assert _positive_finite(prof["rock pass (fused)"]) and _positive_finite(prof["hash scan+scatter+tires (fused)"])
+        active = [v for k, v in prof.items() if k.startswith("active step")]
+        if active:
+            assert len(active) == 1 and _positive_finite(active[0])
+        else:
+            assert _positive_finite(prof["rock pass (fused)"])
+            assert _positive_finite(prof["hash scan+scatter+tires (fused)"])
         assert sum(v for k, v in prof.items() if k != "host and launch overhead") <= e["in_step"][
             "mean_step_ms_with_syncs"] * 1.001
 
@@ -189,6 +188,7 @@ def test_fly_only_flies_test_rocks_and_restores_the_rocks():
     sim = Simulation(_small_scene())
     sim.step(5)
     before = sim.checkpoint()
+    n0 = sim.active_count  # every rock with full stepping; the active list's length with active stepping
     x0 = np.array([[0.0, 0.0, 1.0], [2.0, -1.0, 0.5]])
     v0 = np.array([[12.0, 2.0, 15.0], [-3.0, 1.0, 9.0]])
     xs = probes.fly_only(sim, x0, v0, [0.03, 0.02], 0.01, steps=100, every=10, integrator="heun", drag="none")
@@ -199,10 +199,10 @@ def test_fly_only_flies_test_rocks_and_restores_the_rocks():
     after = sim.checkpoint()
     for key, value in before.items():
         np.testing.assert_array_equal(after[key], value, err_msg=key)
-    assert int(sim.world.ipar[IPar.N_ROCKS]) == sim.n_rocks
+    assert int(sim.world.ipar[IPar.N_ROCKS]) == n0
     with probes.active_rocks(sim, 0):
         assert int(sim.world.ipar[IPar.N_ROCKS]) == 0
-    assert int(sim.world.ipar[IPar.N_ROCKS]) == sim.n_rocks
+    assert int(sim.world.ipar[IPar.N_ROCKS]) == n0
 
 
 def test_separate_passes_in_step_order():
@@ -219,3 +219,27 @@ def test_separate_passes_in_step_order():
     assert set(names) < set(ms) and all(_positive_finite(v) for v in ms.values())
     sim.step(3)  # the passes left a state the step carries on from
     sim.check_health()
+
+
+def test_rebuild_across_layouts_carries_on():
+    """Active stepping's tile store has a layout per recycling switch: a rebuild across it takes a World of the
+    other layout (new the first time, pooled after) and carries on from the same rocks and clock."""
+    from taichi_rocks.bench.measure import Built
+    from taichi_rocks.config.scene import scene_with
+
+    scene = _small_scene()
+    off = scene_with(scene, {"effects.recycle": False})
+    b = Built(scene, "cpu", "across layouts")
+    world = b.sim.world
+    b.sim.step(5)
+    before = b.sim.state()
+    b.rebuild(off)
+    assert b.sim.world is not world and b.sim.step_count == 5 and b.layout_switches == 1
+    now = b.sim.state()
+    for key in ("positions", "velocities", "phase"):
+        np.testing.assert_array_equal(now[key], before[key], err_msg=key)
+    b.sim.step(2)
+    b.rebuild(scene)
+    assert b.layout_switches == 2 and b.sim.step_count == 7 and b.sim.plan.recycle
+    b.sim.step(2)
+    b.sim.check_health()

@@ -1,0 +1,381 @@
+"""4. Cost against activity: the step's time against the number of rocks N at fixed activity, and against
+activity (rocks in the air, vehicles, speed) at fixed N; the memory per rock.
+
+Every point runs in a process of its own (``python -m taichi_rocks.bench.activity JOB``), so that its memory is
+its own (Taichi never frees fields) and no point's fields or compiled kernels weigh on another's. A point:
+build the fleet scene, step 1 s (steady state: rocks in the air, the bed's rim moving), read the memory
+(``/proc/self/status``: VmRSS and VmHWM, against the process's RSS before the simulation was built; and the
+bytes of the World's fields), then time rounds of m steps (``ti.sync()`` around each round) interleaved with
+the streaming floor of the same N (peers.py: one fused pass over N rocks' position and velocity), medians of
+the rounds. The rocks in the air (phase != resting) and the active list's length are read after the rounds.
+
+Series against N (the same vehicles, formation and speed at every point):
+  (a) fixed bed radius: density, and so the rocks thrown and recycled per step, grow with N;
+  (b) fixed density (that of the reference N on the radius of (a); the bed radius grows as sqrt(N)): the same
+      rocks in the air; the rim, and so the rocks recycled per step, grows as sqrt(N).
+Against activity at the reference N: rear tires (vehicles), speed, a parked fleet, and the `balanced` preset.
+"""
+
+from __future__ import annotations
+
+import gc
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+PREFIX = "ACTIVITY-POINT "
+MB = 1024.0 * 1024.0
+
+
+# --------------------------------------------------------------------------------------------- the points
+def series_radius(cfg, series: str, n: int) -> float:
+    """Bed radius of a point of series "a" (fixed radius) or "b" (the density of act_ref_n on that radius)."""
+    if series == "a":
+        return float(cfg.act_radius)
+    return float(cfg.act_radius) * math.sqrt(n / cfg.act_ref_n)
+
+
+def _point(cfg, label, n, radius, t_rear=None, speed=None, stepping="active", accuracy=None, memory=False,
+           floor=False, group=""):
+    return {"label": label, "group": group, "n": int(n), "radius": float(radius),
+            "t_rear": int(cfg.act_t if t_rear is None else t_rear),
+            "speed": float(cfg.act_speed if speed is None else speed), "stepping": stepping, "accuracy": accuracy,
+            "memory": memory, "floor": floor, "spread": float(cfg.act_radius)}
+
+
+def plan_jobs(cfg) -> list:
+    """The processes of the section, each a list of points: one per (series, N, stepping) with its memory
+    and floor, then one for the activity sweep at the reference N. A series-(b) point whose bed equals the
+    series-(a) one (at the reference N) is measured once."""
+    jobs = []
+    for series in ("a", "b"):
+        for n in cfg.act_n:
+            r = series_radius(cfg, series, n)
+            if series == "b" and abs(r - cfg.act_radius) < 1e-9:
+                continue
+            for stepping in ("active", "full"):
+                if stepping == "full" and not cfg.act_full_min <= n <= cfg.act_full_max:
+                    continue
+                jobs.append([_point(cfg, f"{series} N={n:,} {stepping}", n, r, stepping=stepping, memory=True,
+                                    floor=True, group=f"series {series}")])
+    n, r = cfg.act_fixed_n, cfg.act_radius
+    sweep = [_point(cfg, f"{t} rear tires", n, r, t_rear=t, group="tires") for t in cfg.act_tires]
+    sweep += [_point(cfg, f"{v:g} m/s", n, r, speed=v, group="speed") for v in cfg.act_speeds]
+    sweep.append(_point(cfg, "parked fleet (0 m/s)", n, r, speed=0.0, group="parked"))
+    if cfg.act_balanced:
+        sweep.append(_point(cfg, "balanced preset", n, r, accuracy="balanced", group="balanced"))
+    jobs.append(sweep)
+    return jobs
+
+
+def point_scene(p: dict):
+    from ..config.presets import PRESETS
+    from .scenes import fleet_scene
+
+    ov = {"sim.stepping": p["stepping"]}
+    if p["accuracy"]:
+        ov["sim.accuracy"] = p["accuracy"]
+        ov.update({f"sim.{k}": v for k, v in PRESETS[p["accuracy"]].items()})
+    return fleet_scene(p["n"], p["t_rear"], p["radius"], ov, speed=p["speed"], spread=p["spread"])
+
+
+# --------------------------------------------------------------------------------------------- a worker
+def proc_memory() -> dict:
+    """VmRSS and VmHWM (bytes) of this process (Linux), else the peak from getrusage."""
+    out = {}
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            key, _, rest = line.partition(":")
+            if key in ("VmRSS", "VmHWM"):
+                out[key] = int(rest.split()[0]) * 1024
+    except OSError:
+        import resource
+
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+        out = {"VmRSS": peak, "VmHWM": peak}
+    return out
+
+
+def field_bytes(world) -> int:
+    """Bytes of every Taichi field of a World (shape x components x element size)."""
+    from taichi.lang.util import to_numpy_type
+
+    total = 0
+    for f in world.fields():
+        comps = getattr(f, "n", 1) * getattr(f, "m", 1)
+        total += int(np.prod(f.shape)) * comps * np.dtype(to_numpy_type(f.dtype)).itemsize
+    return total
+
+
+def _memory(sim, base: dict) -> dict:
+    now = proc_memory()
+    fb = field_bytes(sim.world)
+    grow = now["VmHWM"] - base["VmRSS"]
+    return {"baseline_rss_mb": base["VmRSS"] / MB, "rss_mb": now["VmRSS"] / MB, "hwm_mb": now["VmHWM"] / MB,
+            "hwm_growth_bytes_per_rock": grow / sim.n_rocks,
+            "rss_growth_bytes_per_rock": (now["VmRSS"] - base["VmRSS"]) / sim.n_rocks,
+            "field_mb": fb / MB, "field_bytes_per_rock": fb / sim.n_rocks}
+
+
+def _timed_rounds(sim, floor, rounds: int, m: int) -> tuple:
+    """Rounds of (m steps timed as one block, two floor passes timed each): ms per step and ms per pass."""
+    import taichi as ti
+
+    from .measure import timed_call
+
+    st, fl = [], []
+    if floor is not None:
+        floor.run()
+    for _ in range(rounds):
+        st.append(1e3 * timed_call(lambda: sim.step(m)) / m)
+        if floor is not None:
+            fl += [1e3 * timed_call(floor.run) for _ in range(2)]
+    ti.sync()
+    return st, fl
+
+
+def run_point(p: dict, cfg: dict, arch: str) -> dict:
+    """Build, step to steady state, memory, timed rounds (with the floor), rocks in the air."""
+    import taichi as ti
+
+    from ..engine.simulation import Simulation
+    from .peers import Floor
+
+    base = proc_memory()
+    t0 = time.perf_counter()
+    sim = Simulation(point_scene(p), arch=arch)
+    sim.step(1)
+    ti.sync()
+    out = dict(p, build_s=time.perf_counter() - t0, dt=sim.dt, t_rear=2 * len(sim.fleet.splashing),
+               integrator=sim.scene.sim.integrator, detection=sim.scene.sim.detection,
+               stepping_plan="active" if sim.plan.active else "full")
+    warm = max(1, int(round(cfg["act_warm_s"] / sim.dt)) - 1)
+    t1 = time.perf_counter()
+    sim.step(warm)
+    ti.sync()
+    out["warm_steps"], out["warm_s"] = warm + 1, time.perf_counter() - t1
+    if p["memory"]:
+        out["memory"] = _memory(sim, base)
+    floor = None
+    if p["floor"]:
+        r = sim.rock_arrays()
+        floor = Floor(sim.n_rocks)
+        floor.load(r["pos"], r["vel"])
+        del r
+    st, fl = _timed_rounds(sim, floor, cfg["act_rounds"], cfg["act_steps"])
+    out["step_rounds_ms"] = st
+    out["step_ms"] = float(np.median(st))
+    out["floor_ms"] = float(np.median(fl)) if fl else None
+    phase = sim.rock_arrays()["phase"]
+    out["in_air"] = int(np.count_nonzero(phase))
+    out["active_count"] = sim.active_count
+    out["launches_total"], out["recycles_total"] = sim.launches_total, sim.recycles_total
+    out["steps_coasted"] = int(sim.steps_coasted)
+    out["sim_s_per_wall_s"] = sim.dt / (out["step_ms"] * 1e-3)
+    del sim, floor
+    gc.collect()
+    return out
+
+
+def worker(job_json: str) -> int:
+    """Run one job's points in order; print each result as one line (PREFIX + JSON) on stdout."""
+    from ..engine.runtime import init_taichi
+
+    job = json.loads(job_json)
+    arch = init_taichi(job["arch"])
+    for p in job["points"]:
+        try:
+            res = run_point(p, job["cfg"], arch)
+        except Exception as exc:  # a point that fails is reported, the others still run
+            res = dict(p, error=f"{type(exc).__name__}: {exc}".splitlines()[0])
+        print(PREFIX + json.dumps(res), flush=True)
+    return 0
+
+
+# --------------------------------------------------------------------------------------------- the parent
+def _env() -> dict:
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
+
+
+def run_job(points: list, cfg, arch: str, timeout: float = 3600.0) -> list:
+    """One worker process for these points; their results (or an error per point)."""
+    keys = ("act_warm_s", "act_rounds", "act_steps")
+    job = json.dumps({"arch": arch, "points": points, "cfg": {k: getattr(cfg, k) for k in keys}})
+    try:
+        pr = subprocess.run([sys.executable, "-m", "taichi_rocks.bench.activity", job], capture_output=True,
+                            text=True, timeout=timeout, env=_env())
+        got = [json.loads(line[len(PREFIX):]) for line in pr.stdout.splitlines() if line.startswith(PREFIX)]
+        why = f"worker exit {pr.returncode}: " + (pr.stderr.strip().splitlines() or ["no output"])[-1]
+    except subprocess.TimeoutExpired:
+        got, why = [], f"worker timed out after {timeout:.0f} s"
+    done = {g["label"] for g in got}
+    return got + [dict(p, error=why) for p in points if p["label"] not in done]
+
+
+def _by_n(points: list, series: str, cfg) -> list:
+    """The rows of a series against N: per N the active and full points and the floor."""
+    rows = []
+    for n in cfg.act_n:
+        r = series_radius(cfg, series, n)
+        s = "a" if abs(r - cfg.act_radius) < 1e-9 else series
+        row = {"n": n, "radius": r}
+        for stepping in ("active", "full"):
+            row[stepping] = next((p for p in points if p["label"] == f"{s} N={n:,} {stepping}"), None)
+        act = row["active"] if row["active"] and "error" not in row["active"] else None
+        row["floor_ms"] = act["floor_ms"] if act else None
+        rows.append(row)
+    return rows
+
+
+def memory_summary(rows: list) -> dict:
+    """Per stepping mode: bytes per rock (the slope of peak RSS between the two largest N, and at the largest N
+    growth / N) and the 10M projection; the fields' bytes per rock."""
+    out = {}
+    for stepping in ("active", "full"):
+        pts = [(r["n"], r[stepping]["memory"]) for r in rows
+               if r.get(stepping) and "memory" in r[stepping]]
+        if not pts:
+            continue
+        pts.sort(key=lambda x: x[0])
+        n_hi, m_hi = pts[-1]
+        slope = None
+        if len(pts) >= 2:
+            n_lo, m_lo = pts[-2]
+            slope = (m_hi["hwm_mb"] - m_lo["hwm_mb"]) * MB / (n_hi - n_lo)
+        basis = "peak RSS slope" if slope and slope > 0 else "field bytes"
+        per_rock = slope if basis == "peak RSS slope" else m_hi["field_bytes_per_rock"]
+        proj = m_hi["hwm_mb"] * MB + per_rock * (10_000_000 - n_hi)
+        out[stepping] = {"largest_n": n_hi, "hwm_mb_at_largest": m_hi["hwm_mb"],
+                         "growth_bytes_per_rock_at_largest": m_hi["hwm_growth_bytes_per_rock"],
+                         "slope_bytes_per_rock": slope, "field_bytes_per_rock": m_hi["field_bytes_per_rock"],
+                         "peak_10m_gb": proj / 1e9, "peak_10m_basis": "measured" if n_hi == 10_000_000 else
+                         f"projected from N={n_hi:,} with the {basis} per rock"}
+    return out
+
+
+def activity_section(cfg, arch: str, prog) -> dict:
+    """Run every job of the section; the results by series and sweep."""
+    t0 = time.perf_counter()
+    points = []
+    for job in plan_jobs(cfg):
+        points += run_job(job, cfg, arch)
+        prog(f"activity: {job[0]['label']}")
+    res = {"points": points, "series": {s: _by_n(points, s, cfg) for s in ("a", "b")},
+           "sweep": [p for p in points if p["group"] in ("tires", "speed", "parked", "balanced")],
+           "reference_n": cfg.act_fixed_n, "radius": cfg.act_radius, "t_rear": cfg.act_t,
+           "speed": cfg.act_speed, "density_b": cfg.act_ref_n / (math.pi * cfg.act_radius ** 2)}
+    res["memory"] = {s: memory_summary(res["series"][s]) for s in ("a", "b")}
+    res["errors"] = [f"activity {p['label']}: {p['error']}" for p in points if "error" in p]
+    res["elapsed_s"] = time.perf_counter() - t0
+    return res
+
+
+# --------------------------------------------------------------------------------------------- targets
+def _verdict(value, limit, at_most: bool) -> tuple:
+    """(met, "PASS/MISS ... by how much") of a measured value against its limit."""
+    met = value <= limit if at_most else value >= limit
+    if at_most:
+        how = f"{100 * (1 - value / limit):.0f} % under the limit" if met else f"{value / limit:.2f}x the limit"
+    else:
+        how = f"{value / limit:.2f}x the limit" if met else f"{100 * (1 - value / limit):.0f} % short"
+    return met, ("PASS, " if met else "MISS, ") + how
+
+
+def _ok(p):
+    return p if p and "error" not in p and p.get("step_ms") else None
+
+
+def activity_targets(act: dict, cfg) -> list:
+    """The issue's three targets, each with its measured ratio, PASS / MISS and by how much."""
+    out = []
+    n_ref = cfg.act_fixed_n
+    note = "" if n_ref == 1_000_000 else f" ({cfg.mode} run: N={n_ref:,}; the target is stated at 1M)"
+
+    def add(name, value, limit, at_most, detail, at):
+        if value is None:
+            out.append({"target": name, "value": None, "limit": limit, "met": None, "detail": detail, "at": at})
+            return
+        met, how = _verdict(value, limit, at_most)
+        out.append({"target": name, "value": value, "limit": limit, "met": bool(met), "detail": f"{how}: {detail}",
+                    "at": at})
+
+    rows = {r["n"]: r for r in act["series"]["a"]}
+    ref = rows.get(n_ref, {})
+    p = _ok(ref.get("active"))
+    add(f"active step <= 0.5x the streaming floor ({n_ref:,} rocks, {cfg.act_t} rear tires)",
+        p["step_ms"] / p["floor_ms"] if p and p.get("floor_ms") else None, 0.5, True,
+        f"{p['step_ms']:.3f} ms vs floor {p['floor_ms']:.3f} ms, {p['in_air']:,} rocks in the air" if p else
+        "not measured", f"series (a), R = {cfg.act_radius:g} m{note}")
+    for series, what in (("a", f"fixed bed radius {cfg.act_radius:g} m (the issue's fleet scene)"),
+                         ("b", "fixed density (bed radius grows as sqrt(N))")):
+        by = {r["n"]: r for r in act["series"][series]}
+        hi = max(by)
+        lo = n_ref if n_ref < hi else sorted(by)[-2] if len(by) > 1 else hi
+        a, b = _ok(by[hi].get("active")), _ok(by.get(lo, {}).get("active"))
+        name = f"step({hi:,}) <= 2x step({lo:,}), series ({series})"
+        add(name, a["step_ms"] / b["step_ms"] if a and b else None, 2.0, True,
+            f"{a['step_ms']:.3f} / {b['step_ms']:.3f} ms; {a['in_air']:,} / {b['in_air']:,} rocks in the air"
+            if a and b else "not measured", what + ("" if hi == 10_000_000 else
+                                                  f" ({cfg.mode} run: the target is stated at 10M vs 1M)"))
+    bal = next((_ok(q) for q in act["sweep"] if q["group"] == "balanced"), None)
+    add("real time with the balanced preset: simulated s per wall s >= 1",
+        bal["sim_s_per_wall_s"] if bal else None, 1.0, False,
+        f"{bal['step_ms']:.3f} ms per step of {bal['dt'] * 1e3:g} ms ({bal['integrator']}, {bal['detection']})"
+        if bal else "not measured", f"N={n_ref:,}, {cfg.act_t} rear tires{note}")
+    return out
+
+
+# --------------------------------------------------------------------------------------------- --only activity
+def run_activity_study(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=None,
+                       tiny: bool = False) -> dict:
+    """`taichi-rocks bench --only activity`: this section alone; writes activity.md (its targets and the
+    section), activity.json and activity.png to ``out_dir``."""
+    from ..engine.runtime import init_taichi
+    from ..output.recording import new_folders, write_atomically
+    from .config import make_config
+    from .machine import Progress, loadavg, machine
+    from .plots import plot_activity
+    from .report import _activity, _targets, jsonable
+
+    cfg = make_config(quick=quick, tiny=tiny)
+    out = Path(out_dir)
+    with new_folders(out):
+        used = init_taichi(arch)
+        prog = Progress(count_jobs(cfg), progress)
+        res = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine(used), "mode": cfg.mode,
+               "load_average_start": loadavg()}
+        res["activity"] = act = activity_section(cfg, used, prog)
+        res["targets"] = activity_targets(act, cfg)
+        res["load_average_end"] = loadavg()
+        res["errors"] = act["errors"]
+        plots = [plot_activity(res, out)]
+        m = res["machine"]
+        head = [f"# taichi-rocks benchmark: cost against activity\n",
+                f"Mode **{cfg.mode}**, {act['elapsed_s']:.0f} s, {res['started']}; {m['cpu_model']}, "
+                f"{m['usable_cores']} usable cores, {m['memory_gb']} GB; Taichi {m['taichi']} ({used}). Load average "
+                f"(1, 5, 15 min) at the start {res['load_average_start']}, at the end {res['load_average_end']}.\n"]
+        text = "\n".join(head + _targets(res, plots) + _activity(res, plots)
+                         + [f"- error: {e}" for e in res["errors"]])
+        write_atomically(out / "activity.md", lambda f: f.write(text.encode()))
+        blob = json.dumps(jsonable(res), indent=1)
+        write_atomically(out / "activity.json", lambda f: f.write(blob.encode()))
+        prog.close()
+    res["plots"], res["report"] = plots, str(out / "activity.md")
+    return res
+
+
+def count_jobs(cfg) -> int:
+    return len(plan_jobs(cfg)) if getattr(cfg, "activity", False) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(worker(sys.argv[1]))
