@@ -8,7 +8,8 @@ the floating origin's shifts, whole multiples of 64 m, move no tile boundary). A
 coordinates relative to the origin's anchor, key = floor(p_local / s) + shift / s. Keys live in a G x G table
 addressed modulo G (a toroidal grid, G s > 2R + 2s): the tiles the bed covers never share a slot, and the slots
 the bed's rim leaves behind are taken by the tiles it reaches. Each slot holds up to C rocks stored together
-(position, radius, static friction, id: a resting rock has no velocity), its key and its count.
+(position, radius, static friction, id and the step it was last launched at: a resting rock has no
+velocity), its key and its count.
 
 One step (one kernel launch, :func:`active_step`; its loops run in order):
   1. classify the occupied tiles (one thread per slot), with the bed's new centre c, its move d (old centre
@@ -276,7 +277,7 @@ def to_active(w: ti.template(), j, a):
     w.rock_id[a] = w.ts_id[j]
     w.phase[a] = RESTING
     if ti.static(w.hashed):
-        w.hit_step[a] = -1
+        w.hit_step[a] = w.ts_hit[j]
 
 
 @ti.func
@@ -285,6 +286,8 @@ def store_copy(w: ti.template(), src, dst):
     w.ts_radius[dst] = w.ts_radius[src]
     w.ts_friction[dst] = w.ts_friction[src]
     w.ts_id[dst] = w.ts_id[src]
+    if ti.static(w.hashed):
+        w.ts_hit[dst] = w.ts_hit[src]
 
 
 @ti.func
@@ -353,6 +356,8 @@ def settle_rocks(w: ti.template(), shift_tiles):
                     w.ts_radius[j] = w.radius[i]
                     w.ts_friction[j] = w.friction[i]
                     w.ts_id[j] = w.rock_id[i]
+                    if ti.static(w.hashed):
+                        w.ts_hit[j] = w.hit_step[i]
                     w.rock_id[i] = -1
 
 

@@ -376,8 +376,8 @@ class Simulation:
     # ------------------------------------------------------------------------------------------------
     def rock_arrays(self) -> dict:
         """Every rock's fields in id order, wherever the rock is (active list or tiles): "pos" (local frame),
-        "vel", "radius", "friction" (the World's precision), "phase", and "hit_step" (splashing scenes; -1 for
-        a rock waiting in a tile: only this step's value matters)."""
+        "vel", "radius", "friction" (the World's precision), "phase", and "hit_step" (splashing scenes: the step
+        it was last launched at, -1 if never)."""
         w, n = self.world, self.n_rocks
         m = self.active_count if self.plan.active else n
         ids = w.rock_id.to_numpy()[:m]
@@ -399,7 +399,7 @@ class Simulation:
             out["vel"][sid] = 0.0
             out["phase"][sid] = 0
             if "hit_step" in out:
-                out["hit_step"][sid] = -1
+                out["hit_step"][sid] = w.ts_hit.to_numpy()[taken]
         return out
 
     def set_rocks(self, ids, positions=None, velocities=None, phase=None) -> None:

@@ -200,6 +200,8 @@ class World:
             self.ts_radius = trees.field(real, slots * self.store_capacity)
             self.ts_friction = trees.field(real, slots * self.store_capacity)
             self.ts_id = trees.field(ti.i32, slots * self.store_capacity)
+            if self.hashed:
+                self.ts_hit = trees.field(ti.i32, slots * self.store_capacity)  # last launch step (hit_step)
             self.ts_count = trees.field(ti.i32, slots)
             self.ts_key = trees.vector(2, ti.i32, slots)
             self.ts_sel = trees.field(ti.i32, slots)

@@ -227,7 +227,7 @@ def test_rebuild_across_layouts_carries_on():
     from taichi_rocks.bench.measure import Built
     from taichi_rocks.config.scene import scene_with
 
-    scene = _small_scene()
+    scene = scene_with(_small_scene(), {"sim.stepping": "active"})
     off = scene_with(scene, {"effects.recycle": False})
     b = Built(scene, "cpu", "across layouts")
     world = b.sim.world

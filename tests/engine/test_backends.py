@@ -146,7 +146,10 @@ def test_cpu_and_vulkan_agree(case, vulkan, scenes_dir, tmp_path):
 
 def test_render_same_on_cpu_and_vulkan(vulkan, scenes_dir, tmp_path):
     """The renderer's own kernels (sky, splatted rocks in 64-bit z and colour buffers) on either backend draw
-    the same frames, to the bit (GGUI draws through Vulkan in both)."""
+    the same frames (GGUI draws through Vulkan in both). The rocks they draw agree to f32 round-off, not to
+    the bit (test_cpu_and_vulkan_agree: active stepping's fused kernel rounds a few rocks' positions a few
+    ulps apart on the two backends), which can shift an edge of a rock by a fraction of a pixel: at most one
+    level, in at most 0.1 % of the pixels (measured: 3 values of one pixel in 3 frames)."""
     import imageio.v3 as iio
 
     procs = {a: start_cli("render", scenes_dir / "minimal.toml", "--arch", a, "--frames", 3, "--format", "png",
@@ -157,7 +160,9 @@ def test_render_same_on_cpu_and_vulkan(vulkan, scenes_dir, tmp_path):
     for name in names:
         cpu, vk = (iio.imread(tmp_path / a / "frames" / name) for a in ("cpu", "vulkan"))
         assert cpu.std() > 0  # not blank
-        np.testing.assert_array_equal(vk, cpu, err_msg=name)
+        diff = np.abs(vk.astype(np.int16) - cpu.astype(np.int16))
+        assert diff.max() <= 1, (name, int(diff.max()))
+        assert np.count_nonzero(diff) <= 1e-3 * diff.size, (name, int(np.count_nonzero(diff)))
 
 
 @pytest.mark.parametrize("real", ["f32", "f64"])

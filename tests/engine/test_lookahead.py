@@ -70,8 +70,9 @@ MODES = ("reference", "per step", "lookahead")
 
 
 def _simulation(sc, mode, monkeypatch, paths=None):
-    """A Simulation of ``sc`` in ``mode`` (MODES) whose rock pass records the rays of every step."""
-    sim = Simulation(sc)
+    """A Simulation of ``sc`` in ``mode`` (MODES) whose rock pass records the rays of every step (full
+    stepping: its rock pass is the kernel the rays are recorded at; both stepping modes share the host side)."""
+    sim = Simulation(scene_with(sc, {"sim.stepping": "full"}))
     for i, fn in (paths or {}).items():
         sim.fleet.paths[i] = FakePath(fn)
     if mode == "reference":

@@ -108,5 +108,5 @@ def test_world_origin_keeps_world_coordinates():
     st = sim.state()
     assert not sim.origin.any() and not sim.anchor.any()
     assert st["bed_center"][0] > 300.0 > simulation.ORIGIN_RANGE
-    local = sim.world.pos.to_numpy()[:sim.n_rocks].astype(np.float64)
+    local = sim.rock_arrays()["pos"].astype(np.float64)
     np.testing.assert_array_equal(np.sort(local[:, 0]), np.sort(st["positions"][:, 0]))
