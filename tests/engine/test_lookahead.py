@@ -141,14 +141,14 @@ SHIPPED = ("circle", "convoy", "minimal", "slalom")
 
 @pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_scene_rays_bit_identical(recording, scenes_dir, name):
-    """300 steps of each shipped scene (fewer rocks: the rays do not depend on them)."""
-    sc = scene_with(load_scene(scenes_dir / f"{name}.toml"), {"bed.rocks": 3000})
-    _run_modes(recording, sc, lambda sim: sim.step(300))
+    """150 steps of each shipped scene (fewer rocks: the rays do not depend on them)."""
+    sc = scene_with(load_scene(scenes_dir / f"{name}.toml"), {"bed.rocks": 800})
+    _run_modes(recording, sc, lambda sim: sim.step(150))
 
 
 def test_bench_fleet_scene_rays_bit_identical(recording):
     """The speed study's fleet: 20 rear tires of 10 vehicles spread over the bed."""
-    _run_modes(recording, fleet_scene(1000, 20, 30.0), lambda sim: sim.step(250))
+    _run_modes(recording, fleet_scene(1000, 20, 30.0), lambda sim: sim.step(150))
 
 
 def test_restore_in_the_middle_of_a_batch(recording):
