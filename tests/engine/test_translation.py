@@ -34,7 +34,7 @@ def early_moves(monkeypatch):
 
 
 def frames(offset):
-    """The frames of one run (with the rocks' local positions, in memory order), its origin's anchor and the
+    """The frames of one run (with the rocks' local positions, by rock id), its origin's anchor and the
     origin's final shift from it. The simulation itself is dropped, so that the next run re-uses its World."""
     sim = Simulation(drive(offset))
     out = []
@@ -42,7 +42,7 @@ def frames(offset):
         sim.step(EVERY)
         st = sim.state()
         out.append({"rel": st["positions"] - st["bed_center"], "launches": st["launches_total"],
-                    "recycles": st["recycles_total"], "phase": st["phase"], "local": sim.world.pos.to_numpy()})
+                    "recycles": st["recycles_total"], "phase": st["phase"], "local": sim.rock_arrays()["pos"]})
     return out, sim.anchor[:2].copy(), sim.origin[:2] - sim.anchor[:2]
 
 
