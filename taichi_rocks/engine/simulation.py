@@ -332,9 +332,10 @@ class Simulation:
         if p.active and (p.flight or p.recycle or p.splash):
             frame = active.frame_rows(self._local_centre(), move, self._lead, self._grid_origin(), self._shift,
                                       self.world.store_tile)
+            plan = self._switches["active_step"]
             with self.timer("active step"):
-                self.last_launches = active.active_step(self.world, self._switches["active_step"], rays, frame, dt,
-                                                        self.step_count, int(self._check_all))
+                active.active_step(self.world, plan, rays, frame, dt, self.step_count, int(self._check_all))
+                self.last_launches = active.active_finish(self.world, plan, frame, self.step_count)
             self._check_all = False
             if self.step_count % 32 == 0:
                 self._fit_table()
