@@ -192,30 +192,35 @@ class World:
         # active stepping (engine/active.py): resting rocks in ground tiles; the rock arrays above are the
         # active list (ipar[N_ROCKS] rocks). ``store``: (tile edge, slots per axis, rocks per slot, recycle?)
         if self.stored:
-            tile, grid, capacity, recycle = store
-            self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
-            self.recycles_rocks = bool(recycle)
-            slots = self.store_grid * self.store_grid
-            self.ts_pos = trees.vector(3, real, slots * self.store_capacity)
-            self.ts_radius = trees.field(real, slots * self.store_capacity)
-            self.ts_friction = trees.field(real, slots * self.store_capacity)
-            self.ts_id = trees.field(ti.i32, slots * self.store_capacity)
-            if self.hashed:
-                self.ts_hit = trees.field(ti.i32, slots * self.store_capacity)  # last launch step (hit_step)
-            self.ts_count = trees.field(ti.i32, slots)
-            self.ts_key = trees.vector(2, ti.i32, slots)
-            self.ts_sel = trees.field(ti.i32, slots)
-            self.a_hole = trees.field(ti.i32, cap)
-            self.a_mover = trees.field(ti.i32, cap)
-            self.ts_list = trees.field(ti.i32, slots)  # the slots marked this step
-            if n_tires > 0:
-                self.ts_tires = trees.field(ti.i32, slots)  # which tires marked a slot (bit t mod 32)
-                self.tire_box = trees.vector(4, real, n_tires)  # each tire's query box (lo, hi) this step
-                self.tire_keys = trees.vector(4, ti.i32, n_tires)  # and its tiles (first and last key)
-            self.a_counts = trees.field(ti.i32, 6)
+            self._store_fields(trees, store, cap, real)
         self.health_out = trees.field(ti.i32, 6)  # the runtime guard's counts (Simulation.check_health)
         trees.finalize()
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
+
+    def _store_fields(self, trees, store, cap: int, real) -> None:
+        """Active stepping's tile store (engine/active.py): ``store`` = (tile edge, slots per axis, rocks per
+        slot, recycle?); ``cap``: the active list's capacity."""
+        tile, grid, capacity, recycle = store
+        self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
+        self.recycles_rocks = bool(recycle)
+        slots = self.store_grid * self.store_grid
+        self.ts_pos = trees.vector(3, real, slots * self.store_capacity)
+        self.ts_radius = trees.field(real, slots * self.store_capacity)
+        self.ts_friction = trees.field(real, slots * self.store_capacity)
+        self.ts_id = trees.field(ti.i32, slots * self.store_capacity)
+        if self.hashed:
+            self.ts_hit = trees.field(ti.i32, slots * self.store_capacity)  # last launch step (hit_step)
+        self.ts_count = trees.field(ti.i32, slots)
+        self.ts_key = trees.vector(2, ti.i32, slots)
+        self.ts_sel = trees.field(ti.i32, slots)
+        self.a_hole = trees.field(ti.i32, cap)
+        self.a_mover = trees.field(ti.i32, cap)
+        self.ts_list = trees.field(ti.i32, slots)  # the slots marked this step
+        if self.n_tires > 0:
+            self.ts_tires = trees.field(ti.i32, slots)  # which tires marked a slot (bit t mod 32)
+            self.tire_box = trees.vector(4, real, self.n_tires)  # each tire's query box (lo, hi) this step
+            self.tire_keys = trees.vector(4, ti.i32, self.n_tires)  # and its tiles (first and last key)
+        self.a_counts = trees.field(ti.i32, 6)
 
     def fields(self) -> list:
         """Every Taichi field of this World."""
