@@ -48,10 +48,10 @@ import numpy as np
 import taichi as ti
 
 from . import hashgrid, tires
-from .bed import outside_bed, recycle_to_leading_edge
-from .flight import fly
+from .bed import outside_bed
+from .kernels import rock_step, take_rays
 from .patch import footprint_box
-from .world import A0, A1, ACTIVE, B0, B1, FLYING, HALF_L, HALF_W, RAY_FIELDS, RESTING, IPar, Par
+from .world import A0, A1, ACTIVE, B0, B1, HALF_L, HALF_W, RESTING, IPar, Par
 
 __all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health",
            "CENTRE", "MOVE", "LEAD", "GRID", "TILES", "FRAME_ROWS"]
@@ -405,9 +405,7 @@ def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dt
     the active list. ``check_all``: test every rim tile's rocks against the new disk whatever the move (the
     first step after rocks were loaded). Two kernels, not one: Taichi 1.7.4 compiles the two halves in
     about two thirds of the time it takes for them fused, and the second launch costs ~0.05 ms."""
-    if ti.static(plan.splash):
-        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
-            w.ray[t, k] = ti.cast(rays[t, k], w.real)
+    take_rays(w, plan, rays)
     h = ti.cast(dt, w.real)
     c = ti.cast(frame[CENTRE], w.real)
     m = ti.cast(frame[MOVE], w.real)
@@ -418,13 +416,7 @@ def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dt
         classify_tires(w, c, st)
     gather(w, c)
     for i in range(w.ipar[IPar.N_ROCKS]):
-        if ti.static(plan.flight):
-            fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
-        if ti.static(plan.recycle):
-            recycle_to_leading_edge(w, i, c, m, d, step)
-        if ti.static(plan.splash):
-            if w.phase[i] != FLYING:  # a flying rock is never launched (tires.try_launch): no need to hash it
-                hashgrid.count_rock(w, i, plan.center, c)
+        rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: the last point is unused
 
 
 @ti.kernel

@@ -15,7 +15,7 @@ import taichi as ti
 from . import hashgrid, tires
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
-from .world import RAY_FIELDS, RESTING, IPar, Par
+from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -72,16 +72,38 @@ def switches(plan) -> dict:
 CENTRE, MOVE, LEAD, GRID = 0, 1, 2, 3
 
 
+@ti.func
+def take_rays(w: ti.template(), plan: ti.template(), rays: ti.template()):
+    """The step's tire rays (``rays``, layout of World.ray, float64) into ``w.ray``: passed as an argument of
+    the step's first kernel, they cost no launch of their own."""
+    if ti.static(plan.splash):
+        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
+            w.ray[t, k] = ti.cast(rays[t, k], w.real)
+
+
+@ti.func
+def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template()):
+    """Pass 1 for rock i: flight, recycling to the leading edge, counting for the hash; ``hash_flying``: count
+    flying rocks too (they are never launched, tires.try_launch; active stepping leaves them out)."""
+    if ti.static(plan.flight):
+        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+    if ti.static(plan.recycle):
+        recycle_to_leading_edge(w, i, c, m, d, step)
+    if ti.static(plan.splash):
+        if ti.static(hash_flying):
+            hashgrid.count_rock(w, i, plan.center, g)
+        else:
+            if w.phase[i] != FLYING:
+                hashgrid.count_rock(w, i, plan.center, g)
+
+
 @ti.kernel
 def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
               frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32):
     """Pass 1 fused: flight, recycling, counting for the hash (``plan.splash``), one read of each rock per
     step; ``frame``: the bed's centre, move and leading direction and the mask's corner (rows above). With
-    the hash it first takes the step's tire rays (``rays``, layout of World.ray, float64) into ``w.ray``:
-    passed as an argument, they cost no launch of their own."""
-    if ti.static(plan.splash):
-        for t, k in ti.ndrange(w.n_tires, RAY_FIELDS):
-            w.ray[t, k] = ti.cast(rays[t, k], w.real)
+    the hash it first takes the step's tire rays (take_rays)."""
+    take_rays(w, plan, rays)
     h = ti.cast(dt, w.real)
     c = ti.cast(frame[CENTRE], w.real)
     m = ti.cast(frame[MOVE], w.real)
@@ -90,12 +112,7 @@ def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtyp
     if ti.static(plan.splash and w.masked):
         hashgrid.mark_tire_tiles(w, g)
     for i in range(w.ipar[IPar.N_ROCKS]):
-        if ti.static(plan.flight):
-            fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
-        if ti.static(plan.recycle):
-            recycle_to_leading_edge(w, i, c, m, d, step)
-        if ti.static(plan.splash):
-            hashgrid.count_rock(w, i, plan.center, g)
+        rock_step(w, plan, i, h, c, m, d, g, step, True)
 
 
 @ti.kernel
