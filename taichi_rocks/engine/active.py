@@ -54,7 +54,7 @@ from .patch import footprint_box
 from .world import A0, A1, ACTIVE, B0, B1, HALF_L, HALF_W, RESTING, IPar, Par
 
 __all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health",
-           "CENTRE", "MOVE", "LEAD", "GRID", "TILES", "FRAME_ROWS"]
+           "CENTRE", "MOVE", "LEAD", "GRID", "TILES"]
 
 ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many rocks per tile
 NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
@@ -62,7 +62,6 @@ NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes t
 # Rows of active_step's ``frame`` (2-vectors, float64): those of kernels.rock_pass, then the tile shift
 # (shift / s: whole numbers).
 CENTRE, MOVE, LEAD, GRID, TILES = 0, 1, 2, 3, 4
-FRAME_ROWS = 5
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -74,10 +73,6 @@ class StoreSizing:
     tile: float
     grid: int
     capacity: int
-
-    def memory(self, real_bytes: int = 4) -> int:
-        """Bytes of the store: per rock slot 3 + 2 reals and an id; per tile slot a key, a count, a class."""
-        return self.grid * self.grid * (self.capacity * (5 * real_bytes + 4) + 16)
 
 
 def store_sizing(n: int, bed_radius: float) -> StoreSizing:
@@ -458,8 +453,9 @@ def shift_store(w: ti.template(), shift: vec2):
 @ti.kernel
 def store_health(w: ti.template(), centre: vec2, slack: ti.f64, tiles: vec2):
     """The runtime guard over the stored rocks, into ``w.health_out`` after kernels.health: non-finite [0],
-    outside the bed [1], below the ground or off its tile [2] (indices are not recorded: -1 - store index in
-    [3..5] when the active list had none)."""
+    outside the bed [1], below the ground or off its tile [2]; a bad stored rock's index goes to [3..5] as
+    -1 - its store index (negative: it wins the atomic_min over an active rock's, and the host tells them
+    apart by the sign)."""
     out = ti.static(w.health_out)
     radius = w.par[Par.BED_RADIUS] + ti.cast(slack, w.real)
     cap = w.store_capacity
@@ -483,5 +479,5 @@ def store_health(w: ti.template(), centre: vec2, slack: ti.f64, tiles: vec2):
 
 
 def frame_rows(centre, move, lead, grid, shift, tile: float) -> np.ndarray:
-    """active_step's ``frame`` (float64, FRAME_ROWS x 2)."""
+    """active_step's ``frame`` (float64, one row each of CENTRE .. TILES)."""
     return np.array([centre, move, lead, grid, np.asarray(shift, np.float64) / tile])

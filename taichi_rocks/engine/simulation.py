@@ -417,11 +417,7 @@ class Simulation:
             r["phase"][ids] = phase
         data = {f"rock_{k}": v for k, v in r.items()}
         data["rock_rock_id"] = np.arange(self.n_rocks, dtype=np.int32)
-        if self.plan.active:
-            self.world.ts_count.fill(0)
-        self._load_rock_fields(data)
-        if self.plan.active:
-            self._settle_all()
+        self._load_rocks(data)
 
     def state(self) -> dict:
         """The current state as NumPy arrays, rocks in their original order (by rock id)."""
@@ -460,6 +456,15 @@ class Simulation:
 
     _ROCK_FIELDS = ("pos", "vel", "radius", "friction", "rock_id", "phase")
 
+    def _load_rocks(self, data: dict) -> None:
+        """Every rock from ``data`` (checkpoint layout): into the rock arrays, and with active stepping from
+        there into the emptied tiles (the resting ones)."""
+        if self.plan.active:
+            self.world.ts_count.fill(0)
+        self._load_rock_fields(data)
+        if self.plan.active:
+            self._settle_all()
+
     def _load_rock_fields(self, data: dict) -> None:
         """The checkpoint's rock fields into the rock arrays (padded to the World's capacity)."""
         w = self.world
@@ -479,9 +484,6 @@ class Simulation:
         if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
             raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
         w = self.world
-        if self.plan.active:
-            w.ts_count.fill(0)
-        self._load_rock_fields(data)
         self.step_count = int(data["step_count"])
         self.time = float(data["time"])
         self.bed_center = np.array(data["bed_center"], dtype=np.float64)
@@ -499,8 +501,7 @@ class Simulation:
         par = self._par.copy()
         par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
         w.par.from_numpy(par.astype(w.np_real()))
-        if self.plan.active:
-            self._settle_all()
+        self._load_rocks(data)  # after the origin: the tiles are keyed by its shift
         self._poses = self.fleet.poses(self.time)
         self._tires_prev = self.fleet.rear_tires(self._poses, relative=True)
         if self.plan.splash:
