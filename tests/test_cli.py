@@ -211,7 +211,7 @@ def test_ctrl_c_after_frames_keeps_the_render_folder_and_resumes(tmp_path):
 
 
 def test_new_folders_removes_on_failure_only_the_empty_folders_it_made(tmp_path):
-    from taichi_rocks.output.recording import new_folders
+    from taichi_rocks.output.atomic import new_folders
 
     old = tmp_path / "old"
     old.mkdir()

@@ -1,4 +1,4 @@
-"""Changing a running simulation's settings: the engine's face for the view's panel (render/viewer.py).
+"""Changing a running simulation's settings: the engine's face for the view's panel (app/view.py).
 
 Two kinds of scene keys, by how they reach the kernels:
 

@@ -2,7 +2,7 @@
 
 Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window
 (:mod:`.window`) and read back (``render``), or declared in a window on the screen (``view``,
-:mod:`.viewer`: the same code draws both). A frame is made of two layers:
+app/view.py: the same code draws both). A frame is made of two layers:
 
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;

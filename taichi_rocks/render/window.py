@@ -47,7 +47,7 @@ def _trim_heap() -> None:
         _LIBC[0](0)
 
 
-trim_heap = _trim_heap  # for windows that are never recreated (render/viewer.py)
+trim_heap = _trim_heap  # for windows that are never recreated (app/view.py)
 
 
 class HiddenWindow:
@@ -107,7 +107,7 @@ class ShownWindow(HiddenWindow):
     """An on-screen ``resolution`` GGUI window named ``title``: the renderer declares the background image
     (``canvas.set_image``) and the 3D scene in it and reads nothing back; its owner adds the panel and calls
     ``window.show()`` (which only a shown window may do). It is never recreated: that would flash on the
-    screen (see render/viewer.py for its memory)."""
+    screen (see app/view.py for its memory)."""
 
     shown = True
 
