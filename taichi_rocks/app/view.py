@@ -173,7 +173,7 @@ class Viewer:
         self.refreshes += 1
         self._rss_base = None
         if self.free_on:  # the free camera's mouse state belonged to the old window
-            self.free.cam.last_mouse_x = self.free.cam.last_mouse_y = None
+            self.free.forget_mouse()
 
     # -------------------------------------------------------------------------------------------- input
     def _keys(self) -> None:

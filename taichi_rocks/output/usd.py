@@ -137,7 +137,7 @@ class UsdWriter(FileWriter):
         self.origin_op = bed.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
         self._rocks()
         self._vehicles(scene)
-        self._camera(scene)
+        self._camera_prim(scene)
         self.last_origin = None
         self.layer.Save()
 
@@ -182,7 +182,7 @@ class UsdWriter(FileWriter):
                 _mesh(self.stage, f"{root}/Wheel_{label}/Tire", tire, TIRE_COLOR)
             self.vehicle_ops.append(ops)
 
-    def _camera(self, scene) -> None:
+    def _camera_prim(self, scene) -> None:
         cam = UsdGeom.Camera.Define(self.stage, "/World/Camera")
         w, h = scene.render.resolution
         focal = 35.0  # the field of view depends only on aperture / focal length (same units)

@@ -8,6 +8,7 @@ leaks ~0.3 MB per captured frame on lavapipe, so the renderer recreates its wind
 each new window gives freed heap memory back to the OS (:func:`_trim_heap`).
 """
 
+import ctypes
 from pathlib import Path
 
 import taichi as ti
@@ -37,8 +38,6 @@ def _trim_heap() -> None:
     this, RSS still climbs by ~50 MB steps every few window re-creations; with it, ~5 MB per 100 frames."""
     if not _LIBC:
         try:
-            import ctypes
-
             libc = ctypes.CDLL("libc.so.6")
             _LIBC.append(libc.malloc_trim)
         except (OSError, AttributeError):  # not glibc
