@@ -24,7 +24,7 @@ _API = {
     "Scene": "config.scene", "SceneError": "config.scene", "load_scene": "config.scene",
     "parse_scene": "config.scene", "scene_with": "config.scene", "Plan": "config.plan",
     "Simulation": "engine.simulation", "HealthError": "engine.simulation", "init_taichi": "engine.runtime",
-    "record": "output.recording", "load_run": "output.runs", "render_scene": "render.pipeline",
+    "record": "app.simulate", "load_run": "output.runs", "render_scene": "app.render",
     "Renderer": "render.renderer",
     "run_bench": "bench.run",
 }

@@ -23,6 +23,14 @@ class UsageError(Exception):
     """Bad input that is not a scene problem; the message is one line."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, with what the user can do next (``hint``: the rest of the message's line)."""
+
+    def __init__(self, hint: str = ""):
+        super().__init__()
+        self.hint = hint
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -54,6 +62,7 @@ def _resolution(text: str) -> tuple[int, int]:
 
 def _parser() -> argparse.ArgumentParser:
     from .config.arches import ARCHES
+    from .output.formats import FORMATS
 
     p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -89,7 +98,7 @@ def _parser() -> argparse.ArgumentParser:
     e = sub.add_parser("export", help="write the run for other tools: USD (Houdini, Omniverse, Unreal, Blender) "
                                       "or PLY point files")
     engine_args(e)
-    e.add_argument("--format", choices=("usd", "ply"), default="usd")
+    e.add_argument("--format", choices=tuple(FORMATS), default=next(iter(FORMATS)))
     e.add_argument("--out", type=Path, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
                                             "or renders/<scene>/ply/)")
     selection_args(e, "all", "flying: only the rocks in the air or that moved this frame; all: every rock")
@@ -128,12 +137,6 @@ def _err(msg: str) -> None:
     print(msg, file=sys.stderr)
 
 
-def _frames(scene, args) -> tuple[int, float]:
-    fps = args.fps or float(scene.render.fps)
-    frames = args.frames or max(1, int(round(scene.duration * fps)))
-    return frames, fps
-
-
 def cmd_check(args) -> int:
     from .config.scene import SceneError, load_scene, summarise
 
@@ -159,51 +162,27 @@ def cmd_schema(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    from tqdm import tqdm
-
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
-    out = args.out or Path("renders") / scene.name / f"{scene.name}.npz"
-    if args.layout == "full" and (args.only or args.crop):
-        raise UsageError("--only and --crop need --layout light (the full layout holds every rock)")
-    if out.exists() and not args.overwrite:
-        raise UsageError(f"{out}: exists; pass --overwrite to replace it")
-    if out.exists() and out.is_dir():
-        raise UsageError(f"{out}: is a directory, expected an .npz file name")
-    frames, fps = _frames(scene, args)
-    from .engine.simulation import Simulation
-    from .output.recording import record  # creates the missing folders of out, removed again on failure
+    from .app.simulate import simulate_scene
 
-    sim = Simulation(scene, arch=args.arch, seed=args.seed)
-    with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", disable=None, file=sys.stderr) as bar:
-        info = record(sim, out, frames, fps, progress=bar, layout=args.layout, only=args.only or "flying",
-                      crop=args.crop)
-    print(f"wrote {info['path']}: {frames} frames of {info['rocks']} rocks, "
-          f"{sim.launches_total} launches, {info['bytes'] / 1e6:.1f} MB")
+    info = simulate_scene(scene, out=args.out, frames=args.frames, fps=args.fps, arch=args.arch, seed=args.seed,
+                          overwrite=args.overwrite, layout=args.layout, only=args.only, crop=args.crop)
+    print(f"wrote {info['path']}: {info['frames']} frames of {info['rocks']} rocks, "
+          f"{info['launches']} launches, {info['bytes'] / 1e6:.1f} MB")
     return EXIT_OK
 
 
 def cmd_export(args) -> int:
-    from tqdm import tqdm
-
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
-    from .output.export import check_target, export_run, require_pxr
+    from .app.export import export_scene
 
-    default = f"{scene.name}.usdc" if args.format == "usd" else "ply"
-    out = args.out or Path("renders") / scene.name / default
-    if args.format == "usd":
-        require_pxr()
-    check_target(out, args.format, args.overwrite)
-    frames, fps = _frames(scene, args)
-    from .engine.simulation import Simulation
-
-    sim = Simulation(scene, arch=args.arch, seed=args.seed)
-    with tqdm(total=frames, unit="frame", desc=f"export {scene.name}", disable=None, file=sys.stderr) as bar:
-        info = export_run(sim, out, frames, fps, fmt=args.format, only=args.only or "all", crop=args.crop,
-                          progress=bar)
+    info = export_scene(scene, out=args.out, fmt=args.format, frames=args.frames, fps=args.fps, arch=args.arch,
+                        seed=args.seed, overwrite=args.overwrite, only=args.only, crop=args.crop)
+    frames = info["frames"]
     print(f"wrote {info['path']}: {frames} frames, {info['rocks_mean']:.0f} rocks per frame on average "
           f"(at most {info['rocks_max']}), {info['bytes'] / 1e6:.1f} MB, "
           f"{info['bytes'] / 1e6 / max(frames, 1):.2f} MB per frame")
@@ -214,8 +193,10 @@ def cmd_render(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
-    from .render.pipeline import render_scene
-    kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
+    from .app.render import render_dir, render_scene, resumable
+
+    out_dir = render_dir(scene, args.out)
+    kwargs = dict(out_dir=out_dir, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
                   profile=args.profile, checkpoint_every=args.checkpoint_every)
     if args.seed is not None:
@@ -224,7 +205,11 @@ def cmd_render(args) -> int:
         scene = scene_with(scene, {"seed": args.seed})
     if args.resume:
         kwargs["resume"] = True
-    info = render_scene(scene, **kwargs)
+    try:
+        info = render_scene(scene, **kwargs)
+    except KeyboardInterrupt:
+        # render leaves saved states only beside finished frames: only then is there something to resume
+        raise Interrupted("; run the same command with --resume to continue" if resumable(out_dir) else "") from None
     if info.get("replayed_from") is not None:
         how = (f"restored the state saved after frame {info['replayed_from'] - 1}" if info["replayed_from"]
                else "simulated from the start")
@@ -250,11 +235,9 @@ def cmd_view(args) -> int:
     problem = display_problem()  # before Taichi starts: no window without a screen
     if problem:
         raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")
-    from .render.viewer import view_scene
+    from .app.view import check_record_dir, view_scene
 
     if args.record is not None:
-        from .render.viewer import check_record_dir
-
         check_record_dir(args.record, args.overwrite)  # before the window opens
     from .engine.runtime import init_taichi
 
@@ -292,9 +275,9 @@ def cmd_bench(args) -> int:
 _PRELOAD = {
     "check": ("taichi_rocks.config.scene",),
     "schema": ("taichi_rocks.config.scene",),
-    "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
-    "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.export", "tqdm"),
-    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
+    "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.simulate", "tqdm"),
+    "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.export", "tqdm"),
+    "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.render", "taichi_rocks.output.video",
                "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
@@ -321,6 +304,10 @@ def _start(argv):
             importlib.import_module(name)
         except ImportError:
             pass
+    if args.command == "export":
+        from .output.formats import writer_class
+
+        writer_class(args.format)  # the format's module and the libraries it needs (usd-core for usd)
     if args.command in ("simulate", "export", "render", "bench"):
         from .engine.runtime import init_taichi
 
@@ -356,9 +343,8 @@ def main(argv=None, *, held=None, restore=None) -> int:
     except (UsageError, FileExistsError, ValueError) as e:
         _err(f"taichi-rocks {args.command}: {e}")
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        _err(f"taichi-rocks {args.command}: interrupted"
-             + ("; run the same command with --resume to continue" if args.command == "render" else ""))
+    except KeyboardInterrupt as e:
+        _err(f"taichi-rocks {args.command}: interrupted{getattr(e, 'hint', '')}")
         return EXIT_INTERRUPTED
     except Exception as e:  # noqa: BLE001 - one line, no traceback, for anything the engine raises
         from .engine.simulation import HealthError

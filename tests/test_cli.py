@@ -152,7 +152,7 @@ def test_ctrl_c_while_starting_is_a_clean_interrupt(tmp_path, tmp_path_factory, 
     started = tmp_path_factory.mktemp("started") / "started"
     p = _start(command, tmp_path / "out", "--frames", 100000, env={"TAICHI_ROCKS_STARTED": started})
     wait_for(started.exists, p, poll=0.001)
-    _interrupt(p)
+    assert "--resume" not in _interrupt(p)  # nothing was kept to resume from
     assert list(tmp_path.iterdir()) == []
 
 
@@ -183,11 +183,12 @@ def test_ctrl_c_while_writing_the_npz_removes_the_folder_it_made(tmp_path):
 @pytest.mark.parametrize("until", ["frames", ".resume/render.json"])
 def test_ctrl_c_before_the_first_frame_removes_the_render_folder(tmp_path, until):
     """Ctrl-C as soon as the render has made its folders (`out/frames`), or once it has noted what it renders
-    (`out/.resume/render.json`) and draws its first frame: nothing to resume from, so no folder left."""
+    (`out/.resume/render.json`) and draws its first frame: nothing to resume from, so no folder left, and the
+    message does not suggest --resume."""
     out = tmp_path / "out"
     p = _start("render", out, "--frames", 100000)
     wait_for((out / until).exists, p, poll=0.002)
-    _interrupt(p)
+    assert "--resume" not in _interrupt(p)  # the message suggests it only when frames were kept
     assert list(tmp_path.iterdir()) == [], sorted(str(q) for q in tmp_path.rglob("*"))
 
 
@@ -211,7 +212,7 @@ def test_ctrl_c_after_frames_keeps_the_render_folder_and_resumes(tmp_path):
 
 
 def test_new_folders_removes_on_failure_only_the_empty_folders_it_made(tmp_path):
-    from taichi_rocks.output.recording import new_folders
+    from taichi_rocks.output.atomic import new_folders
 
     old = tmp_path / "old"
     old.mkdir()

@@ -13,16 +13,7 @@ plots to ``out_dir`` and returns the results as a dict (with ``report`` = the re
 The benchmark drives the engine only through its public face: Simulation steps, the timing hook
 (engine/timing.py PassTimer) for passes inside a step, engine/probes.py for passes on their own and for
 flying test rocks, and new Simulations built from changed Scenes (on the same, pooled fields) for changed
-settings. ``run_bench`` is imported lazily: ``import taichi_rocks.bench`` does not start Taichi.
+settings. ``run_bench`` is ``taichi_rocks.run_bench`` (imported on first use) and
+``taichi_rocks.bench.run.run_bench``; this package itself imports nothing, so that its light modules
+(config.py) and the activity study's worker processes load only what they use.
 """
-
-__all__ = ["run_bench"]
-
-
-def __getattr__(name: str):
-    if name == "run_bench":
-        from .run import run_bench
-
-        globals()["run_bench"] = run_bench
-        return run_bench
-    raise AttributeError(f"module 'taichi_rocks.bench' has no attribute {name!r}")

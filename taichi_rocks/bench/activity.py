@@ -28,6 +28,25 @@ import time
 from pathlib import Path
 
 import numpy as np
+import taichi as ti
+from taichi.lang.util import to_numpy_type
+
+from ..config.presets import PRESETS
+from ..engine.runtime import init_taichi
+from ..engine.simulation import Simulation
+from ..output.atomic import new_folders, write_atomically
+from .config import make_config
+from .machine import Progress, loadavg, machine
+from .measure import timed_call
+from .peers import Floor
+from .plots import plot_activity
+from .report import _activity, _targets, jsonable
+from .scenes import fleet_scene
+
+try:
+    import resource  # Unix only: the peak memory where /proc is missing
+except ImportError:
+    resource = None
 
 PREFIX = "ACTIVITY-POINT "
 MB = 1024.0 * 1024.0
@@ -75,9 +94,6 @@ def plan_jobs(cfg) -> list:
 
 
 def point_scene(p: dict):
-    from ..config.presets import PRESETS
-    from .scenes import fleet_scene
-
     ov = {"sim.stepping": p["stepping"]}
     if p["accuracy"]:
         ov["sim.accuracy"] = p["accuracy"]
@@ -95,8 +111,6 @@ def proc_memory() -> dict:
             if key in ("VmRSS", "VmHWM"):
                 out[key] = int(rest.split()[0]) * 1024
     except OSError:
-        import resource
-
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
         out = {"VmRSS": peak, "VmHWM": peak}
     return out
@@ -104,8 +118,6 @@ def proc_memory() -> dict:
 
 def field_bytes(world) -> int:
     """Bytes of every Taichi field of a World (shape x components x element size)."""
-    from taichi.lang.util import to_numpy_type
-
     total = 0
     for f in world.fields():
         comps = getattr(f, "n", 1) * getattr(f, "m", 1)
@@ -125,10 +137,6 @@ def _memory(sim, base: dict) -> dict:
 
 def _timed_rounds(sim, floor, rounds: int, m: int) -> tuple:
     """Rounds of (m steps timed as one block, two floor passes timed each): ms per step and ms per pass."""
-    import taichi as ti
-
-    from .measure import timed_call
-
     st, fl = [], []
     if floor is not None:
         floor.run()
@@ -142,11 +150,6 @@ def _timed_rounds(sim, floor, rounds: int, m: int) -> tuple:
 
 def run_point(p: dict, cfg: dict, arch: str) -> dict:
     """Build, step to steady state, memory, timed rounds (with the floor), rocks in the air."""
-    import taichi as ti
-
-    from ..engine.simulation import Simulation
-    from .peers import Floor
-
     base = proc_memory()
     t0 = time.perf_counter()
     sim = Simulation(point_scene(p), arch=arch)
@@ -185,8 +188,6 @@ def run_point(p: dict, cfg: dict, arch: str) -> dict:
 
 def worker(job_json: str) -> int:
     """Run one job's points in order; print each result as one line (PREFIX + JSON) on stdout."""
-    from ..engine.runtime import init_taichi
-
     job = json.loads(job_json)
     arch = init_taichi(job["arch"])
     for p in job["points"]:
@@ -339,13 +340,6 @@ def run_activity_study(out_dir="renders/bench", quick: bool = False, arch: str =
                        tiny: bool = False) -> dict:
     """`taichi-rocks bench --only activity`: this section alone; writes activity.md (its targets and the
     section), activity.json and activity.png to ``out_dir``."""
-    from ..engine.runtime import init_taichi
-    from ..output.recording import new_folders, write_atomically
-    from .config import make_config
-    from .machine import Progress, loadavg, machine
-    from .plots import plot_activity
-    from .report import _activity, _targets, jsonable
-
     cfg = make_config(quick=quick, tiny=tiny)
     out = Path(out_dir)
     with new_folders(out):

@@ -127,13 +127,3 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                   distances=(0.0, 1e2, 1e3, 1e4, 3e4, 1e5), hash_settings=tuple(HASH_SETTINGS),
                   hash_n=100_000, integ_cost=tuple((i, d) for i in INTEGRATORS for d in DRAGS),
                   validate_presets=True)
-
-
-def count_tasks(cfg: Config) -> int:
-    """Progress-bar steps of a run of this configuration."""
-    from .activity import count_jobs
-
-    n_grid = len(cfg.grid_n) * len(cfg.grid_t)
-    acc = (2 if cfg.acc_f64 else 1) * 9
-    return (4 + acc + 2 + len(cfg.integ_cost) + n_grid * 5 + len(cfg.hash_settings) - 1 + 6 + 6
-            + (3 if cfg.validate_presets else 0) + 3 + count_jobs(cfg))

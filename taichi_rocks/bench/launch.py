@@ -20,6 +20,7 @@ the reference bands of the field reports drawn on the histograms. Also: launches
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import sys
@@ -256,8 +257,6 @@ def targets(stats: dict, rate: dict) -> list[dict]:
 
 # ------------------------------------------------------------------------------------------------ plots
 def _save(fig, path: Path) -> None:
-    import io
-
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     write_atomically(path, lambda f: f.write(buf.getvalue()))

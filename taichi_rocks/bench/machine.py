@@ -3,13 +3,16 @@ pinned for the run (so that a kernel compiled late in a long run is compiled fro
 
 from __future__ import annotations
 
+import linecache
 import os
 import platform
 import sys
 from pathlib import Path
 
 import numpy as np
+import scipy
 import taichi as ti
+from tqdm import tqdm
 
 
 def _is_kernel(obj) -> bool:
@@ -20,8 +23,6 @@ def pin_sources() -> None:
     """Keep the source Taichi compiles kernels from fixed for this run. Taichi reads a kernel's source (through
     linecache) when it first compiles it, so a file edited during a long run would mix two versions of the
     engine; pinned entries (no mtime) are never re-read. Each kernel's def line is checked against it."""
-    import linecache
-
     for name, mod in list(sys.modules.items()):
         if not (name == "taichi_rocks" or name.startswith("taichi_rocks.")):
             continue
@@ -69,8 +70,6 @@ def machine(arch: str) -> dict:
         mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 1e9
     except (ValueError, OSError, AttributeError):
         pass
-    import scipy
-
     info = {"cpu_model": model, "logical_cores": os.cpu_count(), "usable_cores": usable,
             "memory_gb": round(mem, 1) if mem else None, "python": platform.python_version(),
             "platform": platform.platform(), "taichi": ".".join(str(x) for x in ti.__version__),
@@ -89,13 +88,8 @@ class Progress:
     def __init__(self, total: int, enabled):
         self.bar = None
         if enabled is not False:
-            try:
-                from tqdm import tqdm
-
-                self.bar = tqdm(total=total, file=sys.stderr, disable=None if enabled is None else False,
-                                unit="task", dynamic_ncols=True)
-            except ImportError:
-                self.bar = None
+            self.bar = tqdm(total=total, file=sys.stderr, disable=None if enabled is None else False,
+                            unit="task", dynamic_ncols=True)
 
     def __call__(self, desc: str, n: int = 1):
         if self.bar is not None:

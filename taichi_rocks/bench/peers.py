@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import taichi as ti
+from scipy.spatial import cKDTree
 
 
 def ray_samples(rays: np.ndarray, r_max: float):
@@ -49,8 +50,6 @@ def numpy_brute(pos, rad, rays) -> np.ndarray:
 
 
 def kdtree_query(pos, rad, rays, r_max):
-    from scipy.spatial import cKDTree
-
     tree = cKDTree(pos, leafsize=16, compact_nodes=False, balanced_tree=False)
     samples, _, q = ray_samples(rays, r_max)
     lists = tree.query_ball_point(samples, q, workers=-1)

@@ -18,14 +18,15 @@ from pathlib import Path
 from typing import Optional
 
 from ..engine.runtime import init_taichi
-from .config import Config, count_tasks, make_config
+from ..output.atomic import new_folders
+from .config import Config, make_config
 from .detection import REFERENCE, lanes
 from .flight import flight_cost, integrator_sweep
 from .hashing import hash_settings_study
 from .machine import Progress, loadavg, machine, pin_sources
 from .measure import Built
 from .peers import Floor, start_warp
-from .activity import activity_section
+from .activity import activity_section, count_jobs
 from .plots import (plot_activity, plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers,
                     plot_precision)
 from .precision import precision_runs
@@ -36,6 +37,14 @@ from .speed import effects_costs, grid_entry, launch_overheads
 from .targets import evaluate_targets
 
 PLOTS = (plot_integrators, plot_detection, plot_precision, plot_hash, plot_peers, plot_passes, plot_activity)
+
+
+def count_tasks(cfg: Config) -> int:
+    """Progress-bar steps of a run of this configuration."""
+    n_grid = len(cfg.grid_n) * len(cfg.grid_t)
+    acc = (2 if cfg.acc_f64 else 1) * 9
+    return (4 + acc + 2 + len(cfg.integ_cost) + n_grid * 5 + len(cfg.hash_settings) - 1 + 6 + 6
+            + (3 if cfg.validate_presets else 0) + 3 + count_jobs(cfg))
 
 
 def _accuracy(res: dict, cfg: Config, arch: str, prog) -> dict:
@@ -103,8 +112,6 @@ def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", p
     overrides both. ``progress``: True shows a tqdm bar on stderr, None only on a terminal, False never.
     The missing folders of ``out_dir`` are created, and removed again if the run fails before writing into them.
     """
-    from ..output.recording import new_folders
-
     out = Path(out_dir)
     with new_folders(out):
         return _run_bench(out, config or make_config(quick=quick, tiny=tiny), arch, progress)

@@ -1,4 +1,4 @@
-"""Changing a running simulation's settings: the engine's face for the view's panel (render/viewer.py).
+"""Changing a running simulation's settings: the engine's face for the view's panel (app/view.py).
 
 Two kinds of scene keys, by how they reach the kernels:
 
@@ -22,6 +22,7 @@ import numpy as np
 from ..config.plan import Plan
 from ..config.scene import scene_with
 from .setup import scene_params
+from .simulation import Simulation
 from .world import Par
 
 __all__ = ["RUNTIME_KEYS", "SWITCH_KEYS", "set_runtime", "runtime_values", "scene_value", "rebuilder"]
@@ -96,8 +97,6 @@ def rebuilder(sim, changes: dict):
     checkpoint. Drop every reference to ``sim`` before calling ``make()``, so that its World goes back to the
     pool and the new one reuses it when the layout allows (no new fields; kernels compiled once per switch
     set). SceneError if a value is invalid."""
-    from .simulation import Simulation
-
     scene = scene_with(sim.scene, dict(changes))
     state, arch, timer = sim.checkpoint(), sim.arch, sim.timer
     coast = sim.coast

@@ -1,6 +1,11 @@
 """The camera rig of [camera] on the host (NumPy, no Taichi): the view presets and the smoothed follow rule.
 One rule for everything that frames the scene: the renderer (render/camera.py) and the USD export
-(output/export.py) both use :func:`camera_of`."""
+(output/export.py) both use :func:`camera_of`.
+
+The cameras, each under a name of its own: the scene's [camera] table is config/models.py ``CameraSettings``;
+the rig that follows the vehicles is :class:`CameraRig` (here); one frame's view is render/camera.py ``View``,
+the kernels' copy of it render/kernels.py ``CameraBasis``; GGUI's own ``ti.ui.Camera`` is set from the view
+by the Renderer (``_ggui_camera``) and moved by the user in render/freecam.py ``FreeCamera``."""
 
 import math
 
@@ -102,19 +107,19 @@ def camera_of(scene, view=None):
     ``camera.target`` (default: follow) and ride with it. ValueError naming the key if a name is unknown.
     ``view``: another preset than ``camera.view`` (its own eye and aim: the scene's offset and aim belong to
     its view), with the scene's vehicles, look-ahead, smoothing and orbit period."""
-    cam = scene.camera
-    own = view is None or view == cam.view
-    view = cam.view if view is None else view
+    settings = scene.camera
+    own = view is None or view == settings.view
+    view = settings.view if view is None else view
     names = [v.name for v in scene.vehicles]
-    follow = cam.follow or getattr(scene.bed, "follow", None) or names[0]
-    target = cam.target or follow
+    follow = settings.follow or getattr(scene.bed, "follow", None) or names[0]
+    target = settings.target or follow
     for key, name in (("follow", follow), ("target", target)):
         if name not in names:
             raise ValueError(f"camera.{key}: no vehicle named {name!r} (vehicles: {', '.join(names)})")
     j = names.index(target)
     i = names.index(follow) if view == "chase" else j
-    offset, aim = view_preset(view, scene.vehicles[i], scene.vehicles[j], cam.look_ahead)
-    rig = CameraRig(offset if cam.offset is None or not own else cam.offset, cam.look_ahead, cam.smoothing,
-                    aim=aim if cam.aim is None or not own else cam.aim,
-                    orbit_period=cam.orbit_period if view == "orbit" else None)
+    offset, aim = view_preset(view, scene.vehicles[i], scene.vehicles[j], settings.look_ahead)
+    rig = CameraRig(offset if settings.offset is None or not own else settings.offset, settings.look_ahead,
+                    settings.smoothing, aim=aim if settings.aim is None or not own else settings.aim,
+                    orbit_period=settings.orbit_period if view == "orbit" else None)
     return rig, i, j

@@ -11,9 +11,9 @@ Houdini (File SOP), Blender (File > Import > Stanford PLY), MeshLab and NumPy re
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
+
+from .formats import FolderWriter, frame_file
 
 __all__ = ["PlyWriter", "VERTEX", "ply_name"]
 
@@ -23,15 +23,21 @@ _TYPES = {"<f8": "double", "<f4": "float", "<u4": "uint"}
 
 
 def ply_name(frame: int) -> str:
-    return f"frame_{frame:05d}.ply"
+    return frame_file(frame, ".ply")
 
 
-class PlyWriter:
-    """Writes the frames into the folder ``path`` (which exists: the export's temporary folder)."""
+class PlyWriter(FolderWriter):
+    """``--format ply``: the frames into a folder (output/formats.py FolderWriter: written in a temporary
+    folder, renamed into place when complete)."""
 
-    def __init__(self, path, scene_name: str):
-        self.dir = Path(path)
-        self.scene = " ".join(str(scene_name).split()).encode("ascii", "backslashreplace").decode("ascii")
+    name = "ply"
+    default_name = "ply"
+    frame_suffix = ".ply"
+    label = "PLY"
+
+    def __init__(self, out, run):
+        super().__init__(out, run)
+        self.scene = " ".join(str(run.scene.name).split()).encode("ascii", "backslashreplace").decode("ascii")
 
     def write(self, fr: dict) -> None:
         ids = np.asarray(fr["ids"], np.int64)
@@ -48,9 +54,6 @@ class PlyWriter:
         header = (f"ply\nformat binary_little_endian 1.0\ncomment taichi-rocks scene {self.scene}\n"
                   f"comment frame {fr['frame']} time {fr['time']!r} s\nelement vertex {len(rows)}\n{props}"
                   "end_header\n")
-        with open(self.dir / ply_name(fr["frame"]), "xb") as f:
+        with open(self.frame_path(fr["frame"]), "xb") as f:
             f.write(header.encode("ascii"))
             f.write(rows.tobytes())
-
-    def close(self) -> None:
-        pass

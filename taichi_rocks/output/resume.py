@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .recording import remove_stale_temporaries, write_atomically, write_npz
+from ..config.scene import scene_to_dict
+from .atomic import remove_stale_temporaries, write_atomically
+from .npz import write_npz
 
 CHECKPOINT_EVERY = 30  # frames between saved states (~10 MB for 200,000 rocks, ~20 ms to write)
 KEEP = 2
@@ -32,8 +34,6 @@ def resume_dir(out_dir) -> Path:
 
 
 def fingerprint(scene, fps: float, resolution, rocks: str) -> str:
-    from ..config.scene import scene_to_dict
-
     blob = json.dumps({"scene": scene_to_dict(scene), "fps": float(fps), "resolution": [int(x) for x in resolution],
                        "rocks": rocks}, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()

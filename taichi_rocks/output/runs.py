@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .recording import Raw, frame_states
+from .npz import Raw
 
 __all__ = ["LIGHT", "MISSING", "RUN_KEYS", "load_run", "record_light", "RowChanges", "crop_mask", "check_selection"]
 
@@ -82,10 +82,10 @@ def check_selection(only: str, crop) -> None:
         raise ValueError(f"--crop must be a finite radius > 0 m, got {crop}")
 
 
-def record_light(sim, work: Path, frames: int, fps: float, progress, guard: bool, only: str = "flying",
-                 crop=None) -> dict:
-    """Simulate into ``work`` (memory-mapped .npy files and row files appended frame by frame); returns the
-    members of the light .npz (see the module docstring), in its order."""
+def record_light(sim, work: Path, frames: int, fps: float, states, only: str = "flying", crop=None) -> dict:
+    """Write the frames ``states`` yields ((f, ``sim.state()``), app/frames.py ``frame_states``) into ``work``
+    (memory-mapped .npy files and row files appended frame by frame); returns the members of the light .npz
+    (see the module docstring), in its order."""
     check_selection(only, crop)
     n, v, real = sim.n_rocks, len(sim.fleet.names), np.dtype(sim.world.np_real())
     shapes = {"time": ((frames,), np.float64), "origin": ((frames, 3), np.float64),
@@ -101,7 +101,7 @@ def record_light(sim, work: Path, frames: int, fps: float, progress, guard: bool
     previous, st = sim.launches_total, None
     try:
         arrays["frame_rows"][0] = 0
-        for f, st in frame_states(sim, frames, fps, guard, progress):
+        for f, st in states:
             origin = np.asarray(sim.origin, np.float64)
             for k in ("time", "bed_center", "vehicle_positions", "vehicle_headings"):
                 arrays[k][f] = st[k]

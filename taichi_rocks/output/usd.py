@@ -38,18 +38,33 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
 
+from .formats import FileWriter
 from .instances import PROTOTYPES
 from .shapes import box_mesh, camera_matrix, cylinder_mesh, rock_prototype
 
-__all__ = ["UsdWriter", "STEP_HOLD"]
+try:
+    from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+except ImportError:  # usd-core is optional: UsdWriter.check_target says how to install it
+    Gf = Sdf = Tf = Usd = UsdGeom = Vt = None
+
+__all__ = ["UsdWriter", "STEP_HOLD", "USD_SUFFIXES", "ground_extent"]
 
 STEP_HOLD = 1e-4  # time codes before a step of the origin at which the old origin is held
 ROCK_COLORS = ((0.42, 0.39, 0.35), (0.50, 0.46, 0.40), (0.35, 0.33, 0.31))
 GROUND_COLOR = (0.45, 0.40, 0.33)
 TIRE_COLOR = (0.08, 0.08, 0.08)
 WHEELS = (("FL", 0.5, 0.5), ("FR", 0.5, -0.5), ("RL", -0.5, 0.5), ("RR", -0.5, -0.5))
+USD_SUFFIXES = (".usdc", ".usd")  # crate files: saving again appends, so a long export streams
+
+
+def ground_extent(fleet, scene, frames: int, fps: float):
+    """(centre XY, half sides) of a ground rectangle around every vehicle's path over the export, with room
+    for the bed and the view around it."""
+    pts = np.array([p.position[:2] for f in range(max(frames, 1)) for p in fleet.poses(f / fps)])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    margin = float(scene.bed.radius) + float(scene.render.draw_distance)
+    return (lo + hi) / 2.0, (hi - lo) / 2.0 + margin
 
 
 def _mesh(stage, path: str, mesh, color) -> UsdGeom.Mesh:
@@ -77,11 +92,35 @@ def _prim_names(names) -> list:
     return out
 
 
-class UsdWriter:
-    """Writes one stage to ``path`` (a temporary name ending in .usdc; see the module docstring)."""
+class UsdWriter(FileWriter):
+    """``--format usd``: one stage (see the module docstring), written under a temporary name ending in .usdc
+    and renamed when complete (output/formats.py FileWriter)."""
 
-    def __init__(self, path, scene, fps: float, frames: int, ground: tuple, info: dict):
-        self.layer = Sdf.Layer.CreateNew(str(path))
+    name = "usd"
+    default_name = "{scene}.usdc"
+    suffixes = USD_SUFFIXES
+    temp_suffix = ".part.usdc"
+
+    @classmethod
+    def check_target(cls, out, overwrite: bool) -> None:
+        if Usd is None:
+            raise ValueError("--format usd needs the usd-core package: pip install usd-core "
+                             "(or pip install 'taichi-rocks[usd]')")
+        super().check_target(out, overwrite)
+
+    def __init__(self, out, run):
+        super().__init__(out, run)
+        scene, fps, frames = run.scene, run.fps, run.frames
+        info = {"scene": scene.name, "seed": int(scene.seed), "fps": float(fps), "dt": float(run.dt),
+                "frames": int(frames), "only": run.only, "crop": float(run.crop) if run.crop is not None else 0.0}
+        try:
+            self._stage(scene, fps, frames, ground_extent(run.fleet, scene, frames, fps), info)
+        except BaseException:
+            self.abort()
+            raise
+
+    def _stage(self, scene, fps: float, frames: int, ground: tuple, info: dict) -> None:
+        self.layer = Sdf.Layer.CreateNew(str(self.tmp))
         self.stage = stage = Usd.Stage.Open(self.layer)
         stage.SetMetadata("comment", f"taichi-rocks export of scene {scene.name!r}")
         UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
@@ -98,7 +137,7 @@ class UsdWriter:
         self.origin_op = bed.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
         self._rocks()
         self._vehicles(scene)
-        self._camera(scene)
+        self._camera_prim(scene)
         self.last_origin = None
         self.layer.Save()
 
@@ -143,7 +182,7 @@ class UsdWriter:
                 _mesh(self.stage, f"{root}/Wheel_{label}/Tire", tire, TIRE_COLOR)
             self.vehicle_ops.append(ops)
 
-    def _camera(self, scene) -> None:
+    def _camera_prim(self, scene) -> None:
         cam = UsdGeom.Camera.Define(self.stage, "/World/Camera")
         w, h = scene.render.resolution
         focal = 35.0  # the field of view depends only on aperture / focal length (same units)
@@ -156,7 +195,7 @@ class UsdWriter:
 
     # -------------------------------------------------------------------------------------- per frame
     def write(self, fr: dict) -> None:
-        """One frame (output/export.py: _run); saved to disk before returning."""
+        """One frame (output/formats.py); saved to disk before returning."""
         t = float(fr["frame"])
         origin = Gf.Vec3d(*map(float, fr["origin"]))
         if self.last_origin is not None and origin != self.last_origin:  # the origin steps: hold it (see above)
@@ -194,7 +233,16 @@ class UsdWriter:
             lo = hi = np.zeros(3)
         a["extent"].Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), t)
 
-    def close(self) -> None:
+    def close(self) -> int:
         self.layer.Save()
-        self.stage = None
-        self.layer = None
+        self._release()
+        return super().close()
+
+    def abort(self) -> None:
+        self._release()
+        super().abort()
+
+    def _release(self) -> None:
+        """Drop the stage, its layer and the handles into it (the layer is freed with the last one)."""
+        self.stage = self.layer = None
+        self.attrs, self.vehicle_ops, self.camera_op, self.origin_op = {}, [], None, None

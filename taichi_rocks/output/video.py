@@ -24,6 +24,8 @@ import time
 import zlib
 from pathlib import Path
 
+import imageio
+import imageio.v3 as iio
 import numpy as np
 
 from ..config.scene import Render
@@ -61,8 +63,6 @@ def finished_frames(frames_dir) -> int:
 
 def existing_size(frames_dir):
     """(W, H) of frame_00000.png, or None."""
-    import imageio.v3 as iio
-
     path = Path(frames_dir) / frame_name(0)
     if not path.is_file():
         return None
@@ -164,8 +164,6 @@ class FrameWriter:
 
     # --------------------------------------------------------------------------------------------------
     def _open_mp4(self) -> None:
-        import imageio
-
         self._writer = imageio.get_writer(
             str(self._tmp_video), format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
             pixelformat="yuv420p", macro_block_size=2, ffmpeg_log_level="error",
@@ -183,8 +181,6 @@ class FrameWriter:
 
     def _replay(self) -> None:
         """Resuming: the frames already on disk start the new video."""
-        import imageio.v3 as iio
-
         for i in range(self.start):
             self._writer.append_data(iio.imread(self.frames_dir / frame_name(i)))
 
@@ -276,8 +272,6 @@ class FrameWriter:
             self.timings["encode"] += time.perf_counter() - t0
 
     def _assemble_gif(self) -> None:
-        import imageio.v3 as iio
-
         if self.frames_written == 0:
             return
         t0 = time.perf_counter()

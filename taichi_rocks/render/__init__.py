@@ -1,2 +1,3 @@
-"""The offscreen GGUI renderer: kernels (the background layer), meshes, camera, window, overlays, the
-Renderer (one frame) and the pipeline (render_scene: a whole render to frames and a video)."""
+"""Drawing: the offscreen or shown GGUI renderer: kernels (the background layer), meshes, cameras, window,
+overlays, the view's panel and free camera, and the Renderer (one frame). What the ``render`` and ``view``
+commands do with it (the frame loop, outputs, resume; the window's loop and clock) is app/'s."""

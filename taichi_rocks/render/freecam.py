@@ -24,16 +24,20 @@ class FreeCamera:
 
     def __init__(self, speed: float = SPEED):
         self.speed = float(speed)
-        self.cam = ti.ui.Camera()
+        self.ggui = ti.ui.Camera()  # the GGUI camera track_user_inputs moves (in the helper frame)
         self.origin = None
 
     def start(self, view: View, origin) -> None:
         self.origin = np.asarray(origin, np.float64).copy()
-        self.cam.position(*(TO_HELPER @ np.asarray(view.eye, np.float64)))
-        self.cam.lookat(*(TO_HELPER @ np.asarray(view.target, np.float64)))
-        self.cam.up(0.0, 1.0, 0.0)
-        self.cam.last_time = None
-        self.cam.last_mouse_x = self.cam.last_mouse_y = None
+        self.ggui.position(*(TO_HELPER @ np.asarray(view.eye, np.float64)))
+        self.ggui.lookat(*(TO_HELPER @ np.asarray(view.target, np.float64)))
+        self.ggui.up(0.0, 1.0, 0.0)
+        self.ggui.last_time = None
+        self.ggui.last_mouse_x = self.ggui.last_mouse_y = None
+
+    def forget_mouse(self) -> None:
+        """The next drag starts afresh (the mouse state belonged to a window that is gone)."""
+        self.ggui.last_mouse_x = self.ggui.last_mouse_y = None
 
     def _helper(self, which) -> np.ndarray:
         return np.array([float(which[k]) for k in range(3)])
@@ -43,13 +47,13 @@ class FreeCamera:
         origin = np.asarray(origin, np.float64)
         if self.origin is not None and np.any(origin != self.origin):
             move = TO_HELPER @ (self.origin - origin)  # the same world point in the new local frame
-            self.cam.position(*(self._helper(self.cam.curr_position) + move))
-            self.cam.lookat(*(self._helper(self.cam.curr_lookat) + move))
+            self.ggui.position(*(self._helper(self.ggui.curr_position) + move))
+            self.ggui.lookat(*(self._helper(self.ggui.curr_lookat) + move))
         self.origin = origin.copy()
-        self.cam.track_user_inputs(window, movement_speed=self.speed, hold_key=ti.ui.RMB)
+        self.ggui.track_user_inputs(window, movement_speed=self.speed, hold_key=ti.ui.RMB)
         return self.view(heading)
 
     def view(self, heading: float) -> View:
-        eye = (TO_HELPER.T @ self._helper(self.cam.curr_position)).astype(np.float32)
-        target = (TO_HELPER.T @ self._helper(self.cam.curr_lookat)).astype(np.float32)
+        eye = (TO_HELPER.T @ self._helper(self.ggui.curr_position)).astype(np.float32)
+        target = (TO_HELPER.T @ self._helper(self.ggui.curr_lookat)).astype(np.float32)
         return frame_of(eye, target, heading)

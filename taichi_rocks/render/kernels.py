@@ -24,7 +24,7 @@ from .shadows import SHADE_ONE, Shade, smooth01 as _smooth01, splat_shadow as _s
     take_shade as _take_shade, vehicle_shadows as _vehicle_shadows
 from .tiles import Visible, tile_in_view
 
-__all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "Camera", "Frustum", "Sizing", "Light", "Ground",
+__all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "CameraBasis", "Frustum", "Sizing", "Light", "Ground",
            "Palette", "Shade", "Buffers", "Bucket", "Visible", "rock_color", "rocks_pass", "clear_buffers", "paint_ground",
            "to_u8"]
 
@@ -35,8 +35,8 @@ SHAPED_PX = 4.0  # from this many pixels in radius, splatted rocks get irregular
 _vec2 = ti.types.vector(2, ti.f32)
 _vec3 = ti.types.vector(3, ti.f32)
 
-#: the camera: eye and unit basis (right is horizontal: no roll)
-Camera = ti.types.struct(eye=_vec3, fwd=_vec3, right=_vec3, up=_vec3)
+#: the camera as the kernels see it: eye and unit basis (right is horizontal: no roll)
+CameraBasis = ti.types.struct(eye=_vec3, fwd=_vec3, right=_vec3, up=_vec3)
 #: the view volume: image half-extents at 1 m depth (tan_*), their secants (a sphere's margin), near and far
 #: (the draw distance) planes, pixels per metre at 1 m depth
 Frustum = ti.types.struct(tan_x=ti.f32, tan_y=ti.f32, sec_x=ti.f32, sec_y=ti.f32, near=ti.f32, far=ti.f32,
@@ -299,7 +299,7 @@ def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
 
 
 @ti.kernel
-def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: Camera,
+def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: CameraBasis,
                fr: Frustum, size: Sizing, light: Light, sh: Shade, vis: ti.template(), tiles: _vec2):
     """Cull the rocks of ``world`` to the view frustum and the draw distance: the first ``n`` (or, with
     active stepping, ``world.stored``, the active list: ``ipar[N_ROCKS]`` rocks), then with ``world.stored``
@@ -494,7 +494,7 @@ def _sky_row(buf, j, dr, rocks, shaded, pal):
 
 
 @ti.kernel
-def paint_ground(buf: ti.template(), cam: Camera, fr: Frustum, ground: Ground, pal: Palette, n_cars: ti.i32):
+def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Ground, pal: Palette, n_cars: ti.i32):
     """Sky, ground and (``buf.splat``) the splatted resting rocks, one ray per pixel, into the background
     image ``buf.sky`` (W, H), row 0 at the bottom.
 

@@ -2,7 +2,7 @@
 
 Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidden window
 (:mod:`.window`) and read back (``render``), or declared in a window on the screen (``view``,
-:mod:`.viewer`: the same code draws both). A frame is made of two layers:
+app/view.py: the same code draws both). A frame is made of two layers:
 
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;
@@ -108,11 +108,11 @@ class Renderer:
         self.last_count = 0
         self.tiles_in_view = 0  # tiles of the store the last rock pass visited (active stepping)
         self.timings = {"cull": 0.0, "draw": 0.0}
-        self._camera = ggui(ti.ui.Camera)
-        self._camera.up(*GL_UP)
-        self._camera.fov(self.fov)
-        self._camera.z_near(NEAR)
-        self._camera.z_far(max(1000.0, 3.0 * self.draw_distance))
+        self._ggui_camera = ggui(ti.ui.Camera)  # GGUI's camera of the 3D layer, set from the view each frame
+        self._ggui_camera.up(*GL_UP)
+        self._ggui_camera.fov(self.fov)
+        self._ggui_camera.z_near(NEAR)
+        self._ggui_camera.z_far(max(1000.0, 3.0 * self.draw_distance))
         # rocks: compact buckets (power-of-two capacities), allocated when first needed
         self.n_rocks = int(sim.n_rocks)
         self._buckets = {}
@@ -237,7 +237,7 @@ class Renderer:
 
     @staticmethod
     def _cam(eye, fwd, right, up):
-        return K.Camera(eye=_vec(eye), fwd=_vec(fwd), right=_vec(right), up=_vec(up))
+        return K.CameraBasis(eye=_vec(eye), fwd=_vec(fwd), right=_vec(right), up=_vec(up))
 
     def _shade(self, sun) -> K.Shade:
         """The shadows' geometry for a sun direction (unit, towards the sun): see :class:`.kernels.Shade`."""
@@ -349,7 +349,7 @@ class Renderer:
         if win.shown:
             win.canvas.set_image(self._buf.sky)
         scene = win.scene
-        cam = self._camera
+        cam = self._ggui_camera
         cam.position(*(float(x) for x in eye))
         cam.lookat(*(float(x) for x in target))
         cam.up(*GL_UP)

@@ -8,6 +8,7 @@ leaks ~0.3 MB per captured frame on lavapipe, so the renderer recreates its wind
 each new window gives freed heap memory back to the OS (:func:`_trim_heap`).
 """
 
+import ctypes
 from pathlib import Path
 
 import taichi as ti
@@ -37,8 +38,6 @@ def _trim_heap() -> None:
     this, RSS still climbs by ~50 MB steps every few window re-creations; with it, ~5 MB per 100 frames."""
     if not _LIBC:
         try:
-            import ctypes
-
             libc = ctypes.CDLL("libc.so.6")
             _LIBC.append(libc.malloc_trim)
         except (OSError, AttributeError):  # not glibc
@@ -47,7 +46,7 @@ def _trim_heap() -> None:
         _LIBC[0](0)
 
 
-trim_heap = _trim_heap  # for windows that are never recreated (render/viewer.py)
+trim_heap = _trim_heap  # for windows that are never recreated (app/view.py)
 
 
 class HiddenWindow:
@@ -107,7 +106,7 @@ class ShownWindow(HiddenWindow):
     """An on-screen ``resolution`` GGUI window named ``title``: the renderer declares the background image
     (``canvas.set_image``) and the 3D scene in it and reads nothing back; its owner adds the panel and calls
     ``window.show()`` (which only a shown window may do). It is never recreated: that would flash on the
-    screen (see render/viewer.py for its memory)."""
+    screen (see app/view.py for its memory)."""
 
     shown = True
 

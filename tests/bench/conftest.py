@@ -6,7 +6,7 @@ import pytest
 
 @pytest.fixture(scope="session")
 def bench_run(tmp_path_factory, taichi_cpu):
-    from taichi_rocks.bench import run_bench
+    from taichi_rocks.bench.run import run_bench
 
     out = tmp_path_factory.mktemp("bench")
     res = run_bench(out_dir=out, quick=True, tiny=True, progress=False)

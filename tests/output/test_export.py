@@ -377,3 +377,86 @@ def test_tumble_orientations_are_unit_and_turn_only_while_moving():
     assert turned[:10].all() and not turned[11:].any()
     assert np.all(np.linalg.norm(second["angular_velocities"][:10], axis=1) >= 3.0)
     assert not second["angular_velocities"][10:].any()
+
+
+def test_every_registered_format_is_a_writer_named_as_its_key():
+    """The registry (output/formats.py FORMATS) is what `export --format` lists; each entry names its writer."""
+    from taichi_rocks.output.formats import FORMATS, ExportWriter, writer_class
+
+    assert list(FORMATS) == ["usd", "ply"]
+    for name in FORMATS:
+        cls = writer_class(name)
+        assert issubclass(cls, ExportWriter) and cls.name == name and cls.default_name
+    with pytest.raises(ValueError, match="format must be one of usd, ply"):
+        writer_class("obj")
+    r = cli("export", "--help")
+    assert "{usd,ply}" in r.stdout
+
+
+class _Landings:
+    """A format of one module, as a new one is written (output/formats.py): one CSV row per rock that came to
+    rest in a frame, from the whole state every frame carries."""
+
+    @staticmethod
+    def make(fail_at=None):
+        from taichi_rocks.output.formats import FileWriter
+
+        class LandingsWriter(FileWriter):
+            name, default_name, suffixes = "landings", "{scene}_landings.csv", (".csv",)
+            calls = []
+
+            def __init__(self, out, run):
+                super().__init__(out, run)
+                self.f, self.prev = open(self.tmp, "x"), None
+                self.f.write("frame,rock\n")
+
+            def write(self, frame):
+                if frame["frame"] == fail_at:
+                    raise RuntimeError("disk full")
+                phase = frame["state"]["phase"]
+                if self.prev is not None:
+                    for i in np.flatnonzero((self.prev != 0) & (phase == 0)):
+                        self.f.write(f"{frame['frame']},{i}\n")
+                self.prev = phase.copy()
+                self.calls.append(frame["frame"])
+
+            def close(self):
+                self.f.close()
+                self.calls.append("close")
+                return super().close()
+
+            def abort(self):
+                self.f.close()
+                self.calls.append("abort")
+                super().abort()
+
+        return LandingsWriter
+
+
+def test_a_new_format_is_one_module_and_one_registry_line(taichi_cpu, tmp_path, monkeypatch):
+    """A writer registered in FORMATS gets every frame in order, then close (the file appears under its
+    name, complete); a writer that fails is aborted: nothing is left, not even the folder the export made."""
+    import types
+
+    from taichi_rocks.app.export import export_run
+    from taichi_rocks.config.scene import load_scene
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.output import formats
+
+    for fail_at, out in ((None, tmp_path / "a" / "x.csv"), (3, tmp_path / "b" / "x.csv")):
+        cls = _Landings.make(fail_at)
+        module = types.ModuleType("taichi_rocks.output.landings")
+        module.LandingsWriter = cls
+        monkeypatch.setitem(sys.modules, module.__name__, module)
+        monkeypatch.setitem(formats.FORMATS, "landings", ("landings", "LandingsWriter"))
+        sim = Simulation(load_scene(MINIMAL))
+        if fail_at is None:
+            info = export_run(sim, out, 40, 30.0, fmt="landings")
+            rows = out.read_text().splitlines()
+            assert cls.calls == list(range(40)) + ["close"] and info["bytes"] == out.stat().st_size
+            assert rows[0] == "frame,rock" and len(rows) > 1  # rocks thrown in 1.3 s have landed
+            assert sorted(p.name for p in out.parent.iterdir()) == ["x.csv"]
+        else:
+            with pytest.raises(RuntimeError, match="disk full"):
+                export_run(sim, out, 10, 30.0, fmt="landings")
+            assert cls.calls == [0, 1, 2, "abort"] and not out.parent.exists()

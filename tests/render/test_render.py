@@ -15,7 +15,7 @@ N_FRAMES = 6
 
 @pytest.fixture(scope="module")
 def pipeline(taichi_cpu):
-    from taichi_rocks.render import pipeline
+    from taichi_rocks.app import render as pipeline  # the render command (app/render.py)
 
     return pipeline
 
@@ -515,7 +515,7 @@ def test_saved_states_are_the_same_bytes(shared, tmp_path):
     """A render's saved state is an .npz without time stamps: the same state gives the same bytes."""
     import zipfile
 
-    from taichi_rocks.output.recording import ZIP_EPOCH
+    from taichi_rocks.output.npz import ZIP_EPOCH
     from taichi_rocks.output.resume import RenderCheckpoints
 
     sim, r = shared

@@ -1,4 +1,4 @@
-"""The view's clock (render/timeline.py) without a window: scrubbing back equals playing straight to the frame,
+"""The view's clock (app/timeline.py) without a window: scrubbing back equals playing straight to the frame,
 the saved states stay bounded, playback speed and looping; and the viewer's file helpers."""
 
 import numpy as np
@@ -31,7 +31,7 @@ def _live(scene):
 
 
 def test_scrubbing_back_equals_playing_straight_to_the_frame(scene):
-    from taichi_rocks.render.timeline import Timeline
+    from taichi_rocks.app.timeline import Timeline
 
     sim, rig, view = _live(scene)
     tl = Timeline(FPS, 60, every=5, keep=3)
@@ -51,7 +51,7 @@ def test_scrubbing_back_equals_playing_straight_to_the_frame(scene):
 
 
 def test_playback_speed_pause_and_loop(scene):
-    from taichi_rocks.render.timeline import MAX_CATCH_UP, Timeline
+    from taichi_rocks.app.timeline import MAX_CATCH_UP, Timeline
 
     sim, rig, view = _live(scene)
     tl = Timeline(FPS, 10, every=4)
@@ -67,7 +67,7 @@ def test_playback_speed_pause_and_loop(scene):
 
 
 def test_speed_steps_between_a_quarter_and_four():
-    from taichi_rocks.render.timeline import Timeline
+    from taichi_rocks.app.timeline import Timeline
 
     tl = Timeline(FPS, 10)
     for _ in range(5):
@@ -79,7 +79,7 @@ def test_speed_steps_between_a_quarter_and_four():
 
 
 def test_screenshot_names_never_overwrite(tmp_path):
-    from taichi_rocks.render.viewer import screenshot_path
+    from taichi_rocks.app.view import screenshot_path
 
     p = screenshot_path(tmp_path, "convoy", 3.25)
     assert p.name == "convoy_t003.25.png"
@@ -88,7 +88,7 @@ def test_screenshot_names_never_overwrite(tmp_path):
 
 
 def test_record_folder_must_be_empty_unless_overwrite(tmp_path):
-    from taichi_rocks.render.viewer import check_record_dir
+    from taichi_rocks.app.view import check_record_dir
 
     check_record_dir(tmp_path / "new", False)  # missing: fine
     (tmp_path / "frame_00000.png").write_bytes(b"x")

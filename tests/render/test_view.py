@@ -104,7 +104,7 @@ class View:
 
     @property
     def wid(self) -> str:
-        """The viewer's window now (it opens a new one now and then to free GGUI's memory: render/viewer.py)."""
+        """The viewer's window now (it opens a new one now and then to free GGUI's memory: app/view.py)."""
         return self._window()
 
     def _window(self) -> str:
@@ -252,7 +252,7 @@ def test_wetness_slider_dragged_with_the_mouse_reaches_the_kernels(view):
 
 def _drag(view, x_from, x_to, y, done):
     """Drag the mouse along row ``y``, then wait until ``done(status)``; again if the viewer opened a new window
-    meanwhile (render/viewer.py: a drag across two windows is lost)."""
+    meanwhile (app/view.py: a drag across two windows is lost)."""
     for _ in range(3):
         before = view.status()["window_refreshes"]
         _drag_once(view, x_from, x_to, y)

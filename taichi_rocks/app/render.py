@@ -1,5 +1,6 @@
-"""Simulate a scene and render it to PNG frames and a video: arguments, outputs, resuming an interrupted
-render (output/resume.py), the frame loop and its profile."""
+"""``taichi-rocks render``: simulate a scene and render it to PNG frames and a video: arguments, outputs,
+resuming an interrupted render (output/resume.py), the frame loop and its profile. The drawing is
+render/renderer.py's; the frames and the video are written by output/video.py."""
 
 import os
 import sys
@@ -7,10 +8,18 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
-from ..config.resolution import check_resolution
-from .renderer import WINDOW_EVERY, Renderer, check_rocks
+from tqdm import tqdm
 
-__all__ = ["render_scene"]
+from ..config.resolution import check_resolution
+from ..config.scene import load_scene
+from ..engine.runtime import init_taichi
+from ..engine.simulation import Simulation
+from ..output.atomic import new_folders
+from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint, resume_dir
+from ..output.video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
+from ..render.renderer import WINDOW_EVERY, Renderer, check_rocks
+
+__all__ = ["render_scene", "render_dir", "resumable"]
 
 
 def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=None, fmt="mp4", arch="cpu",
@@ -52,13 +61,21 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     return _report(job, run, times, profile)
 
 
+def render_dir(scene, out_dir=None) -> Path:
+    """The folder a render of ``scene`` writes to: ``out_dir``, by default ``renders/<scene name>/``."""
+    return Path(out_dir) if out_dir is not None else Path("renders") / scene.name
+
+
+def resumable(out_dir) -> bool:
+    """True if a render into ``out_dir`` that ended early kept frames to resume from: it leaves its saved states
+    (output/resume.py) only then, beside at least one finished frame."""
+    return resume_dir(out_dir).is_dir() and finished_frames(output_paths(out_dir, "", "png")["frames"]) > 0
+
+
 def _draw(job, run, resume, progress, on_frame) -> SimpleNamespace:
     """Open the outputs (checkpoints, frame writer), replay to the first frame to draw and draw the rest. The
     folders this creates are removed again if the render ends before its first finished frame (and then the
     saved states too: there is nothing to resume from)."""
-    from ..output.recording import new_folders
-    from ..output.video import FrameWriter, finished_frames
-
     with new_folders(job.paths["frames"]):
         try:
             run.checkpoints.start(resume, job.start)
@@ -103,11 +120,8 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
     """What to render and where: the scene, the output paths, the frame count and rate, the first frame to
     draw (``start``: after the frames an interrupted render kept) and the old files to remove (``old``).
     Raises before anything is written."""
-    from ..config.scene import load_scene
-    from ..output.video import existing_size, finished_frames, frame_name, output_paths
-
     scene = load_scene(scene_or_path) if isinstance(scene_or_path, (str, os.PathLike)) else scene_or_path
-    out_dir = Path(out_dir) if out_dir is not None else Path("renders") / scene.name
+    out_dir = render_dir(scene, out_dir)
     paths = output_paths(out_dir, scene.name, fmt)  # ValueError on an unknown format
     video_fps = float(fps if fps is not None else scene.render.fps)
     n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))
@@ -132,10 +146,6 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
 def _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume) -> SimpleNamespace:
     """Taichi, the simulation, the renderer (its window) and the checkpoints; the old outputs are removed only
     once all of these stand."""
-    from ..engine.runtime import init_taichi
-    from ..engine.simulation import Simulation
-    from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint
-
     init_taichi(arch)
     sim = Simulation(job.scene, arch=arch)
     renderer = Renderer(sim, resolution=resolution, fps=job.video_fps, rocks=rocks, window_every=window_every)
@@ -175,8 +185,6 @@ def _replay(job, run) -> float:
 def _frame_loop(job, run, progress, on_frame) -> SimpleNamespace:
     """Simulate, draw and write frames ``job.start`` ... ``job.n_frames - 1``; close the renderer and the writer
     (the video is finished only if every frame was written). Return the loop's timings."""
-    from tqdm import tqdm
-
     sim, renderer, writer, checkpoints = run.sim, run.renderer, run.writer, run.checkpoints
     t = SimpleNamespace(sim=0.0, first=0.0)
     ok = False

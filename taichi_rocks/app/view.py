@@ -1,9 +1,9 @@
 """``taichi-rocks view``: the simulation in a window, drawn by the same Renderer as ``render``.
 
 Each frame shown: the keys, the clock (:mod:`.timeline`: play, step, scrub; the simulation only stands at
-frame times, so frame k here is ``render``'s frame k), the camera (the rig's presets or :mod:`.freecam`), the
+frame times, so frame k here is ``render``'s frame k), the camera (the rig's presets or render/freecam.py), the
 Renderer declaring the background image and the 3D scene in the shown window (render/window.py
-``ShownWindow``), the panel (:mod:`.panel`), then ``window.show()``. Runtime parameters go to the engine through
+``ShownWindow``), the panel (render/panel.py), then ``window.show()``. Runtime parameters go to the engine through
 engine/tuning.py ``set_runtime``; a switch is applied one frame after its "recompiling" notice was shown, by
 a new Simulation restored from a checkpoint (``rebuilder``).
 
@@ -31,16 +31,18 @@ from pathlib import Path
 import numpy as np
 import taichi as ti
 
+from ..config.scene import SceneError
 from ..engine.probes import rocks_in_air
-from ..engine.tuning import RUNTIME_KEYS, SWITCH_KEYS, rebuilder, scene_value, set_runtime
+from ..engine.simulation import Simulation
+from ..engine.tuning import RUNTIME_KEYS, SWITCH_KEYS, rebuilder, runtime_values, scene_value, set_runtime
 from ..motion.camera import VIEWS
-from ..output.recording import write_atomically
+from ..output.atomic import new_folders, write_atomically
 from ..output.video import frame_name, png_bytes
-from .freecam import FreeCamera
-from .panel import draw_panel
-from .renderer import Renderer
+from ..render.freecam import FreeCamera
+from ..render.panel import draw_panel
+from ..render.renderer import Renderer
+from ..render.window import ShownWindow, trim_heap
 from .timeline import Timeline
-from .window import ShownWindow, trim_heap
 
 __all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "check_record_dir", "screenshot_path"]
 
@@ -78,8 +80,6 @@ class Viewer:
     """A window on a live simulation of ``scene``. See the module docstring."""
 
     def __init__(self, scene, arch="cpu", resolution=None, record=None, status_path=None):
-        from ..engine.simulation import Simulation
-
         self.sim = Simulation(scene, arch=arch)
         res = tuple(resolution) if resolution is not None else tuple(int(x) for x in scene.render.resolution)
         self.win = ShownWindow(res, title=f"taichi-rocks view: {scene.name}")
@@ -173,7 +173,7 @@ class Viewer:
         self.refreshes += 1
         self._rss_base = None
         if self.free_on:  # the free camera's mouse state belonged to the old window
-            self.free.cam.last_mouse_x = self.free.cam.last_mouse_y = None
+            self.free.forget_mouse()
 
     # -------------------------------------------------------------------------------------------- input
     def _keys(self) -> None:
@@ -216,8 +216,6 @@ class Viewer:
         self.camera_name = name
 
     def _apply(self, ch) -> None:
-        from ..config.scene import SceneError
-
         if ch.seek is not None:
             self._seek(ch.seek)
         if ch.runtime:
@@ -267,8 +265,6 @@ class Viewer:
 
     def status(self) -> dict:
         """What the window shows now, for programs that drive it (the tests)."""
-        from ..engine.tuning import runtime_values
-
         tl = self.timeline
         return {"frame": tl.frame, "frames": tl.frames, "time": tl.time, "paused": not tl.playing, "speed": tl.speed,
                 "launches": self.sim.launches_total, "in_air": self.in_air, "camera": self.camera_name,
@@ -293,8 +289,6 @@ def view_scene(scene, arch="cpu", resolution=None, record=None, overwrite=False,
     """Open the window on ``scene`` (a validated Scene) and run it until closed; see :class:`Viewer`.
     ``record``: a folder to write every frame shown into (FileExistsError if it holds files, unless
     ``overwrite``). Returns the summary of :meth:`Viewer.run`."""
-    from ..output.recording import new_folders
-
     if record is not None:
         check_record_dir(record, overwrite)
     status_path = status_path if status_path is not None else os.environ.get(STATUS_ENV)

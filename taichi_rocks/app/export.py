@@ -1,0 +1,77 @@
+"""``taichi-rocks export``: a run written for the tools artists use, frame by frame while simulating.
+
+The format is a writer of the registry (output/formats.py: USD, PLY, ...); this runs the frames (app/frames.py),
+makes each exported frame (output/export.py) and hands it to the writer, which writes under a temporary name
+beside the output and renames it when complete. An existing output is replaced only with ``overwrite``
+(checked by the writer before anything is simulated); the missing folders of the output are created, and
+removed again if the export fails or is interrupted.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from ..engine.simulation import Simulation
+from ..output.atomic import new_folders, remove_stale_temporaries
+from ..output.export import ExportFrames
+from ..output.formats import ExportRun, writer_class
+from ..output.runs import check_selection
+from .frames import frame_count, frame_states
+
+__all__ = ["export_scene", "export_run", "default_out"]
+
+
+def default_out(scene, fmt: str) -> Path:
+    """Where ``export --format fmt`` writes without ``--out``: under ``renders/<scene>/``."""
+    return Path("renders") / scene.name / writer_class(fmt).default_name.format(scene=scene.name)
+
+
+def export_scene(scene, out=None, fmt: str = "usd", frames=None, fps=None, arch: str = "cpu", seed=None,
+                 overwrite: bool = False, only=None, crop=None, progress=None) -> dict:
+    """Simulate a validated ``scene`` and export it as ``fmt`` to ``out`` (default :func:`default_out`);
+    ``frames`` and ``fps`` as app/frames.py :func:`frame_count`, ``only`` default "all". Refuses a bad or
+    existing output (ValueError, FileExistsError) before anything runs. ``progress``: a tqdm bar on stderr;
+    None shows it only on a terminal. Returns :func:`export_run`'s summary."""
+    writer = writer_class(fmt)
+    out = Path(out) if out is not None else default_out(scene, fmt)
+    writer.check_target(out, overwrite)
+    frames, fps = frame_count(scene, frames, fps)
+    sim = Simulation(scene, arch=arch, seed=seed)
+    with tqdm(total=frames, unit="frame", desc=f"export {scene.name}", file=sys.stderr,
+              disable=None if progress is None else not progress) as bar:
+        return export_run(sim, out, frames, fps, fmt=fmt, only=only or "all", crop=crop, progress=bar)
+
+
+def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = "all", crop=None,
+               progress=None, guard: bool = True) -> dict:
+    """Simulate ``frames`` frames of ``sim`` and write them to ``out`` as ``fmt`` (see the module docstring).
+    Returns a summary: path, frames, bytes, rocks per frame (all, mean, max)."""
+    check_selection(only, crop)
+    cls = writer_class(fmt)
+    out = Path(out)
+    run = ExportRun(scene=sim.scene, fps=float(fps), frames=int(frames), dt=float(sim.dt), only=only, crop=crop,
+                    fleet=sim.fleet)
+    counts = []
+    with new_folders(out.parent):
+        remove_stale_temporaries(out)
+        make = ExportFrames(sim.scene, sim.n_rocks, fps, only, crop)
+        writer = None
+        try:
+            writer = cls(out, run)
+            for f, st in frame_states(sim, frames, fps, guard, progress):
+                frame = make.frame(f, st, sim.origin)
+                writer.write(frame)
+                counts.append(len(frame["ids"]))
+            size = writer.close()
+        except BaseException:
+            if writer is not None:
+                writer.abort()
+            raise
+    counts = np.asarray(counts, np.int64)
+    return {"path": str(out), "frames": frames, "bytes": size, "rocks_per_frame": counts,
+            "rocks_mean": float(counts.mean()) if len(counts) else 0.0,
+            "rocks_max": int(counts.max()) if len(counts) else 0}

@@ -1,0 +1,73 @@
+"""``taichi-rocks simulate``: run a scene headless and write its run file (.npz), full or light layout
+(output/recording.py, output/runs.py), atomically: a temporary file beside the final name, renamed when
+complete; the folders it created are removed again if the run fails or is interrupted."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+from ..engine.simulation import Simulation
+from ..output.atomic import new_folders, remove_stale_temporaries, temp_name, write_atomically
+from ..output.npz import write_npz
+from ..output.recording import record_full
+from ..output.runs import record_light
+from .frames import frame_count, frame_states
+
+__all__ = ["simulate_scene", "record"]
+
+
+def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", seed=None, overwrite: bool = False,
+                   layout: str = "light", only=None, crop=None, progress=None) -> dict:
+    """Simulate a validated ``scene`` and write its run file to ``out`` (default
+    ``renders/<scene>/<scene>.npz``); ``frames`` and ``fps`` as app/frames.py :func:`frame_count`. Refuses
+    (ValueError, FileExistsError) before anything runs: ``only``/``crop`` with the full layout, an existing
+    ``out`` without ``overwrite``, a folder named ``out``. ``progress``: a tqdm bar on stderr; None shows it
+    only on a terminal. Returns :func:`record`'s summary with "launches" (rocks launched in the run)."""
+    out = Path(out) if out is not None else Path("renders") / scene.name / f"{scene.name}.npz"
+    if layout == "full" and (only or crop):
+        raise ValueError("--only and --crop need --layout light (the full layout holds every rock)")
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out}: exists; pass --overwrite to replace it")
+    if out.exists() and out.is_dir():
+        raise ValueError(f"{out}: is a directory, expected an .npz file name")
+    frames, fps = frame_count(scene, frames, fps)
+    sim = Simulation(scene, arch=arch, seed=seed)
+    with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", file=sys.stderr,
+              disable=None if progress is None else not progress) as bar:
+        info = record(sim, out, frames, fps, progress=bar, layout=layout, only=only or "flying", crop=crop)
+    info["launches"] = sim.launches_total
+    return info
+
+
+def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True, layout: str = "light",
+           only: str = "flying", crop=None) -> dict:
+    """Run ``sim`` for ``frames`` frames and write ``out`` (its missing folders are created, and removed
+    again if the run fails or is interrupted). Returns a small summary.
+
+    ``layout``: "full" (every rock of every frame, float64 world positions) or "light" (output/runs.py; with
+    ``only`` "flying" or "all" and ``crop`` a radius in metres or None). With ``guard``, the state is checked
+    after every frame (see Simulation.check_health); on failure the HealthError propagates and nothing is
+    written under ``out``.
+    """
+    out = Path(out)
+    if layout not in ("full", "light"):
+        raise ValueError(f"layout must be full or light, got {layout!r}")
+    with new_folders(out.parent):
+        remove_stale_temporaries(out)
+        work = temp_name(out)
+        try:
+            work.mkdir(mode=0o700)
+            states = frame_states(sim, frames, fps, guard, progress)
+            if layout == "full":
+                members = record_full(sim, work, frames, fps, states)
+            else:
+                members = record_light(sim, work, frames, fps, states, only=only, crop=crop)
+            write_atomically(out, lambda f: write_npz(f, members))
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+    return {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size,
+            "layout": layout}

@@ -1,0 +1,176 @@
+"""Export formats: one writer interface, several back-ends, one registry (``taichi-rocks export --format``).
+
+Every format is a writer with the same four calls, as the viewers of newton-physics share one ``ViewerBase``:
+
+* ``Writer.check_target(out, overwrite)`` (class method): refuse an output that cannot or must not be written
+  (ValueError, FileExistsError; one line each), before anything is simulated;
+* ``Writer(out, run)``: open, start writing ``out`` (under a temporary name beside it); ``run`` is the
+  :class:`ExportRun` (the scene, frame count and rate, the selection, the vehicles' poses at any time);
+* ``write(frame)``: one frame (below), in order;
+* ``close()``: finish, ``out`` complete under its final name; returns its size in bytes. ``abort()`` instead,
+  on a failure or Ctrl-C: remove what was written.
+
+app/export.py runs the frames and drives the writer; output/export.py makes the frames. A frame is a dict:
+``frame`` (index), ``time`` (s), ``origin`` (3,) float64 (the engine's floating origin); the rocks chosen
+(``--only``, ``--crop``), M of them: ``world`` (M, 3) float64 world metres, ``local`` (M, 3) float32
+(``world - origin``), ``velocities`` (M, 3), ``radii`` (M,), ``ids`` (M,) int64 (new after a recycle),
+``proto`` (M,) rock shape, ``orientations`` (M, 4) quaternions (x, y, z, w), ``angular_velocities`` (M, 3)
+rad/s (output/instances.py); ``vehicles``: positions (V, 3), unwrapped headings (V,), wheel angles
+``front`` and ``rear`` (V,); ``camera``: (eye, target) of the scene's camera rig, world points; and
+``state``: the engine's whole state of the frame (``Simulation.state()``: every rock, phase included).
+
+Adding a format (impact events as CSV or PLY from the phase changes in ``frame["state"]``, per-rock
+orientations as a table, ...) is one module and one line: a module ``output/<name>.py`` with a subclass of
+:class:`FileWriter` (one file: implement ``write``, and ``close`` if the file needs finishing) or
+:class:`FolderWriter` (a file per frame in a folder), whose ``name`` is the ``--format`` value, and its line in
+:data:`FORMATS` below. The command line lists FORMATS without importing the writers (USD's needs the optional
+usd-core, slow to import); :func:`writer_class` imports one when it is used. This module needs only the
+standard library.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional
+
+from .atomic import temp_name
+
+__all__ = ["FORMATS", "ExportRun", "ExportWriter", "FileWriter", "FolderWriter", "writer_class", "frame_file"]
+
+# --format name -> (module in output/, its writer class); the first is the default
+FORMATS = {
+    "usd": ("usd", "UsdWriter"),
+    "ply": ("ply", "PlyWriter"),
+}
+
+
+def writer_class(name: str) -> type:
+    """The writer class of format ``name`` (its module imported now); ValueError for an unknown name."""
+    if name not in FORMATS:
+        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {name!r}")
+    module, cls = FORMATS[name]
+    return getattr(importlib.import_module(f"{__package__}.{module}"), cls)
+
+
+def frame_file(frame: int, suffix: str) -> str:
+    """The file of a frame in a folder format: ``frame_00000.ply``."""
+    return f"frame_{frame:05d}{suffix}"
+
+
+@dataclass(frozen=True)
+class ExportRun:
+    """What a writer knows of the whole export when it opens."""
+
+    scene: Any  # the validated Scene (config/scene.py), with the run's seed
+    fps: float
+    frames: int
+    dt: float  # s, the simulation's step
+    only: str  # "all" or "flying"
+    crop: Optional[float]  # m, or None
+    fleet: Any  # motion/vehicles.py Fleet: ``poses(t)`` of every vehicle at any time (extents, paths)
+
+
+class ExportWriter:
+    """The interface of an export format (see the module docstring)."""
+
+    name = ""  # the --format value
+    default_name = ""  # the output under renders/<scene>/ when --out is not given ("{scene}" is replaced)
+
+    @classmethod
+    def check_target(cls, out, overwrite: bool) -> None:
+        raise NotImplementedError
+
+    def __init__(self, out, run: ExportRun):
+        self.out = Path(out)
+        self.run = run
+
+    def write(self, frame: dict) -> None:
+        raise NotImplementedError
+
+    def close(self) -> int:
+        raise NotImplementedError
+
+    def abort(self) -> None:
+        raise NotImplementedError
+
+
+class FileWriter(ExportWriter):
+    """A format written as one file: into a temporary file beside ``out`` (``self.tmp``, ending in
+    ``temp_suffix``, for libraries that pick the format by extension), renamed over ``out`` by :meth:`close`."""
+
+    suffixes: tuple = ()  # file name endings accepted (lower case); the first is the one named in messages
+    temp_suffix = ".part"
+
+    @classmethod
+    def check_target(cls, out, overwrite: bool) -> None:
+        out = Path(out)
+        first, others = cls.suffixes[0], cls.suffixes[1:]
+        if out.suffix.lower() not in cls.suffixes:
+            raise ValueError(f"{out}: expected a {first}" + (f" (or {', '.join(others)})" if others else "")
+                             + " file name")
+        if out.is_dir():
+            raise ValueError(f"{out}: is a directory, expected a {first} file name")
+        if out.exists() and not overwrite:
+            raise FileExistsError(f"{out}: exists; pass --overwrite to replace it")
+
+    def __init__(self, out, run: ExportRun):
+        super().__init__(out, run)
+        self.tmp = temp_name(self.out, self.temp_suffix)
+
+    def close(self) -> int:
+        os.replace(self.tmp, self.out)
+        return self.out.stat().st_size
+
+    def abort(self) -> None:
+        self.tmp.unlink(missing_ok=True)
+
+
+class FolderWriter(ExportWriter):
+    """A format written as a file per frame, ``frame_00000<frame_suffix>`` ..., into a temporary folder beside
+    ``out`` (``self.dir``), renamed into place by :meth:`close` (earlier frames in ``out`` are replaced: only
+    with ``overwrite``, see :meth:`check_target`)."""
+
+    frame_suffix = ""
+    label = ""  # the format's name in messages ("PLY")
+
+    @classmethod
+    def check_target(cls, out, overwrite: bool) -> None:
+        out = Path(out)
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"{out}: is a file, expected a folder for the {cls.label} frames")
+        if out.is_dir():
+            entries = list(out.iterdir())
+            other = [p.name for p in entries if not (p.name.startswith("frame_") and p.suffix == cls.frame_suffix)]
+            if other:
+                raise ValueError(f"{out}: holds other files ({other[0]}); export {cls.label} frames into a new or "
+                                 "empty folder")
+            if entries and not overwrite:
+                raise FileExistsError(f"{out}: holds {cls.label} frames; pass --overwrite to replace them")
+
+    def __init__(self, out, run: ExportRun):
+        super().__init__(out, run)
+        self.dir = temp_name(self.out)
+        self.dir.mkdir(mode=0o755)
+
+    def frame_path(self, frame: int) -> Path:
+        return self.dir / frame_file(frame, self.frame_suffix)
+
+    def close(self) -> int:
+        old = None
+        try:
+            if self.out.is_dir() and any(self.out.iterdir()):  # --overwrite of earlier frames (checked above)
+                old = temp_name(self.out)
+                os.rename(self.out, old)
+            os.replace(self.dir, self.out)
+        finally:
+            shutil.rmtree(self.dir, ignore_errors=True)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+        return sum(p.stat().st_size for p in self.out.iterdir())
+
+    def abort(self) -> None:
+        shutil.rmtree(self.dir, ignore_errors=True)
