@@ -128,6 +128,16 @@ def _err(msg: str) -> None:
     print(msg, file=sys.stderr)
 
 
+def _check_arch(scene, arch: str) -> None:
+    """Refuse, before anything is written or compiled, a scene that ``arch`` cannot run (f64 on Vulkan)."""
+    from .config.arches import precision_problem
+    from .config.scene import SceneError
+
+    problem = precision_problem(scene, arch)
+    if problem:
+        raise SceneError([problem])
+
+
 def _frames(scene, args) -> tuple[int, float]:
     fps = args.fps or float(scene.render.fps)
     frames = args.frames or max(1, int(round(scene.duration * fps)))
@@ -164,6 +174,7 @@ def cmd_simulate(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
+    _check_arch(scene, args.arch)
     out = args.out or Path("renders") / scene.name / f"{scene.name}.npz"
     if args.layout == "full" and (args.only or args.crop):
         raise UsageError("--only and --crop need --layout light (the full layout holds every rock)")
@@ -190,6 +201,7 @@ def cmd_export(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
+    _check_arch(scene, args.arch)
     from .output.export import check_target, export_run, require_pxr
 
     default = f"{scene.name}.usdc" if args.format == "usd" else "ply"
@@ -214,6 +226,7 @@ def cmd_render(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
+    _check_arch(scene, args.arch)
     from .render.pipeline import render_scene
     kwargs = dict(out_dir=args.out, frames=args.frames, resolution=args.resolution, fps=args.fps,
                   fmt=args.format, arch=args.arch, overwrite=args.overwrite, progress=None,
@@ -247,6 +260,7 @@ def cmd_view(args) -> int:
     scene = load_scene(args.scene)
     if args.seed is not None:
         scene = scene_with(scene, {"seed": args.seed})
+    _check_arch(scene, args.arch)
     problem = display_problem()  # before Taichi starts: no window without a screen
     if problem:
         raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")
@@ -269,6 +283,12 @@ def cmd_view(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    from .config.arches import NO_F64
+
+    if args.arch in NO_F64 and args.only is None:  # before anything is written or compiled
+        raise UsageError(f'--arch {args.arch}: the accuracy study runs simulations in sim.precision = "f64", which '
+                         f"Taichi's {args.arch} backend cannot compile; use --arch cpu or cuda, or --only launch "
+                         "or --only activity")
     if args.only == "launch":
         from .bench.launch import run_launch_study
         info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
