@@ -121,6 +121,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--arch", choices=ARCHES, default="cpu")
     b.add_argument("--only", choices=("launch", "activity"),
                    help="run one study only: launch (what the tread throws) or activity (cost against activity)")
+    b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     return p
 
 
@@ -291,16 +292,18 @@ def cmd_bench(args) -> int:
                          "or --only activity")
     if args.only == "launch":
         from .bench.launch import run_launch_study
-        info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
+                                overwrite=args.overwrite)
         print(f"wrote {info['report']}")
         return EXIT_OK
     if args.only == "activity":
         from .bench.activity import run_activity_study
-        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
+                                  overwrite=args.overwrite)
         print(f"wrote {info['report']}")
         return EXIT_OK
     from .bench import run_bench
-    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None, overwrite=args.overwrite)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK
 

@@ -332,3 +332,18 @@ def test_bench_on_vulkan_is_refused_unless_one_f32_study(taichi_cpu, no_study, t
     status, err = _main(capsys, "bench", "--arch", "vulkan", "--out", tmp_path / "b")
     assert status == 2 and len(err) == 1 and "sim.precision" in err[0] and "--only" in err[0], err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("only, earlier", [(None, "report.md"), (None, "accuracy_precision.png"),
+                                           ("launch", "launch_study.json"), ("activity", "activity.png")])
+def test_bench_refuses_a_folder_holding_results(taichi_cpu, no_study, tmp_path, capsys, only, earlier):
+    """Like every other output: an earlier run's results are replaced only with --overwrite (refused before
+    anything runs: exit 2, one line, the folder untouched)."""
+    (tmp_path / earlier).write_text("earlier")
+    status, err = _main(capsys, "bench", "--out", tmp_path, *(["--only", only] if only else []))
+    assert status == 2 and len(err) == 1 and str(tmp_path) in err[0] and earlier in err[0], err
+    assert "--overwrite" in err[0]
+    assert [p.name for p in tmp_path.iterdir()] == [earlier] and (tmp_path / earlier).read_text() == "earlier"
+    (tmp_path / "file").write_text("")
+    status, err = _main(capsys, "bench", "--out", tmp_path / "file", "--overwrite")
+    assert status == 2 and len(err) == 1 and "is a file" in err[0], err
