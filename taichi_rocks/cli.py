@@ -318,7 +318,8 @@ _PRELOAD = {
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.recording", "tqdm"),
     "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.output.export", "tqdm"),
     "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.render.pipeline", "taichi_rocks.output.video",
-               "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
+               "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg",
+               "imageio.plugins.pillow", "PIL.Image"),  # pillow: a dependency of imageio
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
               "taichi_rocks.bench.launch", "taichi_rocks.bench.activity"),
@@ -327,6 +328,9 @@ _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
 _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
     "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers"),
     "export": _LATE + ("pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "pxr.Gf", "pxr.Sdf", "pxr.Tf")}
+# Pillow imports its ~50 format plugins on the first lookup of a file name's extension, which imageio makes when
+# a render assembles its GIF at the end and when --resume reads the kept frames back: done at start-up instead.
+_PRELOAD_CALLS = {"render": (("PIL.Image", "init"),)}
 
 
 def _start(argv):
@@ -344,6 +348,8 @@ def _start(argv):
             importlib.import_module(name)
         except ImportError:
             pass
+    for module, function in _PRELOAD_CALLS.get(args.command, ()):
+        getattr(importlib.import_module(module), function)()
     if args.command in ("simulate", "export", "render", "bench"):
         from .engine.runtime import init_taichi
 

@@ -6,6 +6,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 import zipfile
 
@@ -347,3 +348,28 @@ def test_bench_refuses_a_folder_holding_results(taichi_cpu, no_study, tmp_path, 
     (tmp_path / "file").write_text("")
     status, err = _main(capsys, "bench", "--out", tmp_path / "file", "--overwrite")
     assert status == 2 and len(err) == 1 and "is a file" in err[0], err
+
+
+def test_a_gif_render_imports_nothing_after_start_up(tmp_path):
+    """What a GIF render imports, it imports at start-up, while Ctrl-C is held back (a Ctrl-C inside a late
+    first import can be swallowed): Pillow and its format plugins, which imageio loads when the GIF is
+    assembled. Start-up here skips Taichi (this is about imports), then a FrameWriter writes a 2-frame GIF."""
+    code = f"""
+import sys
+import numpy as np
+import taichi_rocks.engine.runtime as runtime
+runtime.init_taichi = lambda arch="cpu", **kw: "cpu"
+from taichi_rocks import cli
+cli._start(["render", {str(ROOT / "scenes" / "minimal.toml")!r}, "--format", "gif", "--out", {str(tmp_path)!r}])
+from taichi_rocks.output.video import FrameWriter
+before = set(sys.modules)
+w = FrameWriter({str(tmp_path)!r}, "g", 10.0, "gif")
+for k in range(2):
+    w.write(np.full((32, 48, 3), 60 * k, np.uint8))
+print(w.close(), sorted(set(sys.modules) - before))
+"""
+    r = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    video, late = r.stdout.strip().split(" ", 1)
+    assert video.endswith("g.gif") and (tmp_path / "g.gif").read_bytes()[:6] == b"GIF89a"
+    assert late == "[]", late
