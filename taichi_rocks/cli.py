@@ -130,11 +130,22 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--arch", choices=ARCHES, default="cpu")
     b.add_argument("--only", choices=("launch", "activity"),
                    help="run one study only: launch (what the tread throws) or activity (cost against activity)")
+    b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     return p
 
 
 def _err(msg: str) -> None:
     print(msg, file=sys.stderr)
+
+
+def _check_arch(scene, arch: str) -> None:
+    """Refuse, before anything is written or compiled, a scene that ``arch`` cannot run (f64 on Vulkan)."""
+    from .config.arches import precision_problem
+    from .config.scene import SceneError
+
+    problem = precision_problem(scene, arch)
+    if problem:
+        raise SceneError([problem])
 
 
 def cmd_check(args) -> int:
@@ -165,6 +176,7 @@ def cmd_simulate(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
+    _check_arch(scene, args.arch)
     from .app.simulate import simulate_scene
 
     info = simulate_scene(scene, out=args.out, frames=args.frames, fps=args.fps, arch=args.arch, seed=args.seed,
@@ -178,6 +190,7 @@ def cmd_export(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
+    _check_arch(scene, args.arch)
     from .app.export import export_scene
 
     info = export_scene(scene, out=args.out, fmt=args.format, frames=args.frames, fps=args.fps, arch=args.arch,
@@ -193,6 +206,7 @@ def cmd_render(args) -> int:
     from .config.scene import load_scene
 
     scene = load_scene(args.scene)
+    _check_arch(scene, args.arch)
     from .app.render import render_dir, render_scene, resumable
 
     out_dir = render_dir(scene, args.out)
@@ -232,6 +246,7 @@ def cmd_view(args) -> int:
     scene = load_scene(args.scene)
     if args.seed is not None:
         scene = scene_with(scene, {"seed": args.seed})
+    _check_arch(scene, args.arch)
     problem = display_problem()  # before Taichi starts: no window without a screen
     if problem:
         raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")
@@ -252,18 +267,26 @@ def cmd_view(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    from .config.arches import NO_F64
+
+    if args.arch in NO_F64 and args.only is None:  # before anything is written or compiled
+        raise UsageError(f'--arch {args.arch}: the accuracy study runs simulations in sim.precision = "f64", which '
+                         f"Taichi's {args.arch} backend cannot compile; use --arch cpu or cuda, or --only launch "
+                         "or --only activity")
     if args.only == "launch":
         from .bench.launch import run_launch_study
-        info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
+                                overwrite=args.overwrite)
         print(f"wrote {info['report']}")
         return EXIT_OK
     if args.only == "activity":
         from .bench.activity import run_activity_study
-        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
+                                  overwrite=args.overwrite)
         print(f"wrote {info['report']}")
         return EXIT_OK
-    from .bench import run_bench
-    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+    from .bench.run import run_bench
+    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None, overwrite=args.overwrite)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK
 
@@ -278,7 +301,8 @@ _PRELOAD = {
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.simulate", "tqdm"),
     "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.export", "tqdm"),
     "render": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.render", "taichi_rocks.output.video",
-               "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg"),
+               "taichi_rocks.output.resume", "tqdm", "imageio.v3", "imageio.plugins.ffmpeg", "imageio_ffmpeg",
+               "imageio.plugins.pillow", "PIL.Image"),  # pillow: a dependency of imageio
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
               "taichi_rocks.bench.launch", "taichi_rocks.bench.activity"),
@@ -287,6 +311,9 @@ _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
 _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
     "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers"),
     "export": _LATE + ("pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "pxr.Gf", "pxr.Sdf", "pxr.Tf")}
+# Pillow imports its ~50 format plugins on the first lookup of a file name's extension, which imageio makes when
+# a render assembles its GIF at the end and when --resume reads the kept frames back: done at start-up instead.
+_PRELOAD_CALLS = {"render": (("PIL.Image", "init"),)}
 
 
 def _start(argv):
@@ -308,6 +335,8 @@ def _start(argv):
         from .output.formats import writer_class
 
         writer_class(args.format)  # the format's module and the libraries it needs (usd-core for usd)
+    for module, function in _PRELOAD_CALLS.get(args.command, ()):
+        getattr(importlib.import_module(module), function)()
     if args.command in ("simulate", "export", "render", "bench"):
         from .engine.runtime import init_taichi
 

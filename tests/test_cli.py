@@ -6,13 +6,14 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 import zipfile
 
 import numpy as np
 import pytest
 
-from cli_util import ROOT, cli, start_cli, wait_for
+from cli_util import ROOT, cli, refused, start_cli, wait_for
 
 BAD = sorted((ROOT / "tests" / "bad_scenes").glob("*.toml"))
 
@@ -270,3 +271,106 @@ def test_gpu_falls_back_to_cpu_with_one_warning(tmp_path):
     warnings = [line for line in r.stderr.splitlines() if "warning" in line.lower()]
     assert len(warnings) == 1 and "CPU" in warnings[0]
     assert r.stdout.startswith("wrote ")  # nothing else on stdout (no Taichi banner)
+
+
+F64_SCENE = """name = "f64"
+duration = 0.2
+[bed]
+rocks = 100
+radius = 4.0
+[sim]
+{sim}
+[[vehicle]]
+name = "car"
+path = {{ points = [[0.0, 0.0], [40.0, 0.0]], speed = 10.0 }}
+"""
+
+
+def test_f64_on_vulkan_is_refused_before_anything(tmp_path):
+    """Taichi's Vulkan backend cannot compile the f64 kernels (it failed after start-up with exit 1): the
+    command refuses the scene up front, one line naming the file and the key, nothing written."""
+    scene = tmp_path / "f64.toml"
+    scene.write_text(F64_SCENE.format(sim='precision = "f64"'))
+    out = tmp_path / "out"
+    r = cli("simulate", scene, "--arch", "vulkan", "--out", out / "x.npz")
+    line = refused(r, f"{scene}: sim.precision:", '"f64"', "--arch vulkan")
+    assert line.startswith(str(scene)) and not out.exists()
+
+
+def _main(capsys, *args) -> tuple:
+    """The command line in this process (Taichi is already started on the CPU: a start-up asking for another
+    arch keeps it); (exit status, stderr lines)."""
+    from taichi_rocks.cli import main
+
+    status = main([str(a) for a in args])
+    return status, capsys.readouterr().err.strip().splitlines()
+
+
+@pytest.mark.parametrize("command", ["render", "export", "view"])
+@pytest.mark.parametrize("sim", ['precision = "f64"', 'accuracy = "reference"'])
+def test_f64_on_vulkan_is_refused_by_every_command(taichi_cpu, tmp_path, capsys, command, sim):
+    scene = tmp_path / "f64.toml"
+    scene.write_text(F64_SCENE.format(sim=sim))
+    out = ["--out", tmp_path / "out" / ("x.usdc" if command == "export" else "")] if command != "view" else []
+    status, err = _main(capsys, command, scene, "--arch", "vulkan", *out)
+    assert status == 2 and len(err) == 1 and err[0].startswith(f"{scene}: sim.precision: \"f64\""), err
+    assert ("reference" in err[0]) == ("reference" in sim)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f64.toml"]
+
+
+@pytest.fixture
+def no_study(monkeypatch):
+    """A study that starts fails the test at once (the refusals below come before any)."""
+    from taichi_rocks.bench import activity, launch, run
+
+    def ran(*args, **kwargs):
+        raise AssertionError("the study ran")
+
+    for module, name in ((run, "_run_bench"), (launch, "_launch_study"), (activity, "activity_section")):
+        monkeypatch.setattr(module, name, ran)
+
+
+def test_bench_on_vulkan_is_refused_unless_one_f32_study(taichi_cpu, no_study, tmp_path, capsys):
+    status, err = _main(capsys, "bench", "--arch", "vulkan", "--out", tmp_path / "b")
+    assert status == 2 and len(err) == 1 and "sim.precision" in err[0] and "--only" in err[0], err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("only, earlier", [(None, "report.md"), (None, "accuracy_precision.png"),
+                                           ("launch", "launch_study.json"), ("activity", "activity.png")])
+def test_bench_refuses_a_folder_holding_results(taichi_cpu, no_study, tmp_path, capsys, only, earlier):
+    """Like every other output: an earlier run's results are replaced only with --overwrite (refused before
+    anything runs: exit 2, one line, the folder untouched)."""
+    (tmp_path / earlier).write_text("earlier")
+    status, err = _main(capsys, "bench", "--out", tmp_path, *(["--only", only] if only else []))
+    assert status == 2 and len(err) == 1 and str(tmp_path) in err[0] and earlier in err[0], err
+    assert "--overwrite" in err[0]
+    assert [p.name for p in tmp_path.iterdir()] == [earlier] and (tmp_path / earlier).read_text() == "earlier"
+    (tmp_path / "file").write_text("")
+    status, err = _main(capsys, "bench", "--out", tmp_path / "file", "--overwrite")
+    assert status == 2 and len(err) == 1 and "is a file" in err[0], err
+
+
+def test_a_gif_render_imports_nothing_after_start_up(tmp_path):
+    """What a GIF render imports, it imports at start-up, while Ctrl-C is held back (a Ctrl-C inside a late
+    first import can be swallowed): Pillow and its format plugins, which imageio loads when the GIF is
+    assembled. Start-up here skips Taichi (this is about imports), then a FrameWriter writes a 2-frame GIF."""
+    code = f"""
+import sys
+import numpy as np
+import taichi_rocks.engine.runtime as runtime
+runtime.init_taichi = lambda arch="cpu", **kw: "cpu"
+from taichi_rocks import cli
+cli._start(["render", {str(ROOT / "scenes" / "minimal.toml")!r}, "--format", "gif", "--out", {str(tmp_path)!r}])
+from taichi_rocks.output.video import FrameWriter
+before = set(sys.modules)
+w = FrameWriter({str(tmp_path)!r}, "g", 10.0, "gif")
+for k in range(2):
+    w.write(np.full((32, 48, 3), 60 * k, np.uint8))
+print(w.close(), sorted(set(sys.modules) - before))
+"""
+    r = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    video, late = r.stdout.strip().split(" ", 1)
+    assert video.endswith("g.gif") and (tmp_path / "g.gif").read_bytes()[:6] == b"GIF89a"
+    assert late == "[]", late

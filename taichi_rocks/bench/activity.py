@@ -39,8 +39,8 @@ from .config import make_config
 from .machine import Progress, loadavg, machine
 from .measure import timed_call
 from .peers import Floor
-from .plots import plot_activity
-from .report import _activity, _targets, jsonable
+from .plots import PNG, plot_activity
+from .report import _activity, _targets, check_out_dir, jsonable
 from .scenes import fleet_scene
 
 try:
@@ -337,11 +337,13 @@ def activity_targets(act: dict, cfg) -> list:
 
 # --------------------------------------------------------------------------------------------- --only activity
 def run_activity_study(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=None,
-                       tiny: bool = False) -> dict:
+                       tiny: bool = False, overwrite: bool = False) -> dict:
     """`taichi-rocks bench --only activity`: this section alone; writes activity.md (its targets and the
-    section), activity.json and activity.png to ``out_dir``."""
+    section), activity.json and activity.png to ``out_dir`` (atomically), which must not hold them already
+    unless ``overwrite`` (FileExistsError before anything runs)."""
     cfg = make_config(quick=quick, tiny=tiny)
     out = Path(out_dir)
+    check_out_dir(out, ("activity.md", "activity.json", PNG["activity"]), overwrite)
     with new_folders(out):
         used = init_taichi(arch)
         prog = Progress(count_jobs(cfg), progress)

@@ -32,7 +32,8 @@ import numpy as np
 from ..config.scene import parse_scene
 from ..engine.simulation import Simulation
 from ..engine.world import FLYING, RESTING, SLIDING
-from ..output.recording import write_atomically
+from ..output.atomic import new_folders, write_atomically
+from .report import check_out_dir
 
 SPEEDS = (10.0, 20.0, 30.0)
 SIZES = {"gravel": (0.015, 0.05), "small": (0.015, 0.025), "large": (0.03, 0.05)}
@@ -256,6 +257,11 @@ def targets(stats: dict, rate: dict) -> list[dict]:
 
 
 # ------------------------------------------------------------------------------------------------ plots
+PNG = {"apex": "launch_apex.png", "release": "launch_release.png", "speed": "launch_speed_landing.png",
+       "trends": "launch_trends.png"}
+OUTPUTS = ("launch_study.md", "launch_study.json") + tuple(PNG.values())  # what run_launch_study writes
+
+
 def _save(fig, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -279,8 +285,8 @@ def plot_all(data: dict, out: Path) -> list[str]:
     ax.set(yscale="log", xlabel="apex above resting height, m", ylabel="launched rocks",
            title="Apex of thrown rocks, V = 20 m/s (last bin: >= 3.2 m)")
     ax.legend(fontsize=7)
-    _save(fig, out / "launch_apex.png")
-    names.append("launch_apex.png")
+    _save(fig, out / PNG["apex"])
+    names.append(PNG["apex"])
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
@@ -294,8 +300,8 @@ def plot_all(data: dict, out: Path) -> list[str]:
     ax.set(yscale="log", xlabel="release angle up the back of the tire, deg", ylabel="launched rocks",
            title="Release angle (recovered from the launch velocity), V = 20 m/s")
     ax.legend(fontsize=7)
-    _save(fig, out / "launch_release.png")
-    names.append("launch_release.png")
+    _save(fig, out / PNG["release"])
+    names.append(PNG["release"])
     plt.close(fig)
     names += _plot_speed_and_landing(plt, data, out)
     return names
@@ -322,7 +328,7 @@ def _plot_speed_and_landing(plt, data: dict, out: Path) -> list[str]:
            title="Where thrown rocks land")
     bx.legend(fontsize=7)
     fig.tight_layout()
-    _save(fig, out / "launch_speed_landing.png")
+    _save(fig, out / PNG["speed"])
     plt.close(fig)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     # the median is the pinched stones' (most of them); the 99th percentile is the carried few, where wetness
@@ -337,9 +343,9 @@ def _plot_speed_and_landing(plt, data: dict, out: Path) -> list[str]:
         cx.set(xlabel="V, m/s", ylabel=f"{what}, cm", title=f"{what[0].upper()}{what[1:]} against speed")
         cx.legend(fontsize=7)
     fig.tight_layout()
-    _save(fig, out / "launch_trends.png")
+    _save(fig, out / PNG["trends"])
     plt.close(fig)
-    return ["launch_speed_landing.png", "launch_trends.png"]
+    return [PNG["speed"], PNG["trends"]]
 
 
 # ------------------------------------------------------------------------------------------------ the study
@@ -375,14 +381,21 @@ def _report(rows: list[dict], stats: dict, rate: dict, plots: list[str], meta: d
 
 
 def run_launch_study(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=None,
-                     tiny: bool = False) -> dict:
-    """Run the study; write launch_study.md, launch_study.json and PNG plots to ``out_dir``. Returns the
-    results with "table" (the targets), "stats" (per case), "rate", "plots" and "report" (the .md path).
+                     tiny: bool = False, overwrite: bool = False) -> dict:
+    """Run the study; write launch_study.md, launch_study.json and PNG plots (:data:`OUTPUTS`, atomically) to
+    ``out_dir``, which must not hold them already unless ``overwrite`` (FileExistsError before anything runs);
+    the missing folders of ``out_dir`` are created, and removed again if the study fails. Returns the results
+    with "table" (the targets), "stats" (per case), "rate", "plots" and "report" (the .md path).
     ``quick``: only the cases the targets read, smaller; ``tiny``: smaller still (tests)."""
+    out = Path(out_dir)
+    check_out_dir(out, OUTPUTS, overwrite)
+    with new_folders(out):
+        return _launch_study(out, quick, arch, progress, tiny)
+
+
+def _launch_study(out: Path, quick: bool, arch: str, progress, tiny: bool) -> dict:
     t0 = time.perf_counter()
     say = _progress(progress)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     size_of_run = "tiny" if tiny else ("quick" if quick else "full")
     rocks, ref_seeds, rate_s, follow_s = SIZES_OF_RUN[size_of_run]
     data, stats = {}, {}

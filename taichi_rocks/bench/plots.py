@@ -5,10 +5,12 @@ cost against activity (time against N with the floor, against the rocks in the a
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
+from ..output.atomic import write_atomically
 from .config import INTEGRATORS
 
 
@@ -22,15 +24,21 @@ def _plt():
     return plt
 
 
+# the file each plot writes (run.py refuses an out folder already holding one, unless overwrite)
+PNG = {"integrators": "accuracy_integrators.png", "detection": "accuracy_detection.png",
+       "precision": "accuracy_precision.png", "hash": "hash_settings.png", "peers": "speed_peers.png",
+       "passes": "speed_passes_effects.png", "activity": "activity.png"}
 COLORS = {"symplectic_euler": "tab:blue", "heun": "tab:orange", "rk4": "tab:green"}
 PRESET_MARK = {"draft": ("*", "tab:red"), "balanced": ("P", "tab:purple"), "reference": ("X", "black")}
 
 
 def _save(plt, fig, out: Path, name: str) -> str:
-    """Lay out, write and close a figure; return its file name."""
+    """Lay out, write (atomically) and close a figure; return its file name."""
     fig.tight_layout()
-    fig.savefig(out / name)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
     plt.close(fig)
+    write_atomically(out / name, lambda f: f.write(buf.getvalue()))
     return name
 
 
@@ -83,7 +91,7 @@ def plot_integrators(res, out: Path) -> str:
     n = res["accuracy"]["flight_cost"]["n_rocks"]
     fig.suptitle("Integrator x dt: accuracy against cost, lower left is better (cost: flight pass with all "
                  f"{n:,} rocks flying / dt; solid f32, dashed f64; errors below 1e-12 m drawn at 1e-12)")
-    return _save(plt, fig, out, "accuracy_integrators.png")
+    return _save(plt, fig, out, PNG["integrators"])
 
 
 def plot_detection(res, out: Path) -> str:
@@ -124,7 +132,7 @@ def plot_detection(res, out: Path) -> str:
     a2.set_ylabel("worst miss rate, 1 - recall (1e-4 = none missed)")
     a2.set_title("Miss rate against cost (lower left is better)")
     a2.legend(fontsize=6.5, loc="center right")
-    return _save(plt, fig, out, "accuracy_detection.png")
+    return _save(plt, fig, out, PNG["detection"])
 
 
 def plot_precision(res, out: Path) -> str:
@@ -163,7 +171,7 @@ def plot_precision(res, out: Path) -> str:
     a2.set_ylabel(f"error at {max(d) / 1e3:g} km (m)")
     a2.set_title("Precision: error against cost")
     a2.legend(fontsize=7)
-    return _save(plt, fig, out, "accuracy_precision.png")
+    return _save(plt, fig, out, PNG["precision"])
 
 
 def plot_hash(res, out: Path) -> str:
@@ -205,7 +213,7 @@ def plot_hash(res, out: Path) -> str:
     a2.set_xlabel("share of the passes' time, each kernel called on its own (%; sum in ms at the right)")
     a2.set_title(f"Per pass (N={hs['n']:,} rocks, T={hs['t']} tires)")
     a2.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.09, 0.5))
-    return _save(plt, fig, out, "hash_settings.png")
+    return _save(plt, fig, out, PNG["hash"])
 
 
 def plot_peers(res, out: Path) -> str:
@@ -240,7 +248,7 @@ def plot_peers(res, out: Path) -> str:
     a2.set_ylabel("ms per step")
     a2.set_title("Scaling in N")
     a2.legend(fontsize=7)
-    return _save(plt, fig, out, "speed_peers.png")
+    return _save(plt, fig, out, PNG["peers"])
 
 
 def plot_passes(res, out: Path) -> str:
@@ -283,7 +291,7 @@ def plot_passes(res, out: Path) -> str:
     a2.set_xlabel("ms per step (interleaved A/B medians)")
     n, t = res["config"]["main"]
     a2.set_title(f"Effects switched off one at a time (N={n:,}, T={t})")
-    return _save(plt, fig, out, "speed_passes_effects.png")
+    return _save(plt, fig, out, PNG["passes"])
 
 
 def _ok_ms(p, key="step_ms"):
@@ -371,4 +379,4 @@ def plot_activity(res, out: Path) -> str:
     _activity_vs_n(a1, act)
     _activity_vs_air(a2, act)
     _activity_memory(a3, act)
-    return _save(plt, fig, out, "activity.png")
+    return _save(plt, fig, out, PNG["activity"])

@@ -1,13 +1,19 @@
 """The benchmark's report (report.md: targets, presets, the accuracy sections 1a-1d, speed against peers,
-build times) and its results as JSON (results.json: every number, private ``_`` keys left out)."""
+build times) and its results as JSON (results.json: every number, private ``_`` keys left out).
+
+Like every output of the project, the files are written atomically (output/atomic.py ``write_atomically``:
+a temporary beside the final name, renamed when complete), and a study refuses an out folder that already
+holds its outputs unless asked to overwrite them (:func:`check_out_dir`)."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from ..output.atomic import write_atomically
 from .config import INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
 
 
@@ -361,12 +367,34 @@ _SECTIONS = (_header, _targets, _presets, _integrators, _detection, _precision, 
              _activity, _tail)
 
 
+def check_out_dir(out, names, overwrite: bool) -> None:
+    """Before a study runs: refuse (one line) an ``out`` that is a file (ValueError), or a folder already
+    holding one of ``names``, the files the study writes (FileExistsError), unless ``overwrite``."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{out}: is a file, expected a folder for the results")
+    found = [n for n in names if (out / n).exists()]
+    if found and not overwrite:
+        raise FileExistsError(f"{out}: holds the results of an earlier run ({found[0]}"
+                              f"{f' and {len(found) - 1} more' if len(found) > 1 else ''}); pass --overwrite to "
+                              "replace them")
+
+
 def write_report(res: dict, out: Path, plots: list) -> Path:
     lines = []
     for section in _SECTIONS:
         lines += section(res, plots)
     path = out / "report.md"
-    path.write_text("\n".join(lines))
+    text = "\n".join(lines)
+    write_atomically(path, lambda f: f.write(text.encode()))
+    return path
+
+
+def write_results(res: dict, out: Path) -> Path:
+    """results.json: every number of ``res`` (:func:`jsonable`)."""
+    path = out / "results.json"
+    blob = json.dumps(jsonable(res), indent=1)
+    write_atomically(path, lambda f: f.write(blob.encode()))
     return path
 
 

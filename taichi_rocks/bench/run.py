@@ -1,4 +1,5 @@
-"""``run_bench``: the whole benchmark in order, and its outputs (report.md, results.json, seven PNG plots).
+"""``run_bench``: the whole benchmark in order, and its outputs (:data:`OUTPUTS`: report.md, results.json,
+seven PNG plots; written atomically, an out folder holding them is refused unless ``overwrite``).
 
 Order: the lanes scenes (detection, in lockstep), then direct flights on their fields (integrator x dt,
 precision); the speed grid; the hash settings (on the grid's default simulation, before anything changes its
@@ -10,7 +11,6 @@ points in processes of their own); then presets and targets.
 from __future__ import annotations
 
 import dataclasses
-import json
 import sys
 import time
 import traceback
@@ -27,16 +27,17 @@ from .machine import Progress, loadavg, machine, pin_sources
 from .measure import Built
 from .peers import Floor, start_warp
 from .activity import activity_section, count_jobs
-from .plots import (plot_activity, plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers,
+from .plots import (PNG, plot_activity, plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers,
                     plot_precision)
 from .precision import precision_runs
 from .presets import choose_presets, preset_costs, validate_presets
-from .report import jsonable, write_report
+from .report import check_out_dir, write_report, write_results
 from .scenes import fleet_scene
 from .speed import effects_costs, grid_entry, launch_overheads
 from .targets import evaluate_targets
 
 PLOTS = (plot_integrators, plot_detection, plot_precision, plot_hash, plot_peers, plot_passes, plot_activity)
+OUTPUTS = ("report.md", "results.json") + tuple(PNG.values())
 
 
 def count_tasks(cfg: Config) -> int:
@@ -105,14 +106,17 @@ def _plots(res: dict, out: Path, prog) -> list:
 
 
 def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=True, tiny: bool = False,
-              config: "Optional[Config]" = None) -> dict:
+              config: "Optional[Config]" = None, overwrite: bool = False) -> dict:
     """Run the benchmark and write report.md, results.json and PNG plots to ``out_dir``.
 
     ``quick``: the CI smoke run (< 2 min on 2 cores); ``tiny``: the smallest sizes (tests); ``config``
     overrides both. ``progress``: True shows a tqdm bar on stderr, None only on a terminal, False never.
-    The missing folders of ``out_dir`` are created, and removed again if the run fails before writing into them.
+    An ``out_dir`` already holding one of :data:`OUTPUTS` is refused before anything runs (FileExistsError)
+    unless ``overwrite`` (the files are then replaced as they are written). The missing folders of ``out_dir``
+    are created, and removed again if the run fails before writing into them.
     """
     out = Path(out_dir)
+    check_out_dir(out, OUTPUTS, overwrite)
     with new_folders(out):
         return _run_bench(out, config or make_config(quick=quick, tiny=tiny), arch, progress)
 
@@ -154,7 +158,7 @@ def _run_bench(out: Path, cfg: "Config", arch: str, progress) -> dict:
     res["plots"] = [p for p in plots if p]
     res["elapsed_s"] = time.perf_counter() - t_start
     res["report"] = str(write_report(res, out, plots))
-    (out / "results.json").write_text(json.dumps(jsonable(res), indent=1))
+    write_results(res, out)
     prog.close()
     if res["accuracy"]["hash_settings"]["verdict"] != "PASS":
         print("taichi-rocks bench: FAIL: hash settings launched different rocks (see report)", file=sys.stderr)

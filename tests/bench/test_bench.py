@@ -11,6 +11,8 @@ import math
 import numpy as np
 import pytest
 
+from taichi_rocks.bench.run import OUTPUTS
+
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
 
@@ -24,6 +26,7 @@ def test_files_written(bench_run):
     assert res["report"] == str(out / "report.md")
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert pngs == sorted(res["plots"]) and len(pngs) == 7
+    assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUTS)  # what a run checks its out folder for
     for p in out.glob("*.png"):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
     report = (out / "report.md").read_text()

@@ -51,6 +51,7 @@ def test_the_table_has_every_target(study):
     data = json.loads((out / "launch_study.json").read_text())
     assert [r["target"] for r in data["table"]] == names
     assert len(res["plots"]) >= 3
+    assert sorted(p.name for p in out.iterdir()) == sorted(launch.OUTPUTS)  # all it writes, and no temporaries
     for p in res["plots"]:
         assert (out / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"]({p})" in report
 
