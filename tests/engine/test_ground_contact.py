@@ -26,7 +26,7 @@ Tolerances, and why each integrator meets them:
 import numpy as np
 import pytest
 
-from scenes_util import scene as make_scene
+from scenes_util import reference_scene
 from taichi_rocks.config.scene import scene_with
 from taichi_rocks.engine.simulation import Simulation  # the public face; the one engine import here
 
@@ -41,21 +41,18 @@ FLYING, SLIDING, RESTING = 1, 2, 0
 
 
 def contact_scene():
-    """2,000 rocks around a parked car (so nothing but the test rocks moves, and no tire throws), no air drag
-    (the closed forms are for gravity alone), the "uniform" launch model and ray detection: the World layout
-    of tests/engine/test_reference_stepping.py too."""
-    car = {"name": "car", "path": {"points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.0}}
-    return make_scene(rocks=2000, vehicles=[car], world={"restitution": E, "ground_friction": MU,
-                                                         "rest_speed": REST},
-                      launch={"model": "uniform"}, sim={"detection": "ray"}, effects={"drag": "none"})
+    """The reference tests' scene with the car parked (so nothing but the test rocks moves, and no tire
+    throws) and no air drag (the closed forms are for gravity alone)."""
+    return reference_scene(speed=0.0, world={"restitution": E, "ground_friction": MU, "rest_speed": REST},
+                           effects={"drag": "none"})
 
 
 # test rocks: (id, offset from the bed centre (m), height above rest, velocity)
 DROP, OBLIQUE, STUCK, SLIDE = 0, 1, 2, 3
-ROCKS = {DROP: ((0.0, 4.0), H_DROP, (0.0, 0.0, 0.0)),
-         OBLIQUE: ((-4.0, 2.0), H_OBLIQUE, (U_FAST, 0.0, 0.0)),
-         STUCK: ((3.0, 2.0), H_OBLIQUE, (0.0, U_SLOW, 0.0)),
-         SLIDE: ((0.0, -4.0), 0.0, (0.6 * S_SLIDE, 0.8 * S_SLIDE, 0.0))}
+ROCKS = {DROP: ((0.0, 3.0), H_DROP, (0.0, 0.0, 0.0)),
+         OBLIQUE: ((-3.5, 1.5), H_OBLIQUE, (U_FAST, 0.0, 0.0)),
+         STUCK: ((2.5, 1.5), H_OBLIQUE, (0.0, U_SLOW, 0.0)),
+         SLIDE: ((0.0, -3.0), 0.0, (0.6 * S_SLIDE, 0.8 * S_SLIDE, 0.0))}
 
 
 def run(integrator, dt, seconds=1.15):
