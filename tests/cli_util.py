@@ -26,6 +26,13 @@ def start_cli(*args, env=None):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def start_held_writer(marker, *args):
+    """Start ``taichi-rocks ARGS`` in the background with its .npz writer holding once it has written into its
+    ``.part`` temporary, after creating ``marker`` (tests/held_writer.py): wait for ``marker``, then interrupt."""
+    return subprocess.Popen([sys.executable, str(ROOT / "tests" / "held_writer.py"), str(marker), *map(str, args)],
+                            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
 def wait_for(condition, proc, timeout=180.0, poll=0.01):
     """Poll ``condition()`` until true; fail if ``proc`` ends first or time runs out."""
     deadline = time.time() + timeout
