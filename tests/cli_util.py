@@ -65,3 +65,32 @@ def refused(r, *words) -> str:
     for w in words:
         assert w in lines[0], lines[0]
     return lines[0]
+
+
+def child_pids(pid: int) -> list:
+    """The processes whose parent is ``pid`` now (from /proc)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def wait_gone(pids, timeout=120.0) -> None:
+    """Wait until every process of ``pids`` has ended (gone, or a zombie no one has reaped yet)."""
+    deadline = time.time() + timeout
+    for pid in pids:
+        while True:
+            try:
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except (OSError, IndexError):
+                break
+            if state in ("Z", "X"):
+                break
+            if time.time() > deadline:
+                raise AssertionError(f"process {pid} still running after {timeout} s")
+            time.sleep(0.05)
