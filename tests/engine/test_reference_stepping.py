@@ -3,14 +3,16 @@ straight at 15 m/s through a 4.5 m bed, stepped 400 times by the engine (the def
 written here from the module docstrings: the flight (engine/flight.py: symplectic Euler, quadratic drag, ground
 contact at the time of impact, sliding), recycling to the leading crescent (engine/bed.py) and the tire pass by
 brute force (engine/tires.py: every rock against every rear-tire ray, closest-point test, first tire wins, the
-"uniform" launch model). The random numbers are counter-based (engine/randomness.py), so the reference draws
+"uniform" launch model), with "ray" detection and with "patch" (engine/patch.py: the ray swept over the step
+and the tread's footprint, boxes for a straight drive). The random numbers are counter-based (engine/randomness.py), so the reference draws
 the engine's with the NumPy twins ``uniform01_np`` (checked against known answers in test_randomness_known.py);
 the vehicle's pose is the closed form of a straight drive at constant speed (checked against the engine's poses).
 
 The reference starts from the engine's initial rocks and works in float32, as the engine does. It must launch
 the same rocks at the same steps with the same velocities, recycle as many rocks, and end with every rock
 within round-off of the engine's position (1e-5 m).
-1.6 s at dt = 4 ms: about 130 launches and 10,000 recycles; the largest difference seen is one float32 ulp.
+1.6 s at dt = 4 ms: about 130 launches with "ray" (about 5 times as many with "patch") and 10,000
+recycles; the largest difference seen is one float32 ulp.
 Only ``Simulation`` (state, rock_arrays, tire_rays) is used from the engine.
 """
 
@@ -34,6 +36,8 @@ class Reference:
 
     def __init__(self, scene, rocks: dict):
         w, bed, car = scene.world, scene.bed, scene.vehicles[0]
+        self.patch = scene.sim.detection == "patch"
+        self.patch_tol = F(1e-4)  # how far above the tire's bottom a run-over rock's bottom may be (patch.py)
         self.seed = scene.seed & 0x7FFFFFFF
         self.clock_dt = float(scene.sim.dt)  # the clock runs in float64; the kernels take dt as float32
         self.dt = F(scene.sim.dt)
@@ -189,15 +193,15 @@ class Reference:
 
     def tires(self):
         """Brute force over every rock: a rock (c, r) not flying and not launched this step is hit by the ray a
-        -> b when |c - (a + t* (b - a))| <= r, t* = clamp((c - a).(b - a) / |b - a|^2, 0, 1); the first tire in
-        order launches it (uniform model) if its launch speed exceeds rest_speed. Returns the ids launched."""
+        -> b when |c - (a + t* (b - a))| <= r, t* = clamp((c - a).(b - a) / |b - a|^2, 0, 1) ("ray"), or, with
+        "patch", when it is within r of the rectangle the ray swept since the previous step or (its bottom on
+        the ground) within r in XY of the tread's footprint (tire_width x contact_length around the bottom)
+        swept over the step: for a straight drive along +x both are boxes. The first tire in order launches it
+        (uniform model) if its launch speed exceeds rest_speed. Returns the ids launched."""
         launched = []
-        for a, b, wheel, fwd, spin in self.rear_tires(self.time):
-            a, b = a.astype(F), b.astype(F)
-            d = b - a
-            t = np.clip(((self.pos - a) @ d) / (d @ d), F(0.0), F(1.0))
-            q = a + t[:, None] * d
-            near = ((self.pos - q) ** 2).sum(axis=1) <= self.r * self.r
+        prev = self.rear_tires(self.time - self.clock_dt if self.step_count > 1 else 0.0)
+        for (a, b, wheel, fwd, spin), (a0, b0, *_) in zip(self.rear_tires(self.time), prev):
+            near = self.patch_hits(a0, b0, b) if self.patch else self.ray_hits(a, b)
             cand = np.flatnonzero(near & (self.hit != self.step_count) & (self.phase != FLYING))
             for i in cand:
                 v = self.launch_velocity(wheel.astype(F), fwd.astype(F), F(spin), self.mu[i], int(self.ids[i]))
@@ -207,6 +211,26 @@ class Reference:
                     self.phase[i] = FLYING if v[2] > 0 else SLIDING
                     launched.append(i)
         return sorted(launched)
+
+    def ray_hits(self, a, b):
+        a, b = a.astype(F), b.astype(F)
+        d = b - a
+        t = np.clip(((self.pos - a) @ d) / (d @ d), F(0.0), F(1.0))
+        q = a + t[:, None] * d
+        return ((self.pos - q) ** 2).sum(axis=1) <= self.r * self.r
+
+    def patch_hits(self, a0, b0, b1):
+        c, r2 = self.pos, self.r * self.r
+        x0, x1, y, top = F(b0[0]), F(b1[0]), F(b0[1]), F(a0[2])
+        zero = F(0.0)
+        dx = np.maximum(np.maximum(x0 - c[:, 0], zero), c[:, 0] - x1)
+        dz = np.maximum(np.maximum(self.ground - c[:, 2], zero), c[:, 2] - top)
+        swept = dx * dx + (c[:, 1] - y) ** 2 + dz * dz <= r2
+        hl, hw = F(0.5 * self.car.contact_length), F(0.5 * self.car.tire_width)
+        fx = np.maximum(np.maximum(x0 - hl - c[:, 0], zero), c[:, 0] - (x1 + hl))
+        fy = np.maximum(np.abs(c[:, 1] - y) - hw, zero)
+        on_ground = c[:, 2] - self.r <= self.ground + self.patch_tol
+        return swept | (on_ground & (fx * fx + fy * fy <= r2))
 
     def launch_velocity(self, wheel, fwd, spin, mu, rock):
         """v_xy = v_wheel - omega R cos(alpha) Rot(beta) f, v_z = mu |omega R| sin(alpha); alpha uniform in the
@@ -221,11 +245,11 @@ class Reference:
         return np.array([wheel[0] + back * fx, wheel[1] + back * fy, mu * abs(spin) * np.sin(alpha)], F)
 
 
-@pytest.fixture(scope="module")
-def runs():
-    scene = reference_scene(speed=SPEED)
+@pytest.fixture(scope="module", params=["ray", "patch"])
+def runs(request):
+    scene = reference_scene(speed=SPEED, sim={"detection": request.param})
     sim = Simulation(scene)
-    assert sim.plan.active and sim.plan.throw == "uniform" and not sim.plan.swept  # what the test is about
+    assert sim.plan.active and sim.plan.throw == "uniform" and sim.plan.patch == (request.param == "patch")
     assert np.all(sim.state()["bed_center"][:2] == 0.0) and np.all(sim.origin == 0.0)  # local = world here
     ref = Reference(scene, sim.rock_arrays())
     engine_launches, ref_launches, worst_tire = [], [], 0.0
