@@ -131,3 +131,24 @@ def test_report_targets_table_says_what_the_verdicts_say():
     flipped = copy.deepcopy(rows)
     flipped[0]["met"] = not flipped[0]["met"]
     assert report._targets({"targets": flipped}, [])[3] != report._targets(res, [])[3]
+
+
+def test_verdicts_and_report_on_the_committed_results(tmp_path):
+    """The committed full run (docs/results/bench.json, the README's figures) as canned results: evaluating
+    its targets again gives the verdicts it holds, and the report writer writes every section of it, its
+    Targets table saying what the verdicts say."""
+    import json
+    from pathlib import Path
+
+    res = json.loads((Path(__file__).resolve().parents[2] / "docs" / "results" / "bench.json").read_text())
+    cfg = config.Config(**{k: tuple(v) if isinstance(v, list) else v for k, v in res["config"].items()})
+    again = targets.evaluate_targets(res, cfg)
+    assert [(t["target"], t["met"]) for t in again] == [(t["target"], t["met"]) for t in res["targets"]]
+    path = report.write_report(res, tmp_path, res["plots"])
+    text = path.read_text()
+    for heading in ("## Targets", "## Proposed presets", "## 1a.", "## 1b.", "## 1c.", "## 1d.", "## 2.",
+                    "## 4. Cost against activity"):
+        assert heading in text
+    for t in res["targets"]:
+        verdict = {True: "**met**", False: "**NOT met**", None: "-"}[t["met"]]
+        assert f"| {t['target']} | {report._fmt(t['value'])} | {report._fmt(t['limit'])} | {verdict} |" in text
