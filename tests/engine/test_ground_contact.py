@@ -35,7 +35,7 @@ pytestmark = pytest.mark.usefixtures("taichi_cpu")
 G, E, MU, REST = 9.81, 0.5, 0.3, 0.05
 H_DROP, H_OBLIQUE, U_FAST, U_SLOW, S_SLIDE = 0.8, 0.5, 3.0, 0.5, 2.5
 TOL = 2e-4
-DTS = (0.001, 0.004, 0.01)
+DTS = (0.002, 0.005, 0.01)
 INTEGRATORS = ("symplectic_euler", "heun", "rk4")
 FLYING, SLIDING, RESTING = 1, 2, 0
 
