@@ -26,6 +26,13 @@ def start_cli(*args, env=None):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def start_held_writer(marker, *args):
+    """Start ``taichi-rocks ARGS`` in the background with its .npz writer holding once it has written into its
+    ``.part`` temporary, after creating ``marker`` (tests/held_writer.py): wait for ``marker``, then interrupt."""
+    return subprocess.Popen([sys.executable, str(ROOT / "tests" / "held_writer.py"), str(marker), *map(str, args)],
+                            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
 def wait_for(condition, proc, timeout=180.0, poll=0.01):
     """Poll ``condition()`` until true; fail if ``proc`` ends first or time runs out."""
     deadline = time.time() + timeout
@@ -58,3 +65,32 @@ def refused(r, *words) -> str:
     for w in words:
         assert w in lines[0], lines[0]
     return lines[0]
+
+
+def child_pids(pid: int) -> list:
+    """The processes whose parent is ``pid`` now (from /proc)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def wait_gone(pids, timeout=120.0) -> None:
+    """Wait until every process of ``pids`` has ended (gone, or a zombie no one has reaped yet)."""
+    deadline = time.time() + timeout
+    for pid in pids:
+        while True:
+            try:
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except (OSError, IndexError):
+                break
+            if state in ("Z", "X"):
+                break
+            if time.time() > deadline:
+                raise AssertionError(f"process {pid} still running after {timeout} s")
+            time.sleep(0.05)

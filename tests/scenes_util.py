@@ -88,3 +88,17 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     assert probe.total <= w.entry_capacity, "probe built for fewer hash entries"
     hashgrid.scatter(w, probe.center)
     return probe
+
+
+# One World layout shared by the reference tests (tests/engine/test_reference_stepping.py, test_uniform_launch.py,
+# test_ground_contact.py): 3,000 rocks in a 4.5 m bed, ray detection, the "uniform" launch model with wide ranges.
+REFERENCE_ROCKS, REFERENCE_RADIUS = 3000, 4.5
+
+
+def reference_scene(speed=15.0, world=None, effects=None, sim=None, launch=None, **top):
+    """A car driving straight along +x from the origin at ``speed`` (0: parked), the bed following it."""
+    car = {"name": "car", "path": {"points": [[0.0, 0.0], [400.0, 0.0]], "speed": speed}}
+    return scene(rocks=REFERENCE_ROCKS, radius=REFERENCE_RADIUS, vehicles=[car], world=world, effects=effects,
+                 sim={"detection": "ray", **(sim or {})},
+                 launch={"model": "uniform", "release_angle": [10.0, 60.0], "spread": 20.0, **(launch or {})},
+                 **top)

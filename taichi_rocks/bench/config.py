@@ -104,7 +104,7 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                       acc_dts=(1e-2, 2e-2), acc_f64=False, distances=(0.0, 1e5),
                       hash_settings=(DEFAULT_HASH, DESIGN_HASH), hash_n=20_000,
                       integ_cost=tuple((i, "quadratic") for i in INTEGRATORS), validate_presets=False,
-                      use_warp=False, substeps_mode=False, effects=("drag none",), effects_all_flying=False,
+                      use_warp=True, substeps_mode=False, effects=("drag none",), effects_all_flying=False,
                       act_n=(10_000, 30_000), act_full_max=30_000, act_full_min=30_000, act_radius=8.0, act_ref_n=30_000, act_t=2,
                       act_fixed_n=30_000, act_tires=(2, 6), act_speeds=(10.0,), act_warm_s=0.2, act_rounds=3,
                       act_steps=10)

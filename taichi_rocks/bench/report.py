@@ -180,15 +180,17 @@ def _hash(res: dict, plots: list) -> list:
     hs = res["accuracy"]["hash_settings"]
     L.append("## 1d. Hash settings\n")
     L.append(f"![hash]({plots[3]})\n")
+    failed = [r["name"] for r in hs["settings"] if "error" in r]
     L.append(f"**{hs['verdict']}**: launched rock ids after {hs['k_steps']} steps "
              f"{'identical for every setting' if hs['identical'] else 'DIFFER between settings'} "
-             f"(N={hs['n']:,}, T={hs['t']}).\n")
+             f"(N={hs['n']:,}, T={hs['t']})"
+             + (f"; {len(failed)} setting(s) failed to build or run: {', '.join(failed)}" if failed else "") + ".\n")
     L.append("| setting | cell (m) | table | launched | identical | step ms | count | scan | scatter | trace | "
              "tire | build+compile s |")
     L.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in hs["settings"]:
         if "error" in r:
-            L.append(f"| {r['name']} | skipped: {r['error']} |||||||||||")
+            L.append(f"| {r['name']} | **FAILED**: {r['error']} |||||||||||")
             continue
         s = r["separate_passes_ms"]
         L.append(f"| {r['name']} | {r['cell_size_m']:g} | {r['table_size']:,} | {r['launched']} | "

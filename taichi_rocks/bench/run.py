@@ -161,5 +161,6 @@ def _run_bench(out: Path, cfg: "Config", arch: str, progress) -> dict:
     write_results(res, out)
     prog.close()
     if res["accuracy"]["hash_settings"]["verdict"] != "PASS":
-        print("taichi-rocks bench: FAIL: hash settings launched different rocks (see report)", file=sys.stderr)
+        print("taichi-rocks bench: FAIL: hash settings launched different rocks or failed to build (see report)",
+              file=sys.stderr)
     return res

@@ -65,10 +65,10 @@ def test_every_section_present(bench_run):
 def test_identical_hits_across_hash_settings(bench_run):
     _, res = bench_run
     hs = res["accuracy"]["hash_settings"]
-    rows = [r for r in hs["settings"] if "error" not in r]
-    assert len(rows) >= 2
+    rows = hs["settings"]
+    assert len(rows) >= 2 and all("error" not in r for r in rows), rows  # every setting was built and run
     assert hs["identical"] is True and hs["verdict"] == "PASS"
-    assert all(r["identical"] for r in rows)
+    assert all(r["identical"] is True for r in rows)  # the default too: a fresh build reproduces its record
     assert rows[0]["launched"] > 0  # the comparison is not vacuous
 
 
@@ -83,7 +83,13 @@ def test_detection_and_precision_sane(bench_run):
     # a single ray misses contacts at speed; the swept test does not
     assert det["ray"]["per_speed"][-1]["recall"] < det["swept"]["per_speed"][-1]["recall"]
     prec = res["accuracy"]["precision"]["configs"]
-    assert prec["f64 floating"]["max_error_m"][0] == 0.0  # it is the reference
+    # the reference is the f64 flight launched at the origin: f64 anywhere stays on it to round-off, f32 near
+    # the origin is off by its rounding only, f32 with a world origin drifts far away from it
+    dist = res["accuracy"]["precision"]["distances_m"]
+    assert dist[0] == 0.0 and dist[-1] >= 1e5
+    if "f64 floating" in prec:
+        assert max(prec["f64 floating"]["max_error_m"] + prec["f64 world"]["max_error_m"]) < 1e-6
+    assert 0.0 < prec["f32 floating"]["max_error_m"][0] < 1e-3 and max(prec["f32 floating"]["max_error_m"]) < 1e-3
     assert prec["f32 world"]["max_error_m"][-1] > 100 * prec["f32 floating"]["max_error_m"][-1]
 
 
@@ -94,14 +100,14 @@ def test_ratios_positive_finite(bench_run):
             assert _positive_finite(e[key])
         for key in ("floor_ms", "numpy_ms", "kdtree_ms"):
             assert _positive_finite(e["peers"][key]), key
+        assert res["warp"]["available"] is True, res["warp"]  # warp-lang is in the test extra
         for key, value in e["ratios"].items():
-            if key == "step_over_warp" and not res["warp"]["available"]:
-                assert value is None
-                continue
             assert _positive_finite(value), (key, value)
+        assert _positive_finite(e["peers"]["warp_ms"])
         check = e["peers"]["check"]
         assert check["kdtree_equals_numpy"] and check["taichi_launched_subset_of_geometric_hits"]
         assert check["geometric_hits_not_launched_are_flying"]
+        assert check["warp_sym_diff_vs_numpy"] == 0  # Warp's HashGrid query found exactly NumPy's hits
     for t in res["targets"]:
         if t["value"] is not None:
             assert _positive_finite(t["value"]), t

@@ -102,22 +102,21 @@ def test_hash_stress_same_hits(table):
 
 
 def test_all_rocks_in_one_cell():
+    """500 rocks in one 0.1 m cell: the ray finds exactly those within r of it, in both insert modes."""
     rng = np.random.default_rng(9)
     pos = np.column_stack([rng.uniform(0.01, 0.09, (500, 2)), np.full(500, 0.02)])
     r = np.full(500, 0.005)
+    pos[:3, :2] = [[0.05, 0.05], [0.054, 0.05], [0.05, 0.0465]]  # on the ray, inside r, just inside r
+    pos[3, :2] = [0.0556, 0.05]  # just outside r
+    assert np.all(np.floor(pos / 0.1) == 0)  # one cell
     rays = np.array([[[0.05, 0.05, 0.33], [0.05, 0.05, 0.0]]])
-    ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
+    # the ray is vertical and spans the rocks' height: a rock is hit iff its centre is within r of it in XY
+    p32 = pos.astype(np.float32).astype(np.float64)
+    expected = np.flatnonzero(np.hypot(p32[:, 0] - 0.05, p32[:, 1] - 0.05) <= np.float32(0.005))
+    assert {0, 1, 2} <= set(expected) and 3 not in expected and len(expected) >= 5
+    np.testing.assert_array_equal(brute_hits(p32, r.astype(np.float32).astype(np.float64), rays), expected)
     for insert in ("aabb", "center"):
-        np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, rays=rays).hits(), ref)
-
-
-def np_parallelogram_hit(o, e1, e2, c, r, samples=400):
-    """Reference by dense sampling of the swept parallelogram (conservative distance)."""
-    u = np.linspace(0, 1, samples)
-    grid = o + u[:, None, None] * e1 + u[None, :, None] * e2
-    pts = grid.reshape(-1, 3)
-    d2 = np.min(((c[:, None, :] - pts[None]) ** 2).sum(-1), axis=1)
-    return d2
+        np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, rays=rays).hits(), expected)
 
 
 def test_swept_catches_what_the_ray_skips():
@@ -140,3 +139,33 @@ def test_swept_catches_what_the_ray_skips():
     assert len(ref) > 30
     np.testing.assert_array_equal(swept, ref)
     assert set(ray) <= set(ref) and len(ray) < len(ref) / 5
+
+
+def test_swept_oblique_matches_the_exact_distance_to_the_parallelogram():
+    """A tire turning (diagonal motion) with a slanted ray: swept detection hits exactly the rocks within r of
+    the parallelogram the ray sweeps, whose distance comes from a box-constrained least-squares problem
+    (SciPy's lsq_linear: min |u e1 + v e2 - (c - o)| over u, v in [0, 1]), independent of the kernel's
+    edge-and-interior construction."""
+    from scipy.optimize import lsq_linear
+
+    rng = np.random.default_rng(12)
+    n = 2500
+    a0, b0 = np.array([0.0, 0.0, 0.33]), np.array([0.05, -0.04, 0.0])  # a ray leaning back and sideways
+    move = np.array([0.8, 0.6, 0.0])  # 1 m in one step, 37 degrees off the x axis
+    t = rng.uniform(-0.1, 1.1, n)
+    pos = np.column_stack([move[0] * t + rng.uniform(-0.15, 0.15, n), move[1] * t + rng.uniform(-0.15, 0.15, n),
+                           np.zeros(n)])
+    r = rng.uniform(0.015, 0.03, n)
+    pos[:, 2] = r
+    prev = np.array([[a0, b0]])
+    cur = prev + move
+    got = Probe(pos, r, cell=0.1, insert="center", rays=cur, swept=True).hits(prev=prev)
+    p32 = pos.astype(np.float32).astype(np.float64)
+    r32 = r.astype(np.float32).astype(np.float64)
+    basis = np.column_stack([move, b0 - a0])
+    dist = np.array([np.sqrt(2.0 * lsq_linear(basis, c - a0, bounds=(0.0, 1.0), method="bvls").cost) for c in p32])
+    clear = np.abs(dist - r32) > 1e-5  # leave out rocks within f32 rounding of tangent
+    expected = np.flatnonzero(dist <= r32)
+    assert len(expected) > 100 and n - len(expected) > 500 and clear.mean() > 0.99
+    np.testing.assert_array_equal(np.intersect1d(got, np.flatnonzero(clear)), np.intersect1d(expected,
+                                                                                               np.flatnonzero(clear)))

@@ -43,6 +43,9 @@ def test_set_at_start_equals_a_scene_with_the_value(scene, key, value):
 
 
 def test_set_mid_run_changes_only_what_follows_and_survives_restore(scene):
+    """A value set after 60 steps: the state at the change is untouched, and the steps after it equal those of a
+    simulation of the changed scene restored at step 60, not those of the unchanged one."""
+    from taichi_rocks.config.scene import scene_with
     from taichi_rocks.engine.simulation import Simulation
     from taichi_rocks.engine.tuning import runtime_values, set_runtime
 
@@ -51,10 +54,21 @@ def test_set_mid_run_changes_only_what_follows_and_survives_restore(scene):
     saved = sim.checkpoint()
     before = sim.state()
     set_runtime(sim, {"world.gravity": 2.0})
-    now = sim.state()
-    assert np.array_equal(now["positions"], before["positions"])  # nothing moved yet
+    _same(sim.state(), before)  # nothing moved yet
+    after = _run(sim, 60)
+    ref = Simulation(scene_with(scene, {"world.gravity": 2.0}))
+    ref.restore(saved)
+    _same(after, _run(ref, 60))  # the new value acts from the next step, as if the scene had it
+    del ref
+    plain = Simulation(scene)
+    plain.restore(saved)
+    unchanged = _run(plain, 60)
+    assert np.count_nonzero(unchanged["phase"] == 1) > 0  # rocks in the air, which gravity moves
+    assert not np.array_equal(after["positions"], unchanged["positions"])  # the change changed what followed
+    del plain
     sim.restore(saved)  # restore uploads the parameters again: the new ones
     assert runtime_values(sim)["world.gravity"] == pytest.approx(2.0)
+    _same(_run(sim, 60), after)
 
 
 def test_bad_values_are_refused_and_change_nothing(scene):

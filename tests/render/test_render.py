@@ -850,7 +850,7 @@ def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, 
     import signal
 
     import imageio.v3 as iio
-    from cli_util import cli, start_cli, wait_for
+    from cli_util import child_pids, cli, start_cli, wait_for, wait_gone
     from taichi_rocks.output.video import finished_frames
 
     frames_dir = tmp_path / "frames"
@@ -864,9 +864,12 @@ def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, 
         last = err.strip().splitlines()[-1]
         assert "interrupted" in last and "--resume" in last, err
     else:
+        encoders = child_pids(p.pid)  # the ffmpeg the video is piped to: it outlives a kill -9 of the render
         p.kill()
         p.communicate(timeout=60)
         assert p.returncode == -signal.SIGKILL
+        assert encoders, "no encoder process was running"
+        wait_gone(encoders)  # it reads to the end of its pipe and writes the partial video, then exits
         assert (tmp_path / ".minimal.partial.mp4").exists()  # left behind: the resume must clear it
     n = finished_frames(frames_dir)
     assert 12 <= n < CLI_FRAMES, n

@@ -236,18 +236,35 @@ def test_scrubbing_back_shows_the_frame_render_draws(view, tmp_path):
     assert diff.mean() < 2.0 and (diff > 24).mean() < 0.005, (diff.mean(), (diff > 24).mean())
 
 
+def first_slider(img: np.ndarray, panel_left: int) -> tuple:
+    """(row, bar start, bar end, grab centre) in pixels of the first slider right of ``panel_left``, found in a
+    screenshot: Dear ImGui draws a slider as a blue bar (its frame) with a brighter blue grab; the panel's
+    title bar is blue too but has no grab."""
+    rgb = img[:, panel_left:, :3].astype(int)
+    grab = (rgb[..., 2] > 180) & (rgb[..., 0] < 120)
+    rows = np.flatnonzero(grab.sum(axis=1) >= 3)
+    assert len(rows), "no slider grab in the panel"
+    run_end = rows[0] + int(np.argmax(np.diff(np.append(rows, rows[-1] + 2)) > 1))  # the first run of rows
+    y = (rows[0] + run_end) // 2
+    blue = np.flatnonzero(rgb[y, :, 2] - rgb[y, :, 0] > 30)  # the bar (frame and grab; its value's text
+    g = np.flatnonzero(grab[y])  # breaks it), then only the label, in grey, to its right
+    return int(y), panel_left + int(blue[0]), panel_left + int(blue[-1]), panel_left + int(g.mean())
+
+
 def test_wetness_slider_dragged_with_the_mouse_reaches_the_kernels(view):
+    from taichi_rocks.render.panel import SLIDERS, panel_width
+
+    assert next(iter(SLIDERS)) == "world.wetness"  # the first widget of the "tune" panel
     view.still(panel=True)
     assert view.status()["params"]["world.wetness"] == 0.0
-    # the wetness slider is the first widget of the "tune" panel (render/panel.py): its row is 37 px down
-    # from the top, its bar starts 8 px inside the panel's left edge
-    x0 = int(round(W * (1 - min(0.45, 300 / W)))) + 12
-    y = 37
-    s = _drag(view, x0, x0 + 120, y, lambda s: s["params"]["world.wetness"] > 0.5)
+    left = int(round(W * (1.0 - panel_width(W))))  # the panel's left edge, from its layout
+    y, x0, x1, grab = first_slider(view.screenshot(), left)
+    assert x0 <= grab < x0 + 0.25 * (x1 - x0) and x1 - x0 > 60, (x0, x1, grab)  # at 0: the grab on the left
+    s = _drag(view, grab, x0 + int(0.9 * (x1 - x0)), y, lambda s: s["params"]["world.wetness"] > 0.5)
     assert s["params"]["world.wetness"] <= 1.0
     assert s["params"]["world.gravity"] == pytest.approx(9.81, rel=1e-6)  # the other sliders did not move
     # back to the scene's value (the far left: 0) for the other tests
-    _drag(view, x0 + 60, x0 - 60, y, lambda s: s["params"]["world.wetness"] == 0.0)
+    _drag(view, x0 + (x1 - x0) // 2, x0 - 60, y, lambda s: s["params"]["world.wetness"] == 0.0)
 
 
 def _drag(view, x_from, x_to, y, done):

@@ -1,0 +1,80 @@
+"""Golden digests: the SHA-256 of the state of each shipped scene after STEPS steps, compared with the values
+committed in tests/golden/states.json. A change of behaviour (any bit of any rock, the launches, the recycles,
+the vehicles) fails here instead of passing in silence.
+
+On purpose, after a change that is meant to change what the scenes do (and says so in its commit message),
+refresh them with:
+
+    PYTHONPATH=. python tests/engine/test_golden.py --refresh
+
+The digests are of the CPU backend (bit-identical across runs, processes and thread counts); another
+processor family may round differently and would need its own file.
+"""
+
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+GOLDEN = ROOT / "tests" / "golden" / "states.json"
+SCENES = sorted((ROOT / "scenes").glob("*.toml"))
+STEPS = 60
+ARRAYS = ("positions", "velocities", "phase", "radii", "bed_center", "vehicle_positions", "vehicle_headings")
+
+
+def _sha(a) -> str:
+    a = np.ascontiguousarray(a)
+    return hashlib.sha256(str(a.dtype).encode() + str(a.shape).encode() + a.tobytes()).hexdigest()
+
+
+def digest(path: Path) -> dict:
+    """The digests of ``path``'s state after STEPS steps, in process on the CPU (same bits as the CLI)."""
+    from taichi_rocks.engine.simulation import Simulation
+
+    sim = Simulation.from_scene(path)
+    sim.step(STEPS)
+    st = sim.state()
+    out = {"steps": STEPS, "launches_total": int(st["launches_total"]), "recycles_total": int(st["recycles_total"])}
+    out.update({k: _sha(st[k]) for k in ARRAYS})
+    return out
+
+
+@pytest.fixture(scope="module")
+def golden():
+    return json.loads(GOLDEN.read_text())
+
+
+def test_every_shipped_scene_has_a_golden_digest(golden):
+    assert sorted(golden["scenes"]) == [p.stem for p in SCENES]
+    for name, d in golden["scenes"].items():
+        assert d["steps"] == STEPS and d["launches_total"] > 0, name  # the digests cover launches
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
+def test_state_after_steps_equals_the_golden_digest(taichi_cpu, golden, path):
+    want = golden["scenes"][path.stem]
+    got = digest(path)
+    changed = [k for k in want if got.get(k) != want[k]]
+    assert not changed, (f"{path.stem}: {', '.join(changed)} changed after {STEPS} steps; if the change of "
+                         "behaviour is meant, refresh: PYTHONPATH=. python tests/engine/test_golden.py --refresh")
+
+
+def refresh() -> None:
+    from taichi_rocks.engine.runtime import init_taichi
+
+    init_taichi("cpu")
+    data = {"comment": "SHA-256 of each shipped scene's state after 'steps' steps (tests/engine/test_golden.py); "
+                       "refresh on purpose only: PYTHONPATH=. python tests/engine/test_golden.py --refresh",
+            "scenes": {p.stem: digest(p) for p in SCENES}}
+    GOLDEN.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {GOLDEN}")
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] != ["--refresh"]:
+        raise SystemExit("usage: PYTHONPATH=. python tests/engine/test_golden.py --refresh")
+    refresh()

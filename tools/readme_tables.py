@@ -1,0 +1,269 @@
+"""The README's measured tables, generated from the benchmark results committed under docs/results/:
+
+    docs/results/bench.json    ``taichi-rocks bench`` (its results.json): speed and activity targets, presets
+    docs/results/launch.json   ``taichi-rocks bench --only launch`` (its launch_study.json): what the tread throws
+
+    python tools/readme_tables.py            # rewrite the marked blocks of README.md from those files
+    python tools/readme_tables.py --check    # exit 1 (and say which) if README.md differs from them
+
+Each generated block of README.md sits between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->``; the
+text outside the blocks is left alone, and nothing inside them is written by hand. To show a new run: copy
+its results.json (and launch_study.json) over the files above, run this script, commit the three together.
+tests/test_readme_tables.py checks that the README's blocks are what this script makes of the committed files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+RESULTS = ROOT / "docs" / "results"
+
+# the per-case rows of the launch study the README shows (the study's report has all 18)
+LAUNCH_CASES = ("V10 dry gravel", "V20 dry gravel", "V30 dry gravel", "V20 wet gravel", "V30 wet gravel",
+                "V20 dry small", "V20 wet small", "V20 dry large")
+INTEGRATOR = {"symplectic_euler": "symplectic Euler", "heun": "Heun", "rk4": "RK4"}
+SPEED_TARGETS = ("full step <= 1.0x Warp", "full step <= 3x streaming floor", ">= 100x faster than NumPy",
+                 "bed-only scene", "linear in N")
+ACTIVITY_TARGETS = ("active step <= 0.5x", "step(", "real time with the balanced preset")
+
+
+def _met(m) -> str:
+    return {True: "yes", False: "**no**", None: "-"}[m]
+
+
+def _length(x: float) -> str:
+    """A length with a readable unit."""
+    if x == 0:
+        return "0 m"
+    for unit, scale in (("m", 1.0), ("cm", 1e-2), ("mm", 1e-3), ("µm", 1e-6), ("nm", 1e-9)):
+        if abs(x) >= scale:
+            return f"{x / scale:.3g} {unit}"
+    return f"{x:.2e} m"
+
+
+def _num(x, digits=3) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    if abs(x) >= 1000:
+        return f"{x:,.0f}"
+    return f"{x:.{digits}g}"
+
+
+def run_line(res: dict) -> str:
+    """Where and when a run was made, and how busy the machine was."""
+    m = res["machine"]
+    la0, la1 = res.get("load_average_start"), res.get("load_average_end")
+    load, busy = "", ""
+    if la0 and la1:
+        load = f"; load average {la0[0]:.1f} at the start, {la1[0]:.1f} at the end"
+        if max(la0[0], la1[0]) > 0.75 * (m["usable_cores"] or 1):  # the report's own rule (bench/report.py)
+            busy = (" **The machine was busy with other work during this run: its timings are noisy and "
+                    "pessimistic.**")
+    return (f"*Run of {res['started']} ({res['config']['mode']}, {res['elapsed_s'] / 60:.0f} min): {m['cpu_model']}, "
+            f"{m['usable_cores']} cores, Taichi {m['taichi']} ({m['taichi_arch']}){load}.*{busy}")
+
+
+# ------------------------------------------------------------------------------------------------ launch
+def launch_targets(launch: dict, bench: dict) -> list:
+    rows = ["| target | measured | met |", "|---|---|---|"]
+    for r in launch["table"]:
+        rows.append(f"| {r['target']} | {r['shown']} | {'-' if r['met'] is None else ('yes' if r['met'] else 'NO')} |")
+    return rows
+
+
+def launch_cases(launch: dict, bench: dict) -> list:
+    rows = ["| case | launches | lost in air | median angle | > 25 deg | median apex | 95 % apex | max apex | "
+            "< 1.5 m | landing behind (median) | > 40 m |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for k in LAUNCH_CASES:
+        s = launch["stats"][k]
+        rows.append(f"| {k} | {s['launches']} | {s['lost_in_air']} | {s['alpha_median_deg']:.1f} deg | "
+                    f"{100 * s['alpha_above_25']:.1f} % | {100 * s['apex_median']:.1f} cm | "
+                    f"{100 * s['apex_p95']:.1f} cm | {s['apex_max']:.2f} m | {100 * s['below_1_5']:.2f} % | "
+                    f"{s['behind_median']:.2f} m | {100 * s['beyond_40']:.2f} % |")
+    return rows
+
+
+# ------------------------------------------------------------------------------------------------ bench
+def _targets(bench: dict, prefixes) -> list:
+    return [t for t in bench["targets"] if t["target"].startswith(prefixes)]
+
+
+def speed_targets(launch: dict, bench: dict) -> list:
+    rows = [run_line(bench), "", "| target | measured | met |", "|---|---|---|"]
+    for t in _targets(bench, SPEED_TARGETS):
+        measured = t["detail"] + ("" if t["value"] is None else f" ({_num(t['value'])}x)")
+        rows.append(f"| {t['target']} | {measured} | {_met(t['met'])} |")
+    return rows
+
+
+def _grid(bench: dict) -> dict:
+    return {(e["n"], e["t"]): e for e in bench["speed"]["grid"]}
+
+
+def speed_notes(launch: dict, bench: dict) -> list:
+    """The speed section's figures: the passes inside a step at the main scene, the hash settings, detection."""
+    n, t = bench["config"]["main"]
+    main = _grid(bench).get((n, t))
+    out = []
+    if main:
+        prof = main["in_step"]["per_pass_ms"]
+        host = prof.get("host and launch overhead")
+        passes = "; ".join(f"{k} {_num(v)} ms" for k, v in prof.items() if k != "host and launch overhead")
+        out.append(f"- Inside a step at N = {n:,}, T = {t} ({_num(main['step_ms'])} ms, the median): {passes}"
+                   + (f"; host work and launches {_num(host)} ms." if host is not None else "."))
+    hs = bench["accuracy"]["hash_settings"]
+    ok = {r["name"]: r for r in hs["settings"] if "error" not in r}
+    rel = [f"\"{name}\" x{r['step_ms'] / ok[next(iter(ok))]['step_ms']:.2f}" for name, r in ok.items()][1:]
+    failed = [r["name"] for r in hs["settings"] if "error" in r]
+    out.append(f"- Hash settings (N = {hs['n']:,}, T = {hs['t']}, {hs['k_steps']} steps): **{hs['verdict']}**, the "
+               f"launched rocks {'identical for every setting' if hs['identical'] else 'DIFFER'}"
+               + (f", {len(failed)} failed to build: " + ", ".join(failed) if failed else "")
+               + "; step time against the default: " + "; ".join(rel) + ".")
+    modes = bench["accuracy"]["detection"]["modes"]
+    recall = lambda m: ", ".join(f"{r['recall']:.2f} at {r['speed_m_s']:g} m/s" for r in modes[m]["per_speed"]
+                                 if r["speed_m_s"] in (20.0, 60.0))
+    line = f"- Detection (recall of the true tire contacts): a single ray {recall('ray')}"
+    if "ray x4 substeps" in modes:
+        line += f"; four ray substeps {recall('ray x4 substeps')}"
+    line += (f"; swept {recall('swept')}, for x{modes['swept']['step_ms'] / modes['ray']['step_ms']:.2f} the "
+             "ray's step time (lanes scene).")
+    out.append(line)
+    pr = bench["accuracy"]["precision"]
+    d = pr["distances_m"]
+    at = lambda name, k: _length(pr["configs"][name]["max_error_m"][k])
+    km = lambda k: f"{d[k] / 1e3:g} km"
+    far = len(d) - 1
+    near = d.index(1e3) if 1e3 in d else 1
+    out.append(f"- Precision: f32 with a world origin is off by {at('f32 world', near)} at {km(near)} and "
+               f"{at('f32 world', far)} at {km(far)}; the floating origin keeps f32 at {at('f32 floating', far)} at "
+               f"{km(far)} (against an f64 flight launched at the origin).")
+    return out
+
+
+def presets(launch: dict, bench: dict) -> list:
+    acc = bench["accuracy"]
+    n, t = bench["config"]["main"]
+    rows = ["| preset | meets: flight error / recall at 60 m/s / launch-time bound | settings | measured flight "
+            f"error | ms per simulated second ({n:,} rocks, {t} tires) |", "|---|---|---|---|---|"]
+    for p in acc["presets"]:
+        meets = (f"{_length(p['target_flight_error_m'])} / {p['target_recall']:g} / "
+                 f"{_length(p['target_launch_time_bound_m'])}")
+        if "integrator" not in p:
+            rows.append(f"| `{p['name']}` | {meets} | {p['none']} | | |")
+            continue
+        det = p["detection"] + (f" x{p['substeps']}" if p["substeps"] > 1 else "")
+        rows.append(f"| `{p['name']}` | {meets} | {INTEGRATOR[p['integrator']]}, dt {p['dt']:g} s, {det}, "
+                    f"{p['precision']} | {_length(p['flight_error_m'])} | {_num(p['ms_per_simulated_s'])} |")
+    rows.append("")
+    rows.append(f"The defaults (symplectic Euler, dt 0.002 s, a single ray, f32): flight error "
+                f"{_length(_default_error(bench))}, recall {_num(_default_recall(bench), 2)} at 60 m/s, "
+                f"{_num(acc['preset_costs']['step_ms']['ray'] / 0.002)} ms per simulated second.")
+    return rows
+
+
+def _default_error(bench: dict) -> float:
+    rows = [r for r in bench["accuracy"]["integrator_dt"]["rows"] if r["precision"] == "f32"
+            and r["integrator"] == "symplectic_euler" and abs(r["dt"] - 0.002) < 1e-12
+            and r["case"] in ("gravity", "quadratic")]
+    return max(r["max_error_m"] for r in rows)
+
+
+def _default_recall(bench: dict) -> float:
+    rows = bench["accuracy"]["detection"]["modes"]["ray"]["per_speed"]
+    return max(rows, key=lambda r: r["speed_m_s"])["recall"]
+
+
+def activity_targets(launch: dict, bench: dict) -> list:
+    rows = [run_line(bench), "", "| target | measured | verdict |", "|---|---|---|"]
+    for t in _targets(bench, ACTIVITY_TARGETS):
+        how, _, detail = t["detail"].partition(": ")
+        verdict = "met" if t["met"] else ("**missed**" if t["met"] is False else "-")
+        rows.append(f"| {t['target']} | {_num(t['value'])}: {detail} | {verdict} ({how.split(', ', 1)[-1]}) |")
+    mem = bench["activity"]["memory"]
+    for series, per in mem.items():
+        m = per.get("active")
+        if m:
+            rows.append(f"| memory, 10M rocks, series ({series}) | {m['peak_10m_gb']:.2f} GB peak RSS ({m['peak_10m_basis']}; "
+                        f"fields {_num(m['field_bytes_per_rock'])} B a rock) | fits 24 GB "
+                        f"{24.0 / m['peak_10m_gb']:.0f}x over |")
+    return rows
+
+
+def activity_notes(launch: dict, bench: dict) -> list:
+    act = bench["activity"]
+    out = []
+    full = [r for r in act["series"]["a"] if r.get("full") and "error" not in r["full"] and r.get("active")
+            and "error" not in r["active"]]
+    if full:
+        out.append("- Full stepping in the same run: " + "; ".join(
+            f"{r['full']['step_ms']:.2f} ms at {r['n']:,} rocks ({r['full']['step_ms'] / r['active']['step_ms']:.1f}x "
+            "the active step)" for r in full) + ".")
+    a = [r for r in act["series"]["a"] if r.get("active") and "error" not in r["active"]]
+    if a:
+        out.append("- Active step against N (series (a)): " + "; ".join(
+            f"{r['active']['step_ms']:.2f} ms at {r['n']:,}" for r in a) + ".")
+    tires = [p for p in act["sweep"] if p["group"] == "tires" and "error" not in p]
+    if tires:
+        out.append(f"- Against the rear tires at N = {act['reference_n']:,}: " + "; ".join(
+            f"{p['step_ms']:.2f} ms with {p['t_rear']}" for p in tires) + ".")
+    ov = bench["speed"].get("overheads", {})
+    if ov:
+        out.append(f"- Fixed costs: an empty kernel launch {_num(ov.get('empty_kernel_ms'))} ms, the rock pass over "
+                   f"zero rocks with every part off {_num(ov.get('rock_pass_zero_rocks_ms'))} ms, the vehicles' "
+                   f"poses and rays on the host {_num(ov.get('vehicle_poses_and_rays_ms'))} ms a step.")
+    return out
+
+
+BLOCKS = {"launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
+          "speed-notes": speed_notes, "presets": presets, "activity-targets": activity_targets,
+          "activity-notes": activity_notes}
+
+
+def load(results: Path = RESULTS) -> tuple:
+    return (json.loads((results / "launch.json").read_text()), json.loads((results / "bench.json").read_text()))
+
+
+def blocks(launch: dict, bench: dict) -> dict:
+    return {name: "\n".join(fn(launch, bench)) for name, fn in BLOCKS.items()}
+
+
+def rewrite(text: str, generated: dict) -> str:
+    """``text`` with every marked block replaced by its generated content; a block missing from ``text`` or
+    present twice is an error."""
+    for name, body in generated.items():
+        pattern = re.compile(rf"(<!-- results:{re.escape(name)} -->\n)(?:.*?\n)?(<!-- /results:{re.escape(name)} -->)",
+                             re.S)
+        found = len(pattern.findall(text))
+        if found != 1:
+            raise ValueError(f"README.md: block results:{name} found {found} times (expected once)")
+        text = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
+    return text
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--check", action="store_true", help="only compare; exit 1 if README.md differs")
+    args = ap.parse_args(argv)
+    old = README.read_text()
+    new = rewrite(old, blocks(*load()))
+    if args.check:
+        if new != old:
+            print("README.md: the measured tables differ from docs/results/ (run python tools/readme_tables.py)",
+                  file=sys.stderr)
+            return 1
+        return 0
+    if new != old:
+        README.write_text(new)
+        print("README.md: tables rewritten from docs/results/")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
