@@ -1,6 +1,6 @@
-"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench``.
+"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench | sweep``.
 
-Exit status: 0 success; 1 the simulation went wrong (runtime guard); 2 bad input (scene, arguments,
+Exit status: 0 success; 1 the simulation went wrong (runtime guard; a sweep: a run failed); 2 bad input (scene, arguments,
 existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
 never a traceback.
 """
@@ -121,6 +121,22 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--arch", choices=ARCHES, default="cpu")
     b.add_argument("--only", choices=("launch", "activity"),
                    help="run one study only: launch (what the tread throws) or activity (cost against activity)")
+
+    w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
+                                     "cluster, into results.csv, sweep.json, runs/ and plots/")
+    w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; README, \"Sweeps\")")
+    w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
+    w.add_argument("--backend", choices=("local", "ray"), help="local processes (default) or a Ray cluster "
+                                                                "(default with --address)")
+    w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
+                                                                      "one per core, at most one per run)")
+    w.add_argument("--threads", type=_positive_int, metavar="T", help="Taichi threads per worker (default: "
+                                                                      "cores / workers)")
+    w.add_argument("--address", metavar="ADDR", help="join the Ray cluster at ADDR (host:port of `ray start "
+                                                      "--head`); without it the ray backend starts a local one")
+    w.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend of the runs")
+    w.add_argument("--resume", action="store_true", help="continue: run only the runs without a row in DIR")
+    w.add_argument("--overwrite", action="store_true", help="replace the results in DIR")
     return p
 
 
@@ -285,6 +301,25 @@ def cmd_bench(args) -> int:
     return EXIT_OK
 
 
+def cmd_sweep(args) -> int:
+    from .app.sweep.sweep import run_sweep
+
+    backend = args.backend or ("ray" if args.address else "local")
+    if args.address and backend != "ray":
+        raise UsageError("--address is for --backend ray")
+    if args.resume and args.overwrite:
+        raise UsageError("--resume and --overwrite exclude each other")
+    try:
+        rows = run_sweep(args.sweep, args.out, backend=backend, workers=args.workers, threads=args.threads,
+                         address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch)
+    except ConnectionError as e:
+        raise UsageError(f"cannot reach the Ray cluster at {args.address}: {e}".splitlines()[0]) from None
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"wrote {args.out / 'results.csv'}: {len(rows)} runs, {len(failed)} failed"
+          + (f" ({', '.join(r['id'] for r in failed[:8])}{' ...' if len(failed) > 8 else ''})" if failed else ""))
+    return EXIT_FAILED if failed else EXIT_OK
+
+
 # What each command imports, loaded up front while Ctrl-C is held back (see main). The second group: what the
 # libraries import on first use (NumPy's memmap, tqdm's lock, Taichi's first kernel compilation, the ffmpeg
 # binary's lookup); a Ctrl-C that lands in such a late first import can be swallowed (CPython reports it as
@@ -299,9 +334,11 @@ _PRELOAD = {
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
               "taichi_rocks.bench.launch", "taichi_rocks.bench.activity"),
+    "sweep": ("taichi_rocks.config.sweep", "taichi_rocks.app.sweep.sweep", "tqdm"),
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
-_PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
+_PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "sweep": ("multiprocessing.connection",),
+                       "render": _LATE + (
     "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers"),
     "export": _LATE + ("pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "pxr.Gf", "pxr.Sdf", "pxr.Tf")}
 
@@ -345,7 +382,7 @@ def main(argv=None, *, held=None, restore=None) -> int:
     from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
-               "render": cmd_render, "view": cmd_view, "bench": cmd_bench}[args.command]
+               "render": cmd_render, "view": cmd_view, "bench": cmd_bench, "sweep": cmd_sweep}[args.command]
     try:
         if held:
             raise KeyboardInterrupt

@@ -1,0 +1,1 @@
+"""What the commands orchestrate, over every room's public face."""
