@@ -14,7 +14,8 @@ caller as it arrives. No Taichi object crosses a process: a task and its result 
   the run and stopped after it. The driver's ``taichi_rocks`` package is shipped to the actors (runtime_env
   py_modules), so every node runs the same code.
 
-Faults: an exception in ``fn`` is that task's error (one line), the others go on. A worker that dies in the
+Faults: an exception in ``fn`` is that task's error (one line), the others go on; the worker is replaced
+(a failed build can leave Taichi unable to allocate fields in that process). A worker that dies in the
 middle of a task (kill -9, the out-of-memory killer) is replaced and the task is run again on another worker,
 up to ``retries`` times; each task is reported exactly once. ``fresh=True`` gives every task a new process
 (the benchmark: memory measured per point). Ctrl-C stops the workers and raises KeyboardInterrupt. This
@@ -128,7 +129,10 @@ class _Local:
         self.task = task
         self.conn.send(task)
 
-    def stop(self) -> None:
+    def stop(self, now: bool = False) -> None:
+        """Let the worker finish and exit; ``now``: end it at once (Ctrl-C: its run is given up)."""
+        if now and self.task is not None:
+            self.proc.terminate()
         try:
             self.conn.send(None)
         except (OSError, ValueError):
@@ -170,9 +174,9 @@ def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool) -
                         task, w.task = w.task, None
                         report(Outcome(task, value if status == "ok" else None, value if status != "ok" else None,
                                        attempts[task["id"]], w.name))
-                        if not fresh:
+                        if not fresh and status == "ok":
                             continue
-                        w.stop()
+                        w.stop()  # after an error the runtime may be unusable (a field builder left open)
                         pool[i] = _Local(fn, place.threads)
                         continue
                 if w.proc.sentinel in ready or not w.proc.is_alive():
@@ -182,9 +186,12 @@ def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool) -
                     pool[i] = _Local(fn, place.threads)  # a new worker in place of the dead one
                     if task is not None:
                         _retry(task, why, attempts, retries, queue, report, w.name)
-    finally:
+    except BaseException:
         for w in pool:
-            w.stop()
+            w.stop(now=True)
+        raise
+    for w in pool:
+        w.stop()
 
 
 def _retry(task, why, attempts, retries, queue, report, worker) -> None:
@@ -267,7 +274,7 @@ def _run_ray(tasks, fn, place: Placement, retries: int, report, fresh: bool) -> 
                         continue
                     report(Outcome(task, value if status == "ok" else None, value if status != "ok" else None,
                                    attempts[task["id"]], name))
-                    if fresh:
+                    if fresh or status != "ok":  # after an error the runtime may be unusable
                         ray.kill(actor)
                         actor, name, made = new(), f"ray:{made}", made + 1
                     idle.append((actor, name))

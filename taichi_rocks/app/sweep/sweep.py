@@ -185,7 +185,7 @@ def run_sweep(path, out, backend: str = "local", workers=None, threads=None, add
             text = results_csv(done, keys, metrics)
             write_atomically(out / "results.csv", lambda f: f.write(text.encode()))
             if o.error is not None:
-                bar.write(f"sweep: run {r.id} ({_label(r)}) failed: {o.error}")
+                bar.write(f"sweep: run {r.id} ({_label(r)}) failed: {o.error}", file=sys.stderr)
             bar.update(1)
 
         try:
