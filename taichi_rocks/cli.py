@@ -121,6 +121,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--arch", choices=ARCHES, default="cpu")
     b.add_argument("--only", choices=("launch", "activity"),
                    help="run one study only: launch (what the tread throws) or activity (cost against activity)")
+    b.add_argument("--backend", choices=("local", "ray"), help="where the activity study's processes run: here, "
+                                                                "one at a time (default), or on a Ray cluster")
+    b.add_argument("--address", metavar="ADDR", help="the Ray cluster to join (host:port; implies --backend ray)")
 
     w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
                                      "cluster, into results.csv, sweep.json, runs/ and plots/")
@@ -285,6 +288,12 @@ def cmd_view(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    backend = args.backend or ("ray" if args.address else "local")
+    if args.address and backend != "ray":
+        raise UsageError("--address is for --backend ray")
+    where = dict(backend=backend, address=args.address)
+    if args.only == "launch" and backend != "local":
+        raise UsageError("the launch study runs in this process; --backend is for the activity study's processes")
     if args.only == "launch":
         from .bench.launch import run_launch_study
         info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
@@ -292,11 +301,11 @@ def cmd_bench(args) -> int:
         return EXIT_OK
     if args.only == "activity":
         from .bench.activity import run_activity_study
-        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+        info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None, **where)
         print(f"wrote {info['report']}")
         return EXIT_OK
     from .bench import run_bench
-    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None)
+    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None, **where)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK
 

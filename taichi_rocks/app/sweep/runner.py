@@ -4,8 +4,9 @@
 the worker) for every task (a dict with an ``"id"``, nothing but plain data) and reports each outcome to the
 caller as it arrives. No Taichi object crosses a process: a task and its result are dicts.
 
-* ``local``: worker processes started with spawn (Taichi allows one runtime per process, and forking after
-  ``ti.init`` can deadlock). Each worker keeps its process, and so its Taichi runtime, its compiled kernels and
+* ``local``: worker processes, each a fresh interpreter (``python -m taichi_rocks.app.sweep.runner``, spawned,
+  never forked: Taichi allows one runtime per process, and forking after ``ti.init`` can deadlock; nor does
+  the caller's main module run again in them, as multiprocessing's spawn would do). Each worker keeps its process, and so its Taichi runtime, its compiled kernels and
   its pool of fields, from task to task. ``TAICHI_ROCKS_THREADS`` (read by engine/runtime.py) gives each
   worker ``threads`` Taichi threads, so that workers x threads <= cores.
 * ``ray``: long-lived actors (``num_cpus=threads`` each) holding one Taichi runtime each, with the same thread
@@ -26,15 +27,17 @@ from __future__ import annotations
 
 import collections
 import importlib
-import multiprocessing
 import os
 import signal
+import subprocess
+import sys
 from dataclasses import dataclass, field
-from multiprocessing.connection import wait
+from multiprocessing.connection import Connection, wait
 from pathlib import Path
 
 THREADS_ENV = "TAICHI_ROCKS_THREADS"   # engine/runtime.py: Taichi's cpu_max_num_threads
 BACKENDS = ("local", "ray")
+WHOLE_NODE = 0   # threads=WHOLE_NODE on Ray: each actor holds every CPU of the largest node (timings undisturbed)
 
 
 @dataclass
@@ -95,31 +98,42 @@ def plan_placement(backend: str, tasks: int, workers=None, threads=None, cores=N
 
 
 # ------------------------------------------------------------------------------------------------ local
-def _local_main(conn, fn: str, threads: int) -> None:
-    """A local worker: tasks from the pipe until None; Ctrl-C is the parent's to handle."""
+def _local_main(rfd: int, wfd: int, fn: str) -> None:
+    """A local worker (``python -m taichi_rocks.app.sweep.runner RFD WFD FN``): tasks from the pipe until None;
+    Ctrl-C is the parent's to handle."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    os.environ[THREADS_ENV] = str(threads)
+    tasks, results = Connection(rfd, writable=False), Connection(wfd, readable=False)
     f = _resolve(fn)
     while True:
         try:
-            task = conn.recv()
+            task = tasks.recv()
         except EOFError:
             return
         if task is None:
             return
-        conn.send(_call(f, task))
+        results.send(_call(f, task))
+
+
+def _package_root() -> str:
+    return str(Path(__file__).resolve().parents[3])
 
 
 class _Local:
+    """A worker process: a fresh interpreter (so nothing of this process's Taichi or its main module), fed
+    tasks through one pipe and answering through another; the answer pipe reads as closed once it dies."""
+
     def __init__(self, fn: str, threads: int):
-        self.ctx = multiprocessing.get_context("spawn")
-        self.fn, self.threads = fn, threads
-        self.conn, child = self.ctx.Pipe()
-        self.proc = self.ctx.Process(target=_local_main, args=(child, fn, threads), daemon=True)
-        self.proc.start()
-        child.close()
+        task_r, task_w = os.pipe()
+        res_r, res_w = os.pipe()
+        path = os.environ.get("PYTHONPATH")
+        env = dict(os.environ, **{THREADS_ENV: str(threads)},
+                   PYTHONPATH=_package_root() + (os.pathsep + path if path else ""))
+        self.proc = subprocess.Popen([sys.executable, "-m", "taichi_rocks.app.sweep.runner", str(task_r),
+                                      str(res_w), fn], pass_fds=(task_r, res_w), env=env)
+        os.close(task_r)
+        os.close(res_w)
+        self.tasks, self.conn = Connection(task_w, readable=False), Connection(res_r, writable=False)
         self.task = None
-        self.done = 0
 
     @property
     def name(self) -> str:
@@ -127,26 +141,31 @@ class _Local:
 
     def give(self, task: dict) -> None:
         self.task = task
-        self.conn.send(task)
+        try:
+            self.tasks.send(task)
+        except OSError:  # died while idle: the closed answer pipe says so, and the task is run again
+            pass
 
     def stop(self, now: bool = False) -> None:
         """Let the worker finish and exit; ``now``: end it at once (Ctrl-C: its run is given up)."""
-        if now and self.task is not None:
+        if now and self.task is not None and self.proc.poll() is None:
             self.proc.terminate()
         try:
-            self.conn.send(None)
+            self.tasks.send(None)
         except (OSError, ValueError):
             pass
-        self.proc.join(timeout=5)
-        if self.proc.is_alive():
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
             self.proc.terminate()
-            self.proc.join(timeout=5)
+            self.proc.wait(timeout=5)
+        self.tasks.close()
         self.conn.close()
 
 
 def _death(proc) -> str:
-    code = proc.exitcode
-    if code is not None and code < 0:
+    code = proc.wait()
+    if code < 0:
         return f"killed by signal {-code} ({signal.Signals(-code).name})"
     return f"exited with status {code}"
 
@@ -161,31 +180,25 @@ def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool) -
                 if w.task is None and queue:
                     w.give(queue.popleft())
                     attempts[w.task["id"]] += 1
-            busy = [w for w in pool if w.task is not None]
-            ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in pool]))
+            ready = set(wait([w.conn for w in pool]))
             for i, w in enumerate(pool):
-                if w.task is not None and w.conn in ready:
-                    try:
-                        status, value = w.conn.recv()
-                    except (EOFError, OSError):  # the worker died: the pipe closed with it
-                        status = None
-                        w.proc.join(timeout=10)
-                    if status is not None:
-                        task, w.task = w.task, None
-                        report(Outcome(task, value if status == "ok" else None, value if status != "ok" else None,
-                                       attempts[task["id"]], w.name))
-                        if not fresh and status == "ok":
-                            continue
-                        w.stop()  # after an error the runtime may be unusable (a field builder left open)
-                        pool[i] = _Local(fn, place.threads)
-                        continue
-                if w.proc.sentinel in ready or not w.proc.is_alive():
-                    w.proc.join()
+                if w.conn not in ready:
+                    continue
+                try:
+                    status, value = w.conn.recv()
+                except (EOFError, OSError):  # the worker died: its end of the pipe closed with it
                     task, why = w.task, _death(w.proc)
-                    w.conn.close()
+                    w.stop()
                     pool[i] = _Local(fn, place.threads)  # a new worker in place of the dead one
                     if task is not None:
                         _retry(task, why, attempts, retries, queue, report, w.name)
+                    continue
+                task, w.task = w.task, None
+                report(Outcome(task, value if status == "ok" else None, value if status != "ok" else None,
+                               attempts[task["id"]], w.name))
+                if fresh or status != "ok":  # after an error the runtime may be unusable (a field builder
+                    w.stop()                 # left open): a new process
+                    pool[i] = _Local(fn, place.threads)
     except BaseException:
         for w in pool:
             w.stop(now=True)
@@ -242,8 +255,12 @@ def _largest_node(ray) -> int:
 def _run_ray(tasks, fn, place: Placement, retries: int, report, fresh: bool) -> None:
     ray, cpus, _ = ray_connect(place.address, None)
     try:
-        p = plan_placement("ray", len(tasks), place.workers, place.threads, cpus, place.address)
-        p.threads = min(p.threads, _largest_node(ray))
+        largest = _largest_node(ray)
+        if place.threads == WHOLE_NODE:
+            p = plan_placement("ray", len(tasks), place.workers, largest, cpus, place.address)
+        else:
+            p = plan_placement("ray", len(tasks), place.workers, place.threads, cpus, place.address)
+            p.threads = min(p.threads, largest)
         place.workers, place.threads, place.cores = p.workers, p.threads, cpus
         actor_cls = ray.remote(_RayWorker)
 
@@ -314,3 +331,6 @@ def run_tasks(tasks: list, fn: str, *, backend: str = "local", workers=None, thr
         _run_local(tasks, fn, place, retries, report, fresh)
     return place
 
+
+if __name__ == "__main__":  # a local worker, started by _Local
+    _local_main(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])
