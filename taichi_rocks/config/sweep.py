@@ -80,7 +80,13 @@ def _show(v: Any) -> str:
 
 
 def _key(loc: tuple) -> str:
-    return ".".join(json.dumps(x) if "." in str(x) else str(x) for x in loc)
+    out = ""
+    for x in loc:
+        if isinstance(x, int):
+            out += f"[{x}]"
+        elif x not in ("tuple[int,...]", "none"):   # pydantic's labels of the Optional's members
+            out += ("." if out else "") + (json.dumps(x) if "." in str(x) else str(x))
+    return out
 
 
 def _problems(err: ValidationError) -> list[str]:
@@ -96,6 +102,16 @@ def _problems(err: ValidationError) -> list[str]:
                                                       " (expected one of " + ", ".join(choices) + ")"))
         elif kind == "missing":
             out.append(f"{_key(loc)}: required key is missing")
+        elif kind in ("tuple_type", "list_type"):
+            out.append(f"{_key(loc)}: expected a list{' of values' if loc[:1] == ('grid',) else ''}{got}")
+        elif kind == "too_short" and isinstance(e.get("input"), (list, tuple, dict)) and e["input"]:
+            continue  # pydantic adds it after an item failed; the item's own error says what is wrong
+        elif kind == "none_required":
+            continue  # the Optional's other member
+        elif kind in ("greater_than", "greater_than_equal"):
+            ctx = e.get("ctx") or {}
+            out.append(f"{_key(loc)}: must be {'>' if kind == 'greater_than' else '>='} "
+                       f"{_show(ctx.get('gt', ctx.get('ge')))}{got}")
         elif kind == "too_short":
             what = "at least one key" if loc == ("grid",) else "at least one value"
             out.append(f"{_key(loc)}: expected {what}{got}")

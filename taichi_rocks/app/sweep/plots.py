@@ -86,7 +86,7 @@ def _bands(plt, rows: list, keys: list, path: Path) -> bool:
         return False
     names = [b[1] for b in BAND_TARGETS]
     fig, ax = plt.subplots(figsize=(2.0 + 1.1 * (len(names) + 1) + 0.09 * max(len(_row_label(r, keys)) for r in rows),
-                                    0.9 + 0.28 * len(rows)))
+                                    1.1 + 0.2 * len(rows)))
     met_all = 0
     for i, r in enumerate(rows):
         m = r["metrics"]["launch"]
@@ -95,8 +95,8 @@ def _bands(plt, rows: list, keys: list, path: Path) -> bool:
         for j, (k, ok) in enumerate(zip(names, oks)):
             ax.add_patch(plt.Rectangle((j, i), 1, 1, color="#7fc97f" if ok else "#f0837c"))
             v = m[k]
-            ax.text(j + 0.5, i + 0.5, f"{v:.3g}" if _number(v) is not None else "-", ha="center", va="center",
-                    fontsize=7)
+            ax.text(j + 0.5, i + 0.5, f"{v:.4g}" if _number(v) is not None else "-", ha="center", va="center",
+                    fontsize=6.5)
         ax.add_patch(plt.Rectangle((len(names), i), 1, 1, color="#238b45" if all(oks) else "#cb181d"))
         ax.text(len(names) + 0.5, i + 0.5, "all met" if all(oks) else f"{sum(oks)}/{len(oks)}", ha="center",
                 va="center", fontsize=7, color="white")
@@ -105,7 +105,7 @@ def _bands(plt, rows: list, keys: list, path: Path) -> bool:
     heads = [f"{k}\n{'<=' if at_most else '>='} {limit:g}" for _, k, limit, at_most in BAND_TARGETS] + ["every band"]
     ax.set_xticks([j + 0.5 for j in range(len(heads))], heads, fontsize=7)
     ax.xaxis.tick_top()
-    ax.set_yticks([i + 0.5 for i in range(len(rows))], [_row_label(r, keys) for r in rows], fontsize=7)
+    ax.set_yticks([i + 0.5 for i in range(len(rows))], [_row_label(r, keys) for r in rows], fontsize=6.5)
     ax.set_title(f"Launch bands per run: {met_all} of {len(rows)} runs meet every band", fontsize=9, pad=28)
     fig.tight_layout()
     _save(fig, path)

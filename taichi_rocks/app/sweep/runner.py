@@ -31,7 +31,7 @@ import os
 import signal
 import subprocess
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 
@@ -58,7 +58,6 @@ class Placement:
     threads: int | None = None
     address: str | None = None
     cores: int = 0
-    notes: list = field(default_factory=list)
 
 
 def usable_cores() -> int:

@@ -199,6 +199,7 @@ def run_sweep(path, out, backend: str = "local", workers=None, threads=None, add
             write_atomically(out / "results.csv", lambda f: f.write(text.encode()))
         meta.update(finished=time.strftime("%Y-%m-%d %H:%M:%S"), workers=place.workers, threads=place.threads,
                     cores=place.cores, failed=sum(r["status"] != "ok" for r in ordered))
+        meta["machine"]["taichi_threads"] = place.threads  # each worker's, not this process's
         write_atomically(out / "sweep.json", lambda f: f.write(_dump(meta)))
         plot_sweep(ordered, keys, metrics, out / "plots")
     return table(ordered)
