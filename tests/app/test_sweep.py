@@ -17,7 +17,6 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import pytest
@@ -273,3 +272,16 @@ def test_the_runs_of_a_sweep():
     with pytest.raises(SweepError, match="seeds are swept by seeds"):
         sweep_runs(*load_sweep(_sweep_file(Path(tempfile.mkdtemp()), SWEEP.replace(
             '"bed.rocks" = [400]', '"seed" = [3]'))), "s.toml")
+
+
+def test_the_shipped_sweeps_validate():
+    """sweeps/example.toml (README's example): 18 runs. sweeps/throw.toml: its base scene is the launch bands'
+    reference case; 72 runs, the defaults among them."""
+    sweep, base = load_sweep(ROOT / "sweeps" / "example.toml", METRICS)
+    assert len(sweep_runs(sweep, base, "example.toml")) == 18 and base.name == "minimal"
+    sweep, base = load_sweep(ROOT / "sweeps" / "throw.toml", METRICS)
+    runs = sweep_runs(sweep, base, "throw.toml")
+    assert len(runs) == 72 and sweep.measure.metrics == ("launch",)
+    assert base.vehicles[1].path.speed == 20.0 and base.world.wetness == 0.0 and base.bed.follow == "anchor"
+    defaults = {"launch.grip": 2e5, "launch.grip_relax": 12.0, "launch.groove": 0.012, "launch.adhesion": 3e4}
+    assert any(all(r.values[k] == v for k, v in defaults.items()) for r in runs)

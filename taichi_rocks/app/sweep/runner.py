@@ -239,10 +239,10 @@ def ray_connect(address, cores: int | None):
     package = str(Path(__file__).resolve().parents[2])  # the taichi_rocks folder: every node runs this code
     env = {"py_modules": [package]}
     if address:
-        ray.init(address=address, runtime_env=env, log_to_driver=False, logging_level="WARNING")
+        ray.init(address=address, runtime_env=env, log_to_driver=False, logging_level="ERROR")
     else:
         ray.init(num_cpus=cores or usable_cores(), include_dashboard=False, runtime_env=env, log_to_driver=False,
-                 logging_level="WARNING")
+                 logging_level="ERROR")
     cpus = int(ray.cluster_resources().get("CPU", 1))
     return ray, cpus, not address
 
