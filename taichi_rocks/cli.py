@@ -322,7 +322,8 @@ def cmd_sweep(args) -> int:
         rows = run_sweep(args.sweep, args.out, backend=backend, workers=args.workers, threads=args.threads,
                          address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch)
     except ConnectionError as e:
-        raise UsageError(f"cannot reach the Ray cluster at {args.address}: {e}".splitlines()[0]) from None
+        raise UsageError(f"cannot reach the Ray cluster at {args.address}: {str(e).splitlines()[0]} (a cluster "
+                         f"with token authentication needs RAY_AUTH_MODE=token here too)") from None
     failed = [r for r in rows if r["status"] != "ok"]
     print(f"wrote {args.out / 'results.csv'}: {len(rows)} runs, {len(failed)} failed"
           + (f" ({', '.join(r['id'] for r in failed[:8])}{' ...' if len(failed) > 8 else ''})" if failed else ""))

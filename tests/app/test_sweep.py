@@ -11,6 +11,7 @@ process group is killed at the end, whatever the tests did."""
 import csv
 import json
 import os
+import secrets
 import shutil
 import signal
 import socket
@@ -70,9 +71,12 @@ def reference(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def ray_cluster():
-    """A real local Ray cluster: 2 CPUs on 127.0.0.1; its whole process group is killed at teardown."""
+    """A real local Ray cluster: 2 CPUs on 127.0.0.1, with a token of its own (Ray turns token authentication on
+    for `ray start` once ~/.ray/auth_token exists, which a local ray.init() writes); its whole process group is
+    killed at teardown. Yields (address, the environment a client needs)."""
     ray_bin = Path(sys.executable).parent / "ray"
     assert ray_bin.is_file(), "the ray extra is missing: pip install -e '.[ray]' (tools/setup.sh installs it)"
+    auth = {"RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32)}
     ports = []
     for _ in range(2):
         with socket.socket() as s:
@@ -83,11 +87,11 @@ def ray_cluster():
                              str(ports[0]), "--num-cpus", "2", "--include-dashboard", "false",
                              "--dashboard-agent-listen-port", str(ports[1]), "--temp-dir", temp,
                              "--disable-usage-stats"], start_new_session=True, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ, **auth))
     try:
         out, _ = proc.communicate(timeout=120)
         assert proc.returncode == 0, out
-        yield f"127.0.0.1:{ports[0]}"
+        yield f"127.0.0.1:{ports[0]}", auth
     finally:
         try:
             os.killpg(proc.pid, signal.SIGKILL)  # the daemons `ray start` left in its process group
@@ -150,9 +154,11 @@ def test_a_killed_worker_has_its_run_retried(backend, reference, request, tmp_pa
     """kill -9 of the worker (local) or actor (ray, joining the running cluster with --address) running a run:
     the run is run again on another worker; every row exactly once, and the rows (digests included) are the
     local reference's: on Ray this is also the test that both backends give the same rows."""
-    extra = ["--address", request.getfixturevalue("ray_cluster")] if backend == "ray" else []
+    address, env = request.getfixturevalue("ray_cluster") if backend == "ray" else (None, {})
+    extra = ["--address", address] if address else []
     out = tmp_path / "out"
-    proc = start_cli("sweep", _sweep_file(tmp_path), "--out", out, "--backend", backend, "--workers", "2", *extra)
+    proc = start_cli("sweep", _sweep_file(tmp_path), "--out", out, "--backend", backend, "--workers", "2", *extra,
+                     env=env)
     killed = _kill_first_worker(proc, out)
     _, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
