@@ -208,7 +208,7 @@ def worker(job_json: str) -> int:
 
 
 # --------------------------------------------------------------------------------------------- the parent
-def run_jobs(jobs: list, cfg, arch: str, prog, backend: str = "local", address=None) -> list:
+def run_jobs(jobs: list, cfg, arch: str, prog, backend: str = "local", address=None, timeout: float = 3600.0) -> list:
     """Every job in a process of its own, through the sweep runner: one at a time on this machine (each
     point's timing and memory undisturbed), or with ``backend="ray"`` one job per node of the cluster at
     ``address`` at a time (each actor holds a whole node). The points' results (or an error per point) in
@@ -227,7 +227,8 @@ def run_jobs(jobs: list, cfg, arch: str, prog, backend: str = "local", address=N
         run_tasks(tasks, "taichi_rocks.bench.activity:run_points", backend="ray", address=address,
                   threads=WHOLE_NODE, retries=0, report=report, fresh=True)
     else:
-        run_tasks(tasks, "taichi_rocks.bench.activity:run_points", workers=1, retries=0, report=report, fresh=True)
+        run_tasks(tasks, "taichi_rocks.bench.activity:run_points", workers=1, retries=0, report=report, fresh=True,
+                  timeout=timeout)
     return [p for t in tasks for p in got[t["id"]]]
 
 

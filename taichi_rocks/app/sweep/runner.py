@@ -31,6 +31,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -139,7 +140,7 @@ class _Local:
         return f"local:{self.proc.pid}"
 
     def give(self, task: dict) -> None:
-        self.task = task
+        self.task, self.started = task, time.monotonic()
         try:
             self.tasks.send(task)
         except OSError:  # died while idle: the closed answer pipe says so, and the task is run again
@@ -169,7 +170,18 @@ def _death(proc) -> str:
     return f"exited with status {code}"
 
 
-def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool) -> None:
+def _overdue(pool, timeout, fn, place, attempts, report) -> None:
+    """End the workers whose task has run longer than ``timeout`` s: that task's error, a new worker."""
+    for i, w in enumerate(pool):
+        if timeout and w.task is not None and time.monotonic() - w.started > timeout:
+            w.proc.kill()
+            task = w.task
+            w.stop()
+            pool[i] = _Local(fn, place.threads)
+            report(Outcome(task, None, f"timed out after {timeout:.0f} s", attempts[task["id"]], w.name))
+
+
+def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool, timeout=None) -> None:
     queue = collections.deque(tasks)
     attempts = collections.Counter()
     pool = [_Local(fn, place.threads) for _ in range(place.workers)]
@@ -179,7 +191,8 @@ def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool) -
                 if w.task is None and queue:
                     w.give(queue.popleft())
                     attempts[w.task["id"]] += 1
-            ready = set(wait([w.conn for w in pool]))
+            ready = set(wait([w.conn for w in pool], timeout=timeout and 1.0))
+            _overdue(pool, timeout, fn, place, attempts, report)
             for i, w in enumerate(pool):
                 if w.conn not in ready:
                     continue
@@ -209,7 +222,8 @@ def _run_local(tasks, fn, place: Placement, retries: int, report, fresh: bool) -
 def _retry(task, why, attempts, retries, queue, report, worker) -> None:
     n = attempts[task["id"]]
     if n > retries:
-        report(Outcome(task, None, f"worker died {n} times (last: {why})", n, worker))
+        report(Outcome(task, None, f"the worker died {'once' if n == 1 else f'{n} times'} (last: {why})", n,
+                       worker))
     else:
         queue.appendleft(task)
 
@@ -304,9 +318,10 @@ def _run_ray(tasks, fn, place: Placement, retries: int, report, fresh: bool) -> 
 
 
 def run_tasks(tasks: list, fn: str, *, backend: str = "local", workers=None, threads=None, address=None,
-              retries: int = 2, report=None, fresh: bool = False) -> Placement:
+              retries: int = 2, report=None, fresh: bool = False, timeout=None) -> Placement:
     """Run ``fn`` on every task (see the module docstring); ``report(outcome)`` is called in this process as
-    each task ends, in the order they end. Returns the placement used (workers, threads, cores)."""
+    each task ends, in the order they end. ``timeout`` (local): seconds a task may run before its worker is
+    ended and the task reported as timed out. Returns the placement used (workers, threads, cores)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
     report = report or (lambda outcome: None)
@@ -327,7 +342,7 @@ def run_tasks(tasks: list, fn: str, *, backend: str = "local", workers=None, thr
         raise ValueError(f"{place.workers} workers x {place.threads} threads is more than the {place.cores} "
                          f"cores here")
     if tasks:
-        _run_local(tasks, fn, place, retries, report, fresh)
+        _run_local(tasks, fn, place, retries, report, fresh, timeout)
     return place
 
 
