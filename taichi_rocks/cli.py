@@ -53,6 +53,7 @@ def _resolution(text: str) -> tuple[int, int]:
 
 
 def _parser() -> argparse.ArgumentParser:
+    from .app.sweep.runner import BACKENDS
     from .config.arches import ARCHES
 
     p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
@@ -121,7 +122,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--arch", choices=ARCHES, default="cpu")
     b.add_argument("--only", choices=("launch", "activity"),
                    help="run one study only: launch (what the tread throws) or activity (cost against activity)")
-    b.add_argument("--backend", choices=("local", "ray"), help="where the activity study's processes run: here, "
+    b.add_argument("--backend", choices=BACKENDS, help="where the activity study's processes run: here, "
                                                                 "one at a time (default), or on a Ray cluster")
     b.add_argument("--address", metavar="ADDR", help="the Ray cluster to join (host:port; implies --backend ray)")
 
@@ -129,7 +130,7 @@ def _parser() -> argparse.ArgumentParser:
                                      "cluster, into results.csv, sweep.json, runs/ and plots/")
     w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; README, \"Sweeps\")")
     w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
-    w.add_argument("--backend", choices=("local", "ray"), help="local processes (default) or a Ray cluster "
+    w.add_argument("--backend", choices=BACKENDS, help="local processes (default) or a Ray cluster "
                                                                 "(default with --address)")
     w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
                                                                       "one per core, at most one per run)")
