@@ -27,6 +27,8 @@ _API = {
     "record": "app.simulate", "load_run": "output.runs", "render_scene": "app.render",
     "Renderer": "render.renderer",
     "run_bench": "bench.run",
+    "run_sweep": "app.sweep.sweep", "Sweep": "config.sweep", "SweepError": "config.sweep",
+    "load_sweep": "config.sweep",
 }
 __all__ = sorted(_API)
 

@@ -1,6 +1,6 @@
-"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench``.
+"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench | sweep``.
 
-Exit status: 0 success; 1 the simulation went wrong (runtime guard); 2 bad input (scene, arguments,
+Exit status: 0 success; 1 the simulation went wrong (runtime guard; a sweep: a run failed); 2 bad input (scene, arguments,
 existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
 never a traceback.
 """
@@ -61,6 +61,7 @@ def _resolution(text: str) -> tuple[int, int]:
 
 
 def _parser() -> argparse.ArgumentParser:
+    from .runner.tasks import BACKENDS
     from .config.arches import ARCHES
     from .output.formats import FORMATS
 
@@ -131,6 +132,25 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--only", choices=("launch", "activity"),
                    help="run one study only: launch (what the tread throws) or activity (cost against activity)")
     b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
+    b.add_argument("--backend", choices=BACKENDS, help="where the activity study's processes run: here, "
+                                                                "one at a time (default), or on a Ray cluster")
+    b.add_argument("--address", metavar="ADDR", help="the Ray cluster to join (host:port; implies --backend ray)")
+
+    w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
+                                     "cluster, into results.csv, sweep.json, runs/ and plots/")
+    w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; README, \"Sweeps\")")
+    w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
+    w.add_argument("--backend", choices=BACKENDS, help="local processes (default) or a Ray cluster "
+                                                                "(default with --address)")
+    w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
+                                                                      "one per core, at most one per run)")
+    w.add_argument("--threads", type=_positive_int, metavar="T", help="Taichi threads per worker (default: "
+                                                                      "cores / workers)")
+    w.add_argument("--address", metavar="ADDR", help="join the Ray cluster at ADDR (host:port of `ray start "
+                                                      "--head`); without it the ray backend starts a local one")
+    w.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend of the runs")
+    w.add_argument("--resume", action="store_true", help="continue: run only the runs without a row in DIR")
+    w.add_argument("--overwrite", action="store_true", help="replace the results in DIR")
     return p
 
 
@@ -273,6 +293,13 @@ def cmd_bench(args) -> int:
         raise UsageError(f'--arch {args.arch}: the accuracy study runs simulations in sim.precision = "f64", which '
                          f"Taichi's {args.arch} backend cannot compile; use --arch cpu or cuda, or --only launch "
                          "or --only activity")
+
+    backend = args.backend or ("ray" if args.address else "local")
+    if args.address and backend != "ray":
+        raise UsageError("--address is for --backend ray")
+    where = dict(backend=backend, address=args.address)
+    if args.only == "launch" and backend != "local":
+        raise UsageError("the launch study runs in this process; --backend is for the activity study's processes")
     if args.only == "launch":
         from .bench.launch import run_launch_study
         info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
@@ -282,13 +309,34 @@ def cmd_bench(args) -> int:
     if args.only == "activity":
         from .bench.activity import run_activity_study
         info = run_activity_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
-                                  overwrite=args.overwrite)
+                                  overwrite=args.overwrite, **where)
         print(f"wrote {info['report']}")
         return EXIT_OK
     from .bench.run import run_bench
-    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None, overwrite=args.overwrite)
+    info = run_bench(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None, overwrite=args.overwrite,
+                     **where)
     print(f"wrote {info.get('report', args.out)}")
     return EXIT_OK
+
+
+def cmd_sweep(args) -> int:
+    from .app.sweep.sweep import run_sweep
+
+    backend = args.backend or ("ray" if args.address else "local")
+    if args.address and backend != "ray":
+        raise UsageError("--address is for --backend ray")
+    if args.resume and args.overwrite:
+        raise UsageError("--resume and --overwrite exclude each other")
+    try:
+        rows = run_sweep(args.sweep, args.out, backend=backend, workers=args.workers, threads=args.threads,
+                         address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch)
+    except ConnectionError as e:
+        raise UsageError(f"cannot reach the Ray cluster at {args.address}: {str(e).splitlines()[0]} (a cluster "
+                         f"with token authentication needs RAY_AUTH_MODE=token here too)") from None
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"wrote {args.out / 'results.csv'}: {len(rows)} runs, {len(failed)} failed"
+          + (f" ({', '.join(r['id'] for r in failed[:8])}{' ...' if len(failed) > 8 else ''})" if failed else ""))
+    return EXIT_FAILED if failed else EXIT_OK
 
 
 # What each command imports, loaded up front while Ctrl-C is held back (see main). The second group: what the
@@ -306,9 +354,11 @@ _PRELOAD = {
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
               "taichi_rocks.bench.launch", "taichi_rocks.bench.activity"),
+    "sweep": ("taichi_rocks.config.sweep", "taichi_rocks.app.sweep.sweep", "tqdm"),
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
-_PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "render": _LATE + (
+_PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "sweep": ("multiprocessing.connection",),
+                       "render": _LATE + (
     "imageio_ffmpeg.binaries", "importlib.readers", "importlib.resources.readers"),
     "export": _LATE + ("pxr.Usd", "pxr.UsdGeom", "pxr.Vt", "pxr.Gf", "pxr.Sdf", "pxr.Tf")}
 # Pillow imports its ~50 format plugins on the first lookup of a file name's extension, which imageio makes when
@@ -361,7 +411,7 @@ def main(argv=None, *, held=None, restore=None) -> int:
     from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
-               "render": cmd_render, "view": cmd_view, "bench": cmd_bench}[args.command]
+               "render": cmd_render, "view": cmd_view, "bench": cmd_bench, "sweep": cmd_sweep}[args.command]
     try:
         if held:
             raise KeyboardInterrupt

@@ -16,7 +16,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "taichi_rocks"
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
-ROOMS = ("config", "motion", "engine", "output", "render", "bench", "app")  # folders; "cli" is cli.py, __main__.py
+ROOMS = ("config", "motion", "engine", "output", "render", "bench", "app", "runner")  # folders; "cli" is cli.py, __main__.py
 # optional dependencies (extras, or only there for a study): the only imports allowed inside functions
 OPTIONAL = {"pxr", "matplotlib", "warp", "ray", "PIL", "jsonschema", "hypothesis"}
 # what an engine object is called outside engine/ (a Simulation, its World)

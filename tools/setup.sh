@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs what taichi-rocks needs on a fresh Debian/Ubuntu machine: a Vulkan driver for the offscreen
 # renderer (Mesa's software lavapipe when no Vulkan device is present), a virtual X display with xdotool for
-# the tests of the window (`taichi-rocks view`) and a virtualenv with the package.
+# the tests of the window (`taichi-rocks view`) and a virtualenv with the package (and Ray, for the sweeps).
 set -euo pipefail
 venv=${1:-.venv}
 
@@ -41,5 +41,6 @@ if ! "$python" -c 'import sys; sys.exit(not ((3, 11) <= sys.version_info[:2] < (
 fi
 [ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
-"$venv/bin/python" -m pip install -q -e '.[test,usd]'
+# the ray extra: the sweep runner's cluster backend, whose tests start a local Ray cluster
+"$venv/bin/python" -m pip install -q -e '.[test,usd,ray]'
 echo "setup: ready ($venv)" >&2

@@ -1,7 +1,8 @@
 """4. Cost against activity: the step's time against the number of rocks N at fixed activity, and against
 activity (rocks in the air, vehicles, speed) at fixed N; the memory per rock.
 
-Every point runs in a process of its own (``python -m taichi_rocks.bench.activity JOB``), so that its memory is
+Every job of points runs in a process of its own (the sweep runner, runner/tasks.py: locally one at a time,
+or spread over a Ray cluster; ``python -m taichi_rocks.bench.activity JOB`` runs one by hand), so that its memory is
 its own (Taichi never frees fields) and no point's fields or compiled kernels weigh on another's. A point:
 build the fleet scene, step 1 s (steady state: rocks in the air, the bed's rim moving), read the memory
 (``/proc/self/status``: VmRSS and VmHWM, against the process's RSS before the simulation was built; and the
@@ -21,8 +22,6 @@ from __future__ import annotations
 import gc
 import json
 import math
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -47,6 +46,8 @@ try:
     import resource  # Unix only: the peak memory where /proc is missing
 except ImportError:
     resource = None
+
+from ..runner.tasks import WHOLE_NODE, run_tasks
 
 PREFIX = "ACTIVITY-POINT "
 MB = 1024.0 * 1024.0
@@ -186,40 +187,50 @@ def run_point(p: dict, cfg: dict, arch: str) -> dict:
     return out
 
 
-def worker(job_json: str) -> int:
-    """Run one job's points in order; print each result as one line (PREFIX + JSON) on stdout."""
-    job = json.loads(job_json)
+def run_points(job: dict) -> dict:
+    """One job's points in order, in this process (a worker of the sweep runner, runner/tasks.py): their
+    results, or an error each."""
     arch = init_taichi(job["arch"])
+    out = []
     for p in job["points"]:
         try:
-            res = run_point(p, job["cfg"], arch)
+            out.append(run_point(p, job["cfg"], arch))
         except Exception as exc:  # a point that fails is reported, the others still run
-            res = dict(p, error=f"{type(exc).__name__}: {exc}".splitlines()[0])
+            out.append(dict(p, error=f"{type(exc).__name__}: {exc}".splitlines()[0]))
+    return {"points": out}
+
+
+def worker(job_json: str) -> int:
+    """Run one job's points (``python -m taichi_rocks.bench.activity JOB``); print each result as one line
+    (PREFIX + JSON) on stdout."""
+    for res in run_points(json.loads(job_json))["points"]:
         print(PREFIX + json.dumps(res), flush=True)
     return 0
 
 
 # --------------------------------------------------------------------------------------------- the parent
-def _env() -> dict:
-    env = dict(os.environ)
-    root = str(Path(__file__).resolve().parents[2])
-    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
-
-
-def run_job(points: list, cfg, arch: str, timeout: float = 3600.0) -> list:
-    """One worker process for these points; their results (or an error per point)."""
+def run_jobs(jobs: list, cfg, arch: str, prog, backend: str = "local", address=None, timeout: float = 3600.0) -> list:
+    """Every job in a process of its own, through the sweep runner: one at a time on this machine (each
+    point's timing and memory undisturbed), or with ``backend="ray"`` one job per node of the cluster at
+    ``address`` at a time (each actor holds a whole node). The points' results (or an error per point) in
+    job order."""
     keys = ("act_warm_s", "act_rounds", "act_steps")
-    job = json.dumps({"arch": arch, "points": points, "cfg": {k: getattr(cfg, k) for k in keys}})
-    try:
-        pr = subprocess.run([sys.executable, "-m", "taichi_rocks.bench.activity", job], capture_output=True,
-                            text=True, timeout=timeout, env=_env())
-        got = [json.loads(line[len(PREFIX):]) for line in pr.stdout.splitlines() if line.startswith(PREFIX)]
-        why = f"worker exit {pr.returncode}: " + (pr.stderr.strip().splitlines() or ["no output"])[-1]
-    except subprocess.TimeoutExpired:
-        got, why = [], f"worker timed out after {timeout:.0f} s"
-    done = {g["label"] for g in got}
-    return got + [dict(p, error=why) for p in points if p["label"] not in done]
+    tasks = [{"id": str(i), "arch": arch, "points": job, "cfg": {k: getattr(cfg, k) for k in keys}}
+             for i, job in enumerate(jobs)]
+    got = {}
+
+    def report(o):
+        job = jobs[int(o.task["id"])]
+        got[o.task["id"]] = o.result["points"] if o.result else [dict(p, error=o.error) for p in job]
+        prog(f"activity: {job[0]['label']}")
+
+    if backend == "ray":
+        run_tasks(tasks, "taichi_rocks.bench.activity:run_points", backend="ray", address=address,
+                  threads=WHOLE_NODE, retries=0, report=report, fresh=True)
+    else:
+        run_tasks(tasks, "taichi_rocks.bench.activity:run_points", workers=1, retries=0, report=report, fresh=True,
+                  timeout=timeout)
+    return [p for t in tasks for p in got[t["id"]]]
 
 
 def _by_n(points: list, series: str, cfg) -> list:
@@ -263,13 +274,10 @@ def memory_summary(rows: list) -> dict:
     return out
 
 
-def activity_section(cfg, arch: str, prog) -> dict:
-    """Run every job of the section; the results by series and sweep."""
+def activity_section(cfg, arch: str, prog, backend: str = "local", address=None) -> dict:
+    """Run every job of the section (run_jobs); the results by series and sweep."""
     t0 = time.perf_counter()
-    points = []
-    for job in plan_jobs(cfg):
-        points += run_job(job, cfg, arch)
-        prog(f"activity: {job[0]['label']}")
+    points = run_jobs(plan_jobs(cfg), cfg, arch, prog, backend, address)
     res = {"points": points, "series": {s: _by_n(points, s, cfg) for s in ("a", "b")},
            "sweep": [p for p in points if p["group"] in ("tires", "speed", "parked", "balanced")],
            "reference_n": cfg.act_fixed_n, "radius": cfg.act_radius, "t_rear": cfg.act_t,
@@ -337,10 +345,10 @@ def activity_targets(act: dict, cfg) -> list:
 
 # --------------------------------------------------------------------------------------------- --only activity
 def run_activity_study(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=None,
-                       tiny: bool = False, overwrite: bool = False) -> dict:
+                       tiny: bool = False, overwrite: bool = False, backend: str = "local", address=None) -> dict:
     """`taichi-rocks bench --only activity`: this section alone; writes activity.md (its targets and the
     section), activity.json and activity.png to ``out_dir`` (atomically), which must not hold them already
-    unless ``overwrite`` (FileExistsError before anything runs)."""
+    unless ``overwrite`` (FileExistsError before anything runs). ``backend``, ``address``: see run_jobs."""
     cfg = make_config(quick=quick, tiny=tiny)
     out = Path(out_dir)
     check_out_dir(out, ("activity.md", "activity.json", PNG["activity"]), overwrite)
@@ -349,7 +357,7 @@ def run_activity_study(out_dir="renders/bench", quick: bool = False, arch: str =
         prog = Progress(count_jobs(cfg), progress)
         res = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine(used), "mode": cfg.mode,
                "load_average_start": loadavg()}
-        res["activity"] = act = activity_section(cfg, used, prog)
+        res["activity"] = act = activity_section(cfg, used, prog, backend, address)
         res["targets"] = activity_targets(act, cfg)
         res["load_average_end"] = loadavg()
         res["errors"] = act["errors"]

@@ -106,7 +106,8 @@ def _plots(res: dict, out: Path, prog) -> list:
 
 
 def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=True, tiny: bool = False,
-              config: "Optional[Config]" = None, overwrite: bool = False) -> dict:
+              config: "Optional[Config]" = None, overwrite: bool = False, backend: str = "local",
+              address=None) -> dict:
     """Run the benchmark and write report.md, results.json and PNG plots to ``out_dir``.
 
     ``quick``: the CI smoke run (< 2 min on 2 cores); ``tiny``: the smallest sizes (tests); ``config``
@@ -114,14 +115,15 @@ def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", p
     An ``out_dir`` already holding one of :data:`OUTPUTS` is refused before anything runs (FileExistsError)
     unless ``overwrite`` (the files are then replaced as they are written). The missing folders of ``out_dir``
     are created, and removed again if the run fails before writing into them.
+    ``backend``, ``address``: where the cost-against-activity section runs its processes (activity.py run_jobs).
     """
     out = Path(out_dir)
     check_out_dir(out, OUTPUTS, overwrite)
     with new_folders(out):
-        return _run_bench(out, config or make_config(quick=quick, tiny=tiny), arch, progress)
+        return _run_bench(out, config or make_config(quick=quick, tiny=tiny), arch, progress, backend, address)
 
 
-def _run_bench(out: Path, cfg: "Config", arch: str, progress) -> dict:
+def _run_bench(out: Path, cfg: "Config", arch: str, progress, backend: str = "local", address=None) -> dict:
     t_start = time.perf_counter()
     used = init_taichi(arch)
     pin_sources()
@@ -141,7 +143,7 @@ def _run_bench(out: Path, cfg: "Config", arch: str, progress) -> dict:
             e.pop(k, None)
 
     if cfg.activity:
-        res["activity"] = activity_section(cfg, used, prog)
+        res["activity"] = activity_section(cfg, used, prog, backend, address)
         res["errors"] += res["activity"]["errors"]
 
     res["accuracy"]["presets"] = choose_presets(res)

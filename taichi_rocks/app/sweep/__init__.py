@@ -1,0 +1,6 @@
+"""Sweeps and batch runs (README, "Sweeps"): the sweep file's runs on local processes or a Ray cluster.
+
+``sweep.py`` runs a sweep file and writes its results (``run_sweep``), ``worker.py`` is one run in a worker,
+``metrics.py`` the metric registry, ``plots.py`` the plots, and ``runner.py`` the runner itself (plain-data
+tasks in worker processes, local or Ray), which the benchmark uses too.
+"""
