@@ -300,7 +300,8 @@ def test_bench_quick_and_only_reach_the_studies(taichi_cpu, capsys, tmp_path, st
         assert status == 0, err
         name, got = studies[-1]
         assert name == study and {k: got[k] for k in want} == want, (args, got)
-        assert lines == [f"wrote {out / {'all': 'report.md', 'launch': 'launch_study.md', 'activity': 'activity.md'}[study]}"]
+        report = {"all": "report.md", "launch": "launch_study.md", "activity": "activity.md"}[study]
+        assert lines == [f"wrote {out / report}"]
         assert got.get("progress") is None and got.get("arch", "cpu") == "cpu"
         assert Path(got.get("out", got.get("out_dir"))) == out
     assert len(studies) == len(cases)
