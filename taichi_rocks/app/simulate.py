@@ -30,10 +30,10 @@ def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", se
     out = Path(out) if out is not None else Path("renders") / scene.name / f"{scene.name}.npz"
     if layout == "full" and (only or crop):
         raise ValueError("--only and --crop need --layout light (the full layout holds every rock)")
+    if out.is_dir():  # before the overwrite check: --overwrite would not help
+        raise ValueError(f"{out}: is a directory, expected an .npz file name")
     if out.exists() and not overwrite:
         raise FileExistsError(f"{out}: exists; pass --overwrite to replace it")
-    if out.exists() and out.is_dir():
-        raise ValueError(f"{out}: is a directory, expected an .npz file name")
     frames, fps = frame_count(scene, frames, fps)
     sim = Simulation(scene, arch=arch, seed=seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", file=sys.stderr,

@@ -91,6 +91,7 @@ class Viewer:
         self.timeline.save(self.sim, self.renderer.rig)
         self.free = FreeCamera()
         self.free_on = False
+        self.shown_view = None  # the camera of the last frame shown (render/camera.py View, local)
         self.camera_name = self.renderer.view_name
         self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
         self.switches = {k: scene_value(scene, k) for k in SWITCH_KEYS}
@@ -136,6 +137,7 @@ class Viewer:
         if self.free_on:
             view = self.free.update(self.win.window, self.sim.origin, r.view().heading)
         r.render_frame(view)
+        self.shown_view = view if view is not None else r.view()  # the same time: the rig does not move again
         self.in_air = rocks_in_air(self.sim)
         changes = draw_panel(self.win.window.get_gui(), self) if self.panel_on else None
         if self._shot or self.record is not None:
@@ -264,11 +266,17 @@ class Viewer:
             self.recorded += 1
 
     def status(self) -> dict:
-        """What the window shows now, for programs that drive it (the tests)."""
-        tl = self.timeline
+        """What the window shows now, for programs that drive it (the tests): the clock, the scene's seed, the
+        camera (its name; the eye in world metres, the forward and right unit vectors of the frame shown), the
+        panel's values, notices, outputs."""
+        tl, v = self.timeline, self.shown_view
+        eye, fwd, right = (None,) * 3 if v is None else (
+            (np.asarray(v.eye, np.float64) + self.sim.origin).tolist(), np.asarray(v.fwd).tolist(),
+            np.asarray(v.right).tolist())
         return {"frame": tl.frame, "frames": tl.frames, "time": tl.time, "paused": not tl.playing, "speed": tl.speed,
-                "launches": self.sim.launches_total, "in_air": self.in_air, "camera": self.camera_name,
-                "fps": self.fps, "shown": self.shown, "panel": self.panel_on, "params": runtime_values(self.sim),
+                "seed": self.sim.scene.seed, "launches": self.sim.launches_total, "in_air": self.in_air,
+                "camera": self.camera_name, "eye": eye, "forward": fwd, "right": right, "fps": self.fps,
+                "shown": self.shown, "panel": self.panel_on, "params": runtime_values(self.sim),
                 "switches": self.switches, "overlays": vars(self.renderer.flags).copy(), "notice": self.notice,
                 "recompiling": self.pending is not None, "rebuilds": self.rebuilds, "replayed": tl.replayed,
                 "window_refreshes": self.refreshes,

@@ -107,7 +107,8 @@ def load_scene(path: Union[str, os.PathLike]) -> Scene:
     """Read and validate a scene file; its name defaults to the file stem."""
     source = str(path)
     try:
-        text = Path(path).read_bytes().decode("utf-8")
+        # a byte-order mark (Windows editors write one) is not TOML's: dropped, not "line 1: Invalid statement"
+        text = Path(path).read_bytes().decode("utf-8").removeprefix("\ufeff")
     except OSError as e:
         raise SceneError([f"{source}: cannot read scene: {e.strerror or e}"]) from None
     except UnicodeDecodeError as e:
@@ -131,7 +132,9 @@ _PART = re.compile(r"([A-Za-z_][\w-]*)((?:\[\d+\])*)")
 def scene_with(scene: Scene, overrides: dict) -> Scene:
     """A re-validated copy of ``scene`` with dotted-key overrides (file key names).
 
-    E.g. ``scene_with(s, {"sim.dt": 0.01, "vehicle[0].path.speed": 5.0})``; raises SceneError on invalid values.
+    E.g. ``scene_with(s, {"sim.dt": 0.01, "vehicle[0].path.speed": 5.0})``; raises SceneError (one line) on a
+    key that is not a key path, an index past a list's end ("no such item"), a key below a value that is not a
+    table ("not inside a table") and on invalid values.
     Keys that default from others (bed.follow, camera.follow) keep their resolved values.
     """
     data = scene_to_dict(scene)
@@ -143,18 +146,16 @@ def scene_with(scene: Scene, overrides: dict) -> Scene:
                 raise SceneError([f"{scene.source}: {key}: not a key path like sim.dt or vehicle[0].path.speed"])
             steps += [m[1]] + [int(i) for i in re.findall(r"\d+", m[2])]
         node = data
-        for i, step in enumerate(steps[:-1]):
-            if isinstance(step, int):
-                if not (_is_list(node) and step < len(node)):
-                    raise SceneError([f"{scene.source}: {_key_path(tuple(steps[:i + 1]))}: no such item"])
-                node = node[step]
-            elif isinstance(node, dict):
-                node = node.setdefault(step, {})
-            else:
+        for i, step in enumerate(steps):
+            # every step is checked, the last too: a key below a number or a list is refused, not a TypeError
+            if isinstance(step, int) and not (_is_list(node) and step < len(node)):
+                raise SceneError([f"{scene.source}: {_key_path(tuple(steps[:i + 1]))}: no such item"])
+            if not isinstance(step, int) and not isinstance(node, dict):
                 raise SceneError([f"{scene.source}: {_key_path(tuple(steps[:i + 1]))}: not inside a table"])
-        if isinstance(steps[-1], int) and not (_is_list(node) and steps[-1] < len(node)):
-            raise SceneError([f"{scene.source}: {key}: no such item"])
-        node[steps[-1]] = value
+            if i == len(steps) - 1:
+                node[step] = value
+            else:
+                node = node[step] if isinstance(step, int) else node.setdefault(step, {})
     return parse_scene(data, scene.source, scene.name)
 
 

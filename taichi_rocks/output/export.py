@@ -14,7 +14,7 @@ import numpy as np
 
 from ..motion.camera import camera_of
 from .instances import RockTracker, VehicleTracker
-from .runs import crop_mask
+from .runs import crop_mask, crop_vehicle
 
 __all__ = ["ExportFrames"]
 
@@ -27,13 +27,13 @@ class ExportFrames:
         self.rig, self.rides, self.target = camera_of(scene)  # the renderer's rig: the same shot in the stage
         self.rocks = RockTracker(n_rocks, scene.world.gravity, fps)
         self.vehicles = VehicleTracker(scene.vehicles)
-        self.only, self.crop = only, crop
+        self.only, self.crop, self.crop_around = only, crop, crop_vehicle(scene)
 
     def frame(self, f: int, st: dict, origin) -> dict:
         """Frame ``f``: ``st`` = ``Simulation.state()`` at f / fps, ``origin`` the engine's floating origin."""
         origin = np.asarray(origin, np.float64)
         r = self.rocks.update(st)
-        keep = crop_mask(st, self.target, self.crop)
+        keep = crop_mask(st, self.crop_around, self.crop)
         if self.only == "flying":
             keep &= r["active"]
         idx = np.flatnonzero(keep)

@@ -36,7 +36,8 @@ import numpy as np
 
 from .npz import Raw
 
-__all__ = ["LIGHT", "MISSING", "RUN_KEYS", "load_run", "record_light", "RowChanges", "crop_mask", "check_selection"]
+__all__ = ["LIGHT", "MISSING", "RUN_KEYS", "load_run", "record_light", "RowChanges", "crop_mask", "crop_vehicle",
+           "check_selection"]
 
 LIGHT = "taichi-rocks run, light layout 1"
 MISSING = -1  # row_phase of a rock outside the crop: NaN position and velocity until it is back inside
@@ -63,6 +64,12 @@ class RowChanges:
             changed = (cur[0] != p).any(axis=1) | (cur[1] != v).any(axis=1) | (cur[2] != ph)
         self.prev = tuple(np.array(a, copy=True) for a in cur)
         return changed
+
+
+def crop_vehicle(scene) -> int:
+    """The vehicle ``--crop`` keeps the rocks around (run files and exports alike): the camera's followed
+    vehicle, ``camera.follow`` (default bed.follow), also when the camera looks at another (``camera.target``)."""
+    return scene.vehicle_index(scene.camera.follow)
 
 
 def crop_mask(st: dict, follow: int, crop) -> np.ndarray:
@@ -96,7 +103,7 @@ def record_light(sim, work: Path, frames: int, fps: float, states, only: str = "
               for k, (shape, dt) in shapes.items()}
     rows = {"row_rock": np.int32, "row_local": real, "row_velocity": real, "row_phase": np.int8}
     files = {k: open(work / f"{k}.raw", "wb") for k in rows}
-    follow = sim.scene.vehicle_index(sim.scene.camera.follow)
+    follow = crop_vehicle(sim.scene)
     changes, present, total = RowChanges(), None, 0
     previous, st = sim.launches_total, None
     try:

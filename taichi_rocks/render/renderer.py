@@ -370,7 +370,7 @@ class Renderer:
         inside the image) has almost no pixel drawn by GGUI inside its screen box: its mesh was lost. (A
         vehicle covers most of its box; flying rocks in front of it only a few pixels: below
         LOST_COVERAGE of the box counts as lost.)"""
-        if self._v_frame is None or self.flags.tire_rays or self.flags.hash_cells:  # wireframes: see-through
+        if self._v_frame is None or self._wireframe():  # see-through: nothing to measure
             return False
         W, H = self.resolution
         key = np.array(KEY, np.float32) / 255.0
@@ -430,7 +430,12 @@ class Renderer:
         self._v_frame = out_v
         self._v_verts.from_numpy(out_v.astype(np.float32))
         self._v_norms.from_numpy(np.concatenate([n for _, n in posed]).astype(np.float32))
-        # with the tire-ray or hash-cell overlay on, vehicles are wireframes so that what is under them shows
         scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
                             per_vertex_color=self._v_cols, transforms=self._v_model,
-                            show_wireframe=self.flags.tire_rays or self.flags.hash_cells)
+                            show_wireframe=self._wireframe())
+
+    def _wireframe(self) -> bool:
+        """Vehicles are drawn as wireframes while an overlay of what is under them is on: the tire rays, the
+        hash cells, the tread patches (which lie inside the tires: a solid tire hides them entirely)."""
+        f = self.flags
+        return bool(f.tire_rays or f.hash_cells or f.tread_patch)
