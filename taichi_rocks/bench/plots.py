@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import INTEGRATORS
+from ..config.keys import choices
+from .config import CASE_OF_DRAG, DRAGS, INTEGRATORS
 
 
 def _plt():
@@ -22,7 +23,10 @@ def _plt():
     return plt
 
 
-COLORS = {"symplectic_euler": "tab:blue", "heun": "tab:orange", "rk4": "tab:green"}
+TAB10 = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:gray",
+         "tab:olive", "tab:cyan")
+COLORS = {name: TAB10[i % len(TAB10)] for i, name in enumerate(INTEGRATORS)}
+LINES = ("-", "--", ":", "-.")  # one per precision, stepping mode, ...
 PRESET_MARK = {"draft": ("*", "tab:red"), "balanced": ("P", "tab:purple"), "reference": ("X", "black")}
 
 
@@ -39,9 +43,9 @@ def plot_integrators(res, out: Path) -> str:
     acc = res["accuracy"]["integrator_dt"]
     cost = res["accuracy"]["flight_cost"]["ms_per_step"]
     presets = res["accuracy"]["presets"]
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
-    for ax, (case, drag) in zip(axes, (("gravity", "none"), ("linear", "linear"), ("quadratic", "quadratic"))):
-        for prec, ls in (("f32", "-"), ("f64", "--")):
+    fig, axes = plt.subplots(1, len(DRAGS), figsize=(5 * len(DRAGS), 4.8))
+    for ax, (case, drag) in zip(axes, ((CASE_OF_DRAG[d], d) for d in DRAGS)):
+        for prec, ls in zip(choices("sim.precision"), LINES):
             for integ in INTEGRATORS:
                 rows = [r for r in acc["rows"] if r["case"] == case and r["integrator"] == integ
                         and r["precision"] == prec]
@@ -295,7 +299,7 @@ def _activity_vs_n(ax, act) -> None:
     style = {"a": ("tab:blue", "o"), "b": ("tab:orange", "s")}
     for series, rows in act["series"].items():
         col, mk = style[series]
-        for stepping, ls in (("active", "-"), ("full", "--")):
+        for stepping, ls in zip(choices("sim.stepping"), LINES):
             pts = [(r["n"], _ok_ms(r.get(stepping))) for r in rows if _ok_ms(r.get(stepping))]
             if pts:
                 name = {"a": f"(a) R = {act['radius']:g} m", "b": "(b) fixed density"}[series]
@@ -341,8 +345,7 @@ def _activity_vs_air(ax, act) -> None:
 
 
 def _activity_memory(ax, act) -> None:
-    style = {"active": "tab:blue", "full": "tab:gray"}
-    for stepping, col in style.items():
+    for stepping, col in zip(choices("sim.stepping"), ("tab:blue", "tab:gray", "tab:olive")):
         rows = [r for r in act["series"]["a"] if (r.get(stepping) or {}).get("memory")]
         if not rows:
             continue

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.keys import choices
 from .config import INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
 
 
@@ -310,7 +311,7 @@ def _activity_memory(act: dict) -> list:
          "|---|---|---|---|---|---|---|---|"]
     for series in ("a", "b"):
         for r in act["series"][series]:
-            for stepping in ("active", "full"):
+            for stepping in choices("sim.stepping"):
                 m = (r.get(stepping) or {}).get("memory")
                 if m:
                     L.append(f"| ({series}) | {stepping} | {r['n']:,} | {_fmt(m['field_mb'])} | "

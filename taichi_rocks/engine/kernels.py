@@ -56,9 +56,11 @@ class Switches:
 READS = {
     "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground"),
     "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground"),
-    "hash_and_tires": ("center", "swept", "ground"),
+    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders"),  # also tires.tire_pass
     "health": ("recycle", "ground"),
-    "active_step": ("splash", "flight", "recycle", "center", "swept", "integrator", "gravity", "drag", "ground"),
+    "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
+                    "ground"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders"),
 }
 
 
@@ -149,7 +151,7 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32) -> ti.i3
     hashgrid.scatter_all(w, plan.center)
     if ti.static(not plan.swept):
         tires.trace_all(w)
-    launched = tires.launch_all(w, step, plan.swept, plan.center, plan.ground)
+    launched = tires.launch_all(w, plan, step)
     hashgrid.clear_all(w)
     return launched
 

@@ -1,4 +1,4 @@
-"""The throw ([launch] model = "tread"): which stones a tread carries, where they leave it, how fast, and
+"""The tread launch model ([launch] model = "tread", the default): which stones a tread carries, where they leave it, how fast, and
 what the fender and the mud flap stop.
 
 Sources. Chen, Fu & Wegman 1999, "A cellular automata model of vehicle-generated dust", ACM TOMACS 9(2):81-104:
@@ -41,11 +41,14 @@ import math
 import numpy as np
 import taichi as ti
 
-from .randomness import uniform01
-from .world import FENDER, FLAP, FWD, HALF_L, SPIN, TIRE_R, VEL, IPar, Par
+from ...config.streams import TREAD_CAPTURE, TREAD_GRIP, TREAD_PINCH, TREAD_SPREAD
+from ..randomness import uniform01
+from ..world import FENDER, FLAP, FWD, HALF_L, SPIN, TIRE_R, VEL, IPar, Par
 
-# random streams of the tread model (the uniform model uses 201 and 202)
-S_CAPTURE, S_PINCH, S_GRIP, S_SPREAD = 211, 212, 213, 214
+NAME = "tread"
+PARAMS = ("WETNESS", "GRAVITY", "SPREAD", "GROOVE", "GRIP", "GRIP_RELAX", "GRIP_SPREAD", "ADHESION", "TRANSFER",
+          "RESTITUTION", "DENSITY")
+STREAMS = (TREAD_CAPTURE, TREAD_PINCH, TREAD_GRIP, TREAD_SPREAD)
 MARCH, BISECT = 32, 24
 FLAP_DISTANCE = 1.1  # tire radii behind the axle
 PI_HI = float(np.float32(math.pi))
@@ -146,9 +149,9 @@ def guarded(w: ti.template(), v, wheel_vel, forward, spin, alpha, radius, fender
 def throw_angle(w: ti.template(), r, mu, spin, radius, half_length, seed, rock, step):
     """The release angle of a stone run over by the tread (steps 1-3 of the module docstring)."""
     alpha_p = patch_angle(half_length, radius)
-    alpha = alpha_p * uniform01(seed, rock, step, S_PINCH)
-    if uniform01(seed, rock, step, S_CAPTURE) < carry_probability(w, r, mu):
-        xi = ti.exp(w.par[Par.GRIP_SPREAD] * (2.0 * uniform01(seed, rock, step, S_GRIP) - 1.0))
+    alpha = alpha_p * uniform01(seed, rock, step, TREAD_PINCH.first)
+    if uniform01(seed, rock, step, TREAD_CAPTURE.first) < carry_probability(w, r, mu):
+        xi = ti.exp(w.par[Par.GRIP_SPREAD] * (2.0 * uniform01(seed, rock, step, TREAD_GRIP.first) - 1.0))
         alpha = release_angle(w, alpha_p, r, mu, xi, spin * spin / radius)
     return alpha
 
@@ -162,7 +165,7 @@ def throw_velocity(w: ti.template(), t, r, mu, rock, step, fenders: ti.template(
     wheel_vel = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]])
     forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
     alpha = throw_angle(w, r, mu, spin, radius, w.ray[t, HALF_L], seed, rock, step)
-    beta = w.par[Par.SPREAD] * (2.0 * uniform01(seed, rock, step, S_SPREAD) - 1.0)
+    beta = w.par[Par.SPREAD] * (2.0 * uniform01(seed, rock, step, TREAD_SPREAD.first) - 1.0)
     k = ti.min(1.0, w.par[Par.TRANSFER] * mu)
     v = tread_velocity(wheel_vel, forward, spin, alpha, beta, k)
     if ti.static(fenders):
@@ -170,9 +173,8 @@ def throw_velocity(w: ti.template(), t, r, mu, rock, step, fenders: ti.template(
     return v
 
 
-def tread_params(scene) -> dict:
-    """The tread model's entries of World.par (index -> value), from the scene."""
-    ln, bed = scene.launch, scene.bed
-    return {Par.DENSITY: bed.density, Par.WETNESS: scene.world.wetness, Par.GROOVE: ln.groove, Par.GRIP: ln.grip,
-            Par.GRIP_RELAX: math.radians(ln.grip_relax), Par.GRIP_SPREAD: ln.grip_spread,
-            Par.ADHESION: ln.adhesion, Par.TRANSFER: ln.transfer}
+
+@ti.func
+def launch_velocity(w: ti.template(), plan: ti.template(), t, i, step):
+    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``."""
+    return throw_velocity(w, t, w.radius[i], w.friction[i], w.rock_id[i], step, plan.fenders)
