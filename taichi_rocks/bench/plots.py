@@ -79,7 +79,7 @@ def plot_integrators(res, out: Path) -> str:
         title = {"gravity": "gravity only (parabola)",
                  "linear": "linear drag, tau = " + ", ".join(f"{t:.2g}" for t in info.get("tau_s", [])) + " s",
                  "quadratic": "quadratic drag, vertical, v0 = 20 m/s, v_t = "
-                              + ", ".join(f"{v:.0f}" for v in info.get("terminal_speed_m_s", [])) + " m/s"}[case]
+                              + ", ".join(f"{v:.0f}" for v in info.get("terminal_speed_m_s", [])) + " m/s"}.get(case, case)
         ax.set_title(title)
         ax.set_xlabel("flight cost (ms per simulated second)")
         ax.set_ylabel("max position error over a 2 s flight (m)")
