@@ -118,7 +118,6 @@ class World(_Table):
     rest_speed: Float = _f(0.05, "m/s: a rock touching the ground slower than this comes to rest", gt=0)
     wetness: Float = _f(0.0, "ground wetness in [0, 1]: 1 = a soaked film that makes stones stick to the tread",
                         ge=0, le=1)
-    updraft: Float = _f(0.0, "m/s^2 upwards on flying rocks (scratch)", ge=0)
 
 
 class Bed(_Table):

@@ -23,7 +23,7 @@ from .world import FLYING, RESTING, SLIDING, Par
 def acceleration(w: ti.template(), v, r, gravity: ti.template(), drag: ti.template()):
     a = v * 0.0
     if ti.static(gravity):
-        a[2] = -w.par[Par.GRAVITY] + w.par[Par.UPDRAFT]
+        a[2] = -w.par[Par.GRAVITY]
     if ti.static(drag == "linear"):
         a -= (w.par[Par.LINEAR_DRAG] / (r * r)) * v
     elif ti.static(drag == "quadratic"):

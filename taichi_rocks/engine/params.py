@@ -129,7 +129,6 @@ TABLE = (
     Param("RESTITUTION", "world.restitution", runtime=Slider("bounce", 0.0, 1.0), what="ground bounce"),
     Param("GROUND_FRICTION", "world.ground_friction", runtime=Slider("friction", 0.0, 2.0), what="rock-ground"),
     Param("REST_SPEED", "world.rest_speed", runtime=True, what="m/s: slower on the ground is at rest"),
-    Param("UPDRAFT", "world.updraft", runtime=Slider("updraft", 0.0, 5.0), what="m/s^2 (scratch)"),
     Param("DENSITY", "bed.density", what="kg/m^3: the rocks' (the tread model's centrifugal pull)"),
     Param("BED_RADIUS", "bed.radius", what="m"),
     Param("R_MAX", derive=lambda s: s.scene.bed.rock_radius[1], what="m: the largest rock radius"),
