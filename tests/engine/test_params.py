@@ -49,28 +49,29 @@ def test_a_runtime_key_changes_no_compile_time_switch(scenes_dir):
 
 
 def test_packing_a_scene_gives_each_parameter_its_source(scenes_dir):
-    """A NumPy reference of every row: the scene's value in the kernels' units, or its derivation."""
+    """Every row from a scene key is the key's value times its factor; every derived row has a NumPy reference
+    here (a new derivation needs one)."""
     scene = scene_with(load_scene(scenes_dir / "minimal.toml"),
                        {"world.ground_z": 3.0, "launch.release_angle": [12.0, 33.0], "seed": 2 ** 31 + 5})
     plan = Plan.from_scene(scene)
     sizing = hash_sizing(scene, plan, initial_rocks(scene).radius, 2)
     par, ipar = scene_params(scene, plan, sizing, ground_z=1.25)
-    wd, bed, ln = scene.world, scene.bed, scene.launch
-    want = {"GRAVITY": wd.gravity, "GROUND_Z": 1.25, "BED_RADIUS": bed.radius, "RESTITUTION": wd.restitution,
-            "GROUND_FRICTION": wd.ground_friction, "REST_SPEED": wd.rest_speed, "CELL": plan.cell_size,
-            "ANGLE_MIN": np.radians(12.0), "ANGLE_MAX": np.radians(33.0), "SPREAD": np.radians(ln.spread),
-            "LINEAR_DRAG": 4.5 * wd.air_viscosity / bed.density,
-            "QUAD_DRAG": 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density),
-            "R_MAX": bed.rock_radius[1], "TIE_EPS": 1e-5, "MARGIN": sizing.margin, "DENSITY": bed.density,
-            "WETNESS": wd.wetness, "GROOVE": ln.groove, "GRIP": ln.grip, "GRIP_RELAX": math.radians(ln.grip_relax),
-            "GRIP_SPREAD": ln.grip_spread, "ADHESION": ln.adhesion, "TRANSFER": ln.transfer,
-            "PATCH_TOL": 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * 3.0}
-    assert set(want) == {n for p in TABLE for n in p.names}
-    for name, v in want.items():
-        assert par[getattr(Par, name)] == v, name  # the same bits
+    for table, cls, out in ((TABLE, Par, par), (INT_TABLE, IPar, ipar)):
+        for p in (p for p in table if p.key is not None):
+            want = np.atleast_1d(np.asarray(scene_value(scene, p.key), np.float64)) * p.factor
+            assert [out[getattr(cls, n)] for n in p.names] == list(want), p.key  # the same bits
+    assert par[Par.ANGLE_MIN] == np.radians(12.0) and par[Par.GRIP_RELAX] == math.radians(scene.launch.grip_relax)
+    wd, bed = scene.world, scene.bed
     r_max, cell = bed.rock_radius[1], plan.cell_size
-    assert ipar[IPar.SEED] == 5 and ipar[IPar.N_ROCKS] == bed.rocks and ipar[IPar.TABLE] == sizing.table
-    assert ipar[IPar.DILATE] == int(math.floor(r_max / cell * (1 + 1e-6))) + 1
+    derived = {"GROUND_Z": 1.25, "CELL": plan.cell_size, "R_MAX": r_max, "TIE_EPS": 1e-5, "MARGIN": sizing.margin,
+               "LINEAR_DRAG": 4.5 * wd.air_viscosity / bed.density,
+               "QUAD_DRAG": 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density),
+               "PATCH_TOL": 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * 3.0}
+    int_derived = {"SEED": 5, "TABLE": sizing.table, "DILATE": int(math.floor(r_max / cell * (1 + 1e-6))) + 1}
+    for table, cls, out, ref in ((TABLE, Par, par, derived), (INT_TABLE, IPar, ipar, int_derived)):
+        assert set(ref) == {n for p in table if p.derive is not None for n in p.names}
+        for name, v in ref.items():
+            assert out[getattr(cls, name)] == v, name
 
 
 def test_pack_by_name_and_unknown_names():
