@@ -55,7 +55,6 @@ TREAD_CAPTURE = _stream("engine", 211, 1, "engine/launch/tread.py: does the groo
 TREAD_PINCH = _stream("engine", 212, 1, "engine/launch/tread.py: where a pinched stone leaves the patch")
 TREAD_GRIP = _stream("engine", 213, 1, "engine/launch/tread.py: the clamp's log-spread from stone to stone")
 TREAD_SPREAD = _stream("engine", 214, 1, "engine/launch/tread.py: the lateral scatter angle")
-STRAIGHT_LIFT = _stream("engine", 221, 1, "engine/launch/straight.py: the lift angle (scratch)")
 
 # look: (rock id, salt)
 LOOK_COLOUR = _stream("look", 1, 3, "render/rocklook.py: a rock's colour (brown share, brightness, darkening)")
