@@ -172,7 +172,7 @@ class Sim(_Table):
     accuracy: Literal[("custom", *PRESETS)] = _f(
         "custom", "preset of dt, integrator, detection and precision (keys set in the file win)")
     dt: Float = _f(0.002, "s, time step, in (0, 0.1]", gt=0, le=0.1)
-    integrator: Literal["symplectic_euler", "heun", "rk4", "explicit_euler"] = _f("symplectic_euler", "integrator of flying rocks")
+    integrator: Literal["symplectic_euler", "heun", "rk4"] = _f("symplectic_euler", "integrator of flying rocks")
     detection: Literal["ray", "swept", "patch"] = _f("ray", "how tires find the rocks they touch (patch: the "
                                                             "tread's swept footprint)")
     substeps: Int = _f(1, "tire-ray evaluations per step (ray detection)", ge=1)

@@ -45,9 +45,6 @@ def integrate(w: ti.template(), x, v, r, dt, integrator: ti.template(), gravity:
         a1 = acceleration(w, vp, r, gravity, drag)
         x1 = x + 0.5 * dt * (v + vp)
         v1 = v + 0.5 * dt * (a0 + a1)
-    elif ti.static(integrator == "explicit_euler"):
-        x1 = x + dt * v
-        v1 = v + dt * acceleration(w, v, r, gravity, drag)
     else:  # rk4
         k1v = acceleration(w, v, r, gravity, drag)
         k2x = v + 0.5 * dt * k1v
