@@ -8,9 +8,11 @@ family no two streams may share an id:
   look    render/rocklook.py ``_unit(rock id, salt)``: what a rock looks like (colour, outline, thinning);
   export  output/shapes.py ``uniforms(ids, stream)``: the exported instances' orientations and prototypes.
 
-A stream of ``count`` ids takes ``first`` .. ``first + count - 1`` (draw k of it uses ``first + k``). A new
-stream is one line below, on ids no other stream of its family takes (tests/config/test_streams.py checks).
-The engine's ids are those the kernels have always used: changing one changes every run.
+A stream of ``count`` ids takes ``first`` .. ``first + count - 1`` (draw k of it uses ``id(k)``). A new stream
+is one line below, on ids no other stream of its family takes (tests/config/test_keys.py checks). The launch
+models (engine/launch/) share one block: a scene runs one model, so each model takes the ids of the block it
+likes (its ``STREAMS``, checked to lie in the block) and a new model adds no line here. The engine's ids are
+those the kernels have always used: changing one changes every run.
 """
 
 from __future__ import annotations
@@ -35,6 +37,12 @@ class Stream:
     def ids(self) -> range:
         return range(self.first, self.first + self.count)
 
+    def id(self, k: int) -> int:
+        """The k-th id of the stream."""
+        if not 0 <= k < self.count:
+            raise IndexError(f"stream {self.what!r} has {self.count} ids, not {k + 1}")
+        return self.first + k
+
 
 STREAMS: list[Stream] = []
 
@@ -49,12 +57,7 @@ def _stream(family: str, first: int, count: int, what: str) -> Stream:
 RECYCLE_TRIES = _stream("engine", 0, 64, "engine/bed.py: a recycled rock's row across the leading crescent, by "
                                          "rejection: attempt k draws the row from 2k and its acceptance from 2k + 1")
 RECYCLE_CHORD = _stream("engine", 101, 1, "engine/bed.py: where on its chord the recycled rock lands")
-UNIFORM_ANGLE = _stream("engine", 201, 1, "engine/launch/uniform.py: the release angle in [min, max]")
-UNIFORM_SPREAD = _stream("engine", 202, 1, "engine/launch/uniform.py: the lateral scatter angle")
-TREAD_CAPTURE = _stream("engine", 211, 1, "engine/launch/tread.py: does the groove carry the stone")
-TREAD_PINCH = _stream("engine", 212, 1, "engine/launch/tread.py: where a pinched stone leaves the patch")
-TREAD_GRIP = _stream("engine", 213, 1, "engine/launch/tread.py: the clamp's log-spread from stone to stone")
-TREAD_SPREAD = _stream("engine", 214, 1, "engine/launch/tread.py: the lateral scatter angle")
+LAUNCH = _stream("engine", 201, 99, "engine/launch/: the launch model's draws (each model's STREAMS)")
 
 # look: (rock id, salt)
 LOOK_COLOUR = _stream("look", 1, 3, "render/rocklook.py: a rock's colour (brown share, brightness, darkening)")

@@ -2,6 +2,7 @@
 and the panel's sliders all come from it; the sliders stay within the scene schema's ranges. And the launch
 models' registry (engine/launch/): one module per model, the same interface, the scene's choices."""
 
+import ast
 import inspect
 import math
 import re
@@ -12,7 +13,7 @@ import pytest
 from taichi_rocks.config.keys import bounds, choices, scene_value
 from taichi_rocks.config.plan import Plan
 from taichi_rocks.config.scene import load_scene, scene_with
-from taichi_rocks.config.streams import STREAMS
+from taichi_rocks.config.streams import LAUNCH
 from taichi_rocks.engine import launch, params
 from taichi_rocks.engine.params import INT_TABLE, SLIDERS, TABLE, IPar, Par, Slider
 from taichi_rocks.engine.setup import hash_sizing, initial_rocks, scene_params
@@ -97,10 +98,11 @@ def test_the_registry_holds_the_scenes_launch_models():
 
 
 def test_each_model_declares_the_parameters_and_streams_it_uses():
-    engine_streams = [s for s in STREAMS if s.family == "engine"]
+    """PARAMS: the rows it reads; STREAMS: distinct ids of the launch models' block, the only ones it draws."""
     for name, model in launch.MODELS.items():
         src = inspect.getsource(model)
         assert set(model.PARAMS) == set(re.findall(r"\bPar\.([A-Z_0-9]+)", src)), name
-        assert all(s in engine_streams for s in model.STREAMS), name
-        used = set(re.findall(r"\b([A-Z][A-Z_]+)\.first\b", src))
-        assert used == {k for k, v in vars(model).items() if v in model.STREAMS}, name
+        assert len(set(model.STREAMS)) == len(model.STREAMS) and set(model.STREAMS) <= set(LAUNCH.ids), name
+        drawn = [c.args[3] for c in ast.walk(ast.parse(src)) if isinstance(c, ast.Call)
+                 and getattr(c.func, "id", None) == "uniform01"]
+        assert drawn and all(isinstance(a, ast.Name) and vars(model)[a.id] in model.STREAMS for a in drawn), name

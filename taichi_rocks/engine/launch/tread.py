@@ -41,14 +41,16 @@ import math
 import numpy as np
 import taichi as ti
 
-from ...config.streams import TREAD_CAPTURE, TREAD_GRIP, TREAD_PINCH, TREAD_SPREAD
+from ...config.streams import LAUNCH
 from ..randomness import uniform01
 from ..world import FENDER, FLAP, FWD, HALF_L, SPIN, TIRE_R, VEL, IPar, Par
 
 NAME = "tread"
 PARAMS = ("WETNESS", "GRAVITY", "SPREAD", "GROOVE", "GRIP", "GRIP_RELAX", "GRIP_SPREAD", "ADHESION", "TRANSFER",
           "RESTITUTION", "DENSITY")
-STREAMS = (TREAD_CAPTURE, TREAD_PINCH, TREAD_GRIP, TREAD_SPREAD)
+# the draws of steps 1 (carried?), 2 (where a pinched stone leaves), 3 (xi) and 4 (beta)
+S_CAPTURE, S_PINCH, S_GRIP, S_SPREAD = (LAUNCH.id(k) for k in range(10, 14))
+STREAMS = (S_CAPTURE, S_PINCH, S_GRIP, S_SPREAD)
 MARCH, BISECT = 32, 24
 FLAP_DISTANCE = 1.1  # tire radii behind the axle
 PI_HI = float(np.float32(math.pi))
@@ -149,9 +151,9 @@ def guarded(w: ti.template(), v, wheel_vel, forward, spin, alpha, radius, fender
 def throw_angle(w: ti.template(), r, mu, spin, radius, half_length, seed, rock, step):
     """The release angle of a stone run over by the tread (steps 1-3 of the module docstring)."""
     alpha_p = patch_angle(half_length, radius)
-    alpha = alpha_p * uniform01(seed, rock, step, TREAD_PINCH.first)
-    if uniform01(seed, rock, step, TREAD_CAPTURE.first) < carry_probability(w, r, mu):
-        xi = ti.exp(w.par[Par.GRIP_SPREAD] * (2.0 * uniform01(seed, rock, step, TREAD_GRIP.first) - 1.0))
+    alpha = alpha_p * uniform01(seed, rock, step, S_PINCH)
+    if uniform01(seed, rock, step, S_CAPTURE) < carry_probability(w, r, mu):
+        xi = ti.exp(w.par[Par.GRIP_SPREAD] * (2.0 * uniform01(seed, rock, step, S_GRIP) - 1.0))
         alpha = release_angle(w, alpha_p, r, mu, xi, spin * spin / radius)
     return alpha
 
@@ -165,7 +167,7 @@ def throw_velocity(w: ti.template(), t, r, mu, rock, step, fenders: ti.template(
     wheel_vel = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]])
     forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
     alpha = throw_angle(w, r, mu, spin, radius, w.ray[t, HALF_L], seed, rock, step)
-    beta = w.par[Par.SPREAD] * (2.0 * uniform01(seed, rock, step, TREAD_SPREAD.first) - 1.0)
+    beta = w.par[Par.SPREAD] * (2.0 * uniform01(seed, rock, step, S_SPREAD) - 1.0)
     k = ti.min(1.0, w.par[Par.TRANSFER] * mu)
     v = tread_velocity(wheel_vel, forward, spin, alpha, beta, k)
     if ti.static(fenders):

@@ -14,20 +14,21 @@ the rock always leaves backwards (against the wheel's travel, also when reversin
 
 import taichi as ti
 
-from ...config.streams import UNIFORM_ANGLE, UNIFORM_SPREAD
+from ...config.streams import LAUNCH
 from ..randomness import uniform01
 from ..world import FWD, SPIN, VEL, IPar, Par
 
 NAME = "uniform"
 PARAMS = ("ANGLE_MIN", "ANGLE_MAX", "SPREAD")
-STREAMS = (UNIFORM_ANGLE, UNIFORM_SPREAD)
+S_ANGLE, S_SPREAD = LAUNCH.id(0), LAUNCH.id(1)  # the release angle, the lateral scatter
+STREAMS = (S_ANGLE, S_SPREAD)
 
 
 @ti.func
 def wheel_throw(w: ti.template(), wheel_vel, forward, spin, mu, seed, rock, step):
     """Velocity of a rock thrown by a tread (see the module docstring). spin = omega * R, signed."""
-    u_alpha = uniform01(seed, rock, step, UNIFORM_ANGLE.first)
-    u_beta = uniform01(seed, rock, step, UNIFORM_SPREAD.first)
+    u_alpha = uniform01(seed, rock, step, S_ANGLE)
+    u_beta = uniform01(seed, rock, step, S_SPREAD)
     alpha = w.par[Par.ANGLE_MIN] + (w.par[Par.ANGLE_MAX] - w.par[Par.ANGLE_MIN]) * u_alpha
     beta = w.par[Par.SPREAD] * (2.0 * u_beta - 1.0)
     cb, sb = ti.cos(beta), ti.sin(beta)
