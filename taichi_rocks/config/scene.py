@@ -133,7 +133,7 @@ class Bed(_Table):
 
 class Launch(_Table):
     """How the rear tires throw rocks (README, "The throw")."""
-    model: Literal["tread", "uniform", "straight"] = _f("tread", "tread: capture and force balance; uniform: release "
+    model: Literal["tread", "uniform"] = _f("tread", "tread: capture and force balance; uniform: release "
                                                      "angle uniform in release_angle")
     groove: Float = _f(0.012, "m, stone radius the tread's grooves hold (tread)", gt=0)
     grip: Float = _f(2.0e5, "Pa, clamp stress of the tread on a carried stone (tread)", ge=0)

@@ -14,8 +14,8 @@ The tire pass (engine/tires.py ``try_launch``) picks the model at compile time: 
 model is a module here, its line in :data:`MODELS` and its name among the scene's choices (config/scene.py).
 """
 
-from . import straight, tread, uniform
+from . import tread, uniform
 
 __all__ = ["MODELS"]
 
-MODELS = {m.NAME: m for m in (tread, uniform, straight)}
+MODELS = {m.NAME: m for m in (tread, uniform)}
