@@ -76,11 +76,11 @@ def plot_integrators(res, out: Path) -> str:
                     ax.loglog([ms / p["dt"]], [max(rows[0]["max_error_m"], 1e-12)], mk, color=col, ms=13,
                               mec="white", zorder=5, label=f"preset {p['name']}")
         info = acc["cases"].get(case, {})
-        title = {"gravity": "gravity only (parabola)",
-                 "linear": "linear drag, tau = " + ", ".join(f"{t:.2g}" for t in info.get("tau_s", [])) + " s",
-                 "quadratic": "quadratic drag, vertical, v0 = 20 m/s, v_t = "
-                              + ", ".join(f"{v:.0f}" for v in info.get("terminal_speed_m_s", [])) + " m/s"}.get(case, case)
-        ax.set_title(title)
+        titles = {"gravity": "gravity only (parabola)",
+                  "linear": "linear drag, tau = " + ", ".join(f"{t:.2g}" for t in info.get("tau_s", [])) + " s",
+                  "quadratic": "quadratic drag, vertical, v0 = 20 m/s, v_t = "
+                               + ", ".join(f"{v:.0f}" for v in info.get("terminal_speed_m_s", [])) + " m/s"}
+        ax.set_title(titles.get(case, case))
         ax.set_xlabel("flight cost (ms per simulated second)")
         ax.set_ylabel("max position error over a 2 s flight (m)")
         ax.legend(fontsize=6.5, loc="best")

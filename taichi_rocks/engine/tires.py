@@ -8,8 +8,8 @@ previous and the current step instead, so a fast tire misses nothing it passed o
 the ray at several positions interpolated within the step.
 
 Launch. A rock run over is thrown with the velocity of the scene's launch model (engine/launch/, a module per
-model), picked at compile time from the Plan's ``throw``. A rock is launched at most once per step, by the first ray (in tire
-order) that finds it; flying rocks are not re-launched.
+model), picked at compile time from the Plan's ``throw``. A rock is launched at most once per step, by the
+first ray (in tire order) that finds it; flying rocks are not re-launched.
 
 "patch" detection (engine/patch.py) adds the tread's swept footprint to the swept test: a rock on the ground
 anywhere under the tread is run over. The query box is then the union of the swept ray's box and the

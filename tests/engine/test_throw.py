@@ -1,4 +1,5 @@
-"""The tread launch model (engine/launch/tread.py) and the tread's footprint (engine/patch.py), each against NumPy references."""
+"""The tread launch model (engine/launch/tread.py) and the tread's footprint (engine/patch.py), each against
+NumPy references."""
 
 import itertools
 import math

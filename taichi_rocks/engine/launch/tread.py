@@ -1,5 +1,5 @@
-"""The tread launch model ([launch] model = "tread", the default): which stones a tread carries, where they leave it, how fast, and
-what the fender and the mud flap stop.
+"""The tread launch model ([launch] model = "tread", the default): which stones a tread carries, where they
+leave it, how fast, and what the fender and the mud flap stop.
 
 Sources. Chen, Fu & Wegman 1999, "A cellular automata model of vehicle-generated dust", ACM TOMACS 9(2):81-104:
 the stones stick to the tread by its adhesive forces and friction and leave it at a height that depends on the
