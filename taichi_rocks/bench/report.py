@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config.keys import choices
-from .config import INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
+from .config import CASE_OF_DRAG, DRAGS, INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
 
 
 def _fmt(x, unit="", digits=3):
@@ -123,7 +123,7 @@ def _integrators(res: dict, plots: list) -> list:
         L.append(f"Max position error (m), {prec}:\n")
         L.append("| case | integrator | " + " | ".join(f"dt {d:g}" for d in dts) + " |")
         L.append("|---|---|" + "---|" * len(dts))
-        for case in ("gravity", "linear", "quadratic"):
+        for case in (CASE_OF_DRAG[d] for d in DRAGS):
             for integ in INTEGRATORS:
                 vals = {r["dt"]: r["max_error_m"] for r in acc["rows"]
                         if r["precision"] == prec and r["case"] == case and r["integrator"] == integ}

@@ -5,6 +5,7 @@ import pytest
 import taichi as ti
 
 from harness import Probe, np_segment_sphere, segment_sphere_kernel
+from taichi_rocks.config.keys import choices
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
@@ -97,7 +98,7 @@ def test_hash_stress_same_hits(table):
     pos, r = bed_rocks(rng, 2000, (0.02, 0.05), half=0.3)
     rays = np.array([[[x, y, 0.33], [x, y, 0.0]] for x, y in rng.uniform(-0.3, 0.3, (8, 2))])
     ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
-    for insert in ("aabb", "center"):
+    for insert in choices("sim.hash.insert"):
         np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, table=table, rays=rays).hits(), ref)
 
 
@@ -107,7 +108,7 @@ def test_all_rocks_in_one_cell():
     r = np.full(500, 0.005)
     rays = np.array([[[0.05, 0.05, 0.33], [0.05, 0.05, 0.0]]])
     ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
-    for insert in ("aabb", "center"):
+    for insert in choices("sim.hash.insert"):
         np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, rays=rays).hits(), ref)
 
 
