@@ -235,4 +235,3 @@ def acquire(owner, n: int, real, **layout) -> World:
     w.owner = weakref.ref(owner)
     _POOL.setdefault(key, []).append(w)
     return w
-
