@@ -1,11 +1,15 @@
 """Small direct drivers of the kernels for tests: a World from explicit rocks and rays."""
 
 
+from types import SimpleNamespace
+
 import numpy as np
 import taichi as ti
 
 from taichi_rocks.engine import hashgrid, tires
-from taichi_rocks.engine.setup import entry_capacity, pack_params
+from taichi_rocks.engine.kernels import READS, Switches
+from taichi_rocks.engine.params import dilation_cells, pack
+from taichi_rocks.engine.setup import entry_capacity
 from taichi_rocks.engine.world import HALF_W, RAY_FIELDS, World, next_prime
 
 P = np.array([73856093, 19349663, 83492791], dtype=np.uint64)
@@ -33,8 +37,14 @@ def np_segment_sphere(a, b, c, r):
     return np.sum((c - q) ** 2, axis=1) <= np.asarray(r, np.float64) ** 2
 
 
+def tire_switches(center=True, swept=False, patch=False, ground="bounce", throw="uniform", fenders=False):
+    """The switches of the tire pass (kernels.READS["hash_and_tires"]) as a Plan would give them."""
+    plan = SimpleNamespace(center=center, swept=swept, patch=patch, ground=ground, throw=throw, fenders=fenders)
+    return Switches(plan, READS["hash_and_tires"])
+
+
 class Probe:
-    """A World holding given rocks, a hash built in a given mode, and rays."""
+    """A World holding given rocks, a hash built in a given mode, and rays; the tire pass's switches."""
 
     def __init__(self, pos, radius, *, cell, insert="center", table=None, rays=(), real=ti.f32,
                  swept=False, rest_speed=1e-6, patch=False, throw="uniform", fenders=False):
@@ -49,10 +59,11 @@ class Probe:
         self.swept = swept
         ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
         self.w = w = World(n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
-                           ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8, patch=patch, throw=throw,
-                           fenders=fenders)
-        par, ipar = pack_params(n_rocks=n, cell=cell, r_max=r_max, center=self.center, rest_speed=rest_speed,
-                                gravity=9.81, release_angle=(30.0, 30.0))
+                           ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
+        self.switches = tire_switches(self.center, swept, patch, "bounce", throw, fenders)
+        par, ipar = pack({"N_ROCKS": n, "CELL": cell, "R_MAX": r_max, "REST_SPEED": rest_speed, "GRAVITY": 9.81,
+                          "ANGLE_MIN": np.radians(30.0), "ANGLE_MAX": np.radians(30.0), "TIE_EPS": 1e-5,
+                          "DILATE": dilation_cells(r_max, cell) if self.center else 0})
         w.set_params(par, ipar)
         npr = w.np_real()
         cap = max(n, 1)
@@ -91,7 +102,7 @@ class Probe:
         w.phase.from_numpy(np.zeros(max(self.n, 1), np.int32))
         if not self.swept:
             tires.trace_rays(w)
-        tires.tire_pass(w, step, self.swept, self.center, "bounce")
+        tires.tire_pass(w, self.switches, step)
         return np.flatnonzero(w.hit_step.to_numpy()[: self.n] == step)
 
     def slot_members(self):

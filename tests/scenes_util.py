@@ -53,7 +53,7 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     with dummies far away (10 km up), which nothing can hit. Returns the probe; ``hits()`` then works as
     usual (indices < len(pos))."""
     from taichi_rocks.engine import hashgrid
-    from taichi_rocks.engine.world import IPar, Par, dilation_cells
+    from taichi_rocks.engine.params import IPar, Par, dilation_cells
 
     w = probe.w
     cap = w.pos.shape[0]

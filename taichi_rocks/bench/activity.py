@@ -49,6 +49,8 @@ except ImportError:
 
 from ..runner.tasks import WHOLE_NODE, run_tasks
 
+from ..config.keys import choices
+
 PREFIX = "ACTIVITY-POINT "
 MB = 1024.0 * 1024.0
 
@@ -79,7 +81,7 @@ def plan_jobs(cfg) -> list:
             r = series_radius(cfg, series, n)
             if series == "b" and abs(r - cfg.act_radius) < 1e-9:
                 continue
-            for stepping in ("active", "full"):
+            for stepping in choices("sim.stepping"):
                 if stepping == "full" and not cfg.act_full_min <= n <= cfg.act_full_max:
                     continue
                 jobs.append([_point(cfg, f"{series} N={n:,} {stepping}", n, r, stepping=stepping, memory=True,
@@ -240,7 +242,7 @@ def _by_n(points: list, series: str, cfg) -> list:
         r = series_radius(cfg, series, n)
         s = "a" if abs(r - cfg.act_radius) < 1e-9 else series
         row = {"n": n, "radius": r}
-        for stepping in ("active", "full"):
+        for stepping in choices("sim.stepping"):
             row[stepping] = next((p for p in points if p["label"] == f"{s} N={n:,} {stepping}"), None)
         act = row["active"] if row["active"] and "error" not in row["active"] else None
         row["floor_ms"] = act["floor_ms"] if act else None
@@ -252,7 +254,7 @@ def memory_summary(rows: list) -> dict:
     """Per stepping mode: bytes per rock (the slope of peak RSS between the two largest N, and at the largest N
     growth / N) and the 10M projection; the fields' bytes per rock."""
     out = {}
-    for stepping in ("active", "full"):
+    for stepping in choices("sim.stepping"):
         pts = [(r["n"], r[stepping]["memory"]) for r in rows
                if r.get(stepping) and "memory" in r[stepping]]
         if not pts:

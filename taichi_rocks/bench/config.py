@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..config.keys import choices
+
 G = 9.81  # m/s^2: the closed forms' gravity (the benchmark's scenes keep the default gravity; checked)
 ACC_T = 2.0  # s of flight for the accuracy and precision tests
 SAMPLE_EVERY = 0.1  # s between error samples (every dt of the sweep divides it)
@@ -91,9 +93,9 @@ HASH_SETTINGS = {  # name -> scene overrides (the default scene: centre insert, 
 DEFAULT_HASH = "default (center, auto=2 r_max, auto, scope tires)"
 DESIGN_HASH = "design: aabb, cell r_min"
 
-INTEGRATORS = ("symplectic_euler", "heun", "rk4")
-DRAGS = ("none", "linear", "quadratic")
-CASE_OF_DRAG = {"none": "gravity", "linear": "linear", "quadratic": "quadratic"}
+INTEGRATORS = choices("sim.integrator")
+DRAGS = choices("effects.drag")
+CASE_OF_DRAG = {d: "gravity" if d == "none" else d for d in DRAGS}  # the accuracy study's case of each drag law
 
 
 def make_config(quick: bool = False, tiny: bool = False) -> Config:

@@ -8,7 +8,7 @@ One rock per case is flown for 2 s (no ground) by the flight part of the engine'
   * quadratic drag, thrown straight up at w0, a = -g - (g / v_t^2) |v| v, v_t = sqrt(g r / QUAD_DRAG):
         rise v = v_t tan(atan(w0 / v_t) - g t / v_t) up to the apex t_a = v_t atan(w0 / v_t) / g,
         fall v = -v_t tanh(g (t - t_a) / v_t)  (heights: the integrals of these, below).
-LINEAR_DRAG and QUAD_DRAG are the scene's (engine/setup.py ``drag_coefficients``). Cost: the flight pass with
+LINEAR_DRAG and QUAD_DRAG are the scene's (engine/params.py ``drag_coefficients``). Cost: the flight pass with
 every rock of the main scene flying, per (integrator, drag).
 """
 
@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ..engine import probes
-from ..engine.setup import drag_coefficients
+from ..engine.params import drag_coefficients
 from .config import ACC_T, CASE_OF_DRAG, DRAGS, G, INTEGRATORS, SAMPLE_EVERY, Config
 from .measure import timed_call
 

@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.keys import choices
 from ..output.atomic import write_atomically
-from .config import INTEGRATORS
+from .config import CASE_OF_DRAG, DRAGS, INTEGRATORS
 
 
 def _plt():
@@ -28,7 +29,10 @@ def _plt():
 PNG = {"integrators": "accuracy_integrators.png", "detection": "accuracy_detection.png",
        "precision": "accuracy_precision.png", "hash": "hash_settings.png", "peers": "speed_peers.png",
        "passes": "speed_passes_effects.png", "activity": "activity.png"}
-COLORS = {"symplectic_euler": "tab:blue", "heun": "tab:orange", "rk4": "tab:green"}
+TAB10 = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:gray",
+         "tab:olive", "tab:cyan")
+COLORS = {name: TAB10[i % len(TAB10)] for i, name in enumerate(INTEGRATORS)}
+LINES = ("-", "--", ":", "-.")  # one per precision, stepping mode, ...
 PRESET_MARK = {"draft": ("*", "tab:red"), "balanced": ("P", "tab:purple"), "reference": ("X", "black")}
 
 
@@ -47,9 +51,9 @@ def plot_integrators(res, out: Path) -> str:
     acc = res["accuracy"]["integrator_dt"]
     cost = res["accuracy"]["flight_cost"]["ms_per_step"]
     presets = res["accuracy"]["presets"]
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
-    for ax, (case, drag) in zip(axes, (("gravity", "none"), ("linear", "linear"), ("quadratic", "quadratic"))):
-        for prec, ls in (("f32", "-"), ("f64", "--")):
+    fig, axes = plt.subplots(1, len(DRAGS), figsize=(5 * len(DRAGS), 4.8))
+    for ax, (case, drag) in zip(axes, ((CASE_OF_DRAG[d], d) for d in DRAGS)):
+        for prec, ls in zip(choices("sim.precision"), LINES):
             for integ in INTEGRATORS:
                 rows = [r for r in acc["rows"] if r["case"] == case and r["integrator"] == integ
                         and r["precision"] == prec]
@@ -80,11 +84,11 @@ def plot_integrators(res, out: Path) -> str:
                     ax.loglog([ms / p["dt"]], [max(rows[0]["max_error_m"], 1e-12)], mk, color=col, ms=13,
                               mec="white", zorder=5, label=f"preset {p['name']}")
         info = acc["cases"].get(case, {})
-        title = {"gravity": "gravity only (parabola)",
-                 "linear": "linear drag, tau = " + ", ".join(f"{t:.2g}" for t in info.get("tau_s", [])) + " s",
-                 "quadratic": "quadratic drag, vertical, v0 = 20 m/s, v_t = "
-                              + ", ".join(f"{v:.0f}" for v in info.get("terminal_speed_m_s", [])) + " m/s"}[case]
-        ax.set_title(title)
+        titles = {"gravity": "gravity only (parabola)",
+                  "linear": "linear drag, tau = " + ", ".join(f"{t:.2g}" for t in info.get("tau_s", [])) + " s",
+                  "quadratic": "quadratic drag, vertical, v0 = 20 m/s, v_t = "
+                               + ", ".join(f"{v:.0f}" for v in info.get("terminal_speed_m_s", [])) + " m/s"}
+        ax.set_title(titles.get(case, case))
         ax.set_xlabel("flight cost (ms per simulated second)")
         ax.set_ylabel("max position error over a 2 s flight (m)")
         ax.legend(fontsize=6.5, loc="best")
@@ -303,7 +307,7 @@ def _activity_vs_n(ax, act) -> None:
     style = {"a": ("tab:blue", "o"), "b": ("tab:orange", "s")}
     for series, rows in act["series"].items():
         col, mk = style[series]
-        for stepping, ls in (("active", "-"), ("full", "--")):
+        for stepping, ls in zip(choices("sim.stepping"), LINES):
             pts = [(r["n"], _ok_ms(r.get(stepping))) for r in rows if _ok_ms(r.get(stepping))]
             if pts:
                 name = {"a": f"(a) R = {act['radius']:g} m", "b": "(b) fixed density"}[series]
@@ -349,8 +353,7 @@ def _activity_vs_air(ax, act) -> None:
 
 
 def _activity_memory(ax, act) -> None:
-    style = {"active": "tab:blue", "full": "tab:gray"}
-    for stepping, col in style.items():
+    for stepping, col in zip(choices("sim.stepping"), ("tab:blue", "tab:gray", "tab:olive")):
         rows = [r for r in act["series"]["a"] if (r.get(stepping) or {}).get("memory")]
         if not rows:
             continue

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from ..config.keys import choices
 from ..config.scene import scene_with
 from .config import PRESET_SPEED, PRESET_TARGETS, V_LAUNCH_MAX, Config
 from .detection import detection_runs
@@ -64,7 +65,8 @@ def _inputs(res: dict) -> dict:
             "integ_extra": {i: max(0.0, fc[i]["quadratic"] - se) for i in fc if se is not None and "quadratic" in fc[i]},
             "swept_recall": min((r["recall"] for r in det["swept"]["per_speed"] if r["contacts"]), default=float("nan")),
             "far": max(acc["precision"]["distances_m"]),
-            "prec_err": {p: prec[f"{p} floating"]["max_error_m"][-1] for p in ("f32", "f64") if f"{p} floating" in prec}}
+            "prec_err": {p: prec[f"{p} floating"]["max_error_m"][-1] for p in choices("sim.precision")
+                         if f"{p} floating" in prec}}
 
 
 def _step_cost(x: dict, detection: str, substeps: int, integ: str, p: str):

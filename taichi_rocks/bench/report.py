@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.keys import choices
 from ..output.atomic import write_atomically
-from .config import INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
+from .config import CASE_OF_DRAG, DRAGS, INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
 
 
 def _fmt(x, unit="", digits=3):
@@ -128,7 +129,7 @@ def _integrators(res: dict, plots: list) -> list:
         L.append(f"Max position error (m), {prec}:\n")
         L.append("| case | integrator | " + " | ".join(f"dt {d:g}" for d in dts) + " |")
         L.append("|---|---|" + "---|" * len(dts))
-        for case in ("gravity", "linear", "quadratic"):
+        for case in (CASE_OF_DRAG[d] for d in DRAGS):
             for integ in INTEGRATORS:
                 vals = {r["dt"]: r["max_error_m"] for r in acc["rows"]
                         if r["precision"] == prec and r["case"] == case and r["integrator"] == integ}
@@ -318,7 +319,7 @@ def _activity_memory(act: dict) -> list:
          "|---|---|---|---|---|---|---|---|"]
     for series in ("a", "b"):
         for r in act["series"][series]:
-            for stepping in ("active", "full"):
+            for stepping in choices("sim.stepping"):
                 m = (r.get(stepping) or {}).get("memory")
                 if m:
                     L.append(f"| ({series}) | {stepping} | {r['n']:,} | {_fmt(m['field_mb'])} | "

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from ..config.scene import parse_scene, scene_with
-from ..engine.setup import drag_coefficients
+from ..engine.params import drag_coefficients
 from .config import TAU_LINEAR, Config
 
 # The studies of passes and accuracy run "full" stepping (its passes can be timed and probed one by one,
@@ -63,7 +63,7 @@ def lane_y(i: int, count: int) -> float:
 
 def _linear_drag_viscosity(scene, radius: float, tau: float) -> float:
     """The air viscosity giving a rock of this radius the Stokes time constant tau (tau = r^2 / LINEAR_DRAG):
-    the linear drag coefficient of engine/setup.py is proportional to the viscosity."""
+    the linear drag coefficient of engine/params.py is proportional to the viscosity."""
     per_viscosity = drag_coefficients(scene_with(scene, {"world.air_viscosity": 1.0}))[0]
     return radius * radius / tau / per_viscosity
 

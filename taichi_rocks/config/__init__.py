@@ -1,2 +1,3 @@
 """What a scene asks for: the scene models (TOML -> validated, frozen pydantic models with a JSON Schema), the
-accuracy presets and the Plan (which passes run, decided once). Never imports Taichi."""
+choices and ranges of their keys as every room reads them (keys.py), the accuracy presets, the Plan (which
+passes run, decided once) and the random-stream ids of every room (streams.py). Never imports Taichi."""

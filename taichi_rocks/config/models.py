@@ -11,6 +11,7 @@ from pydantic import (BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo,
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
                      _f, _follow, _is_list, _raise_problems, _show)
 from .resolution import MIN_SIDE
+from .presets import PRESETS
 
 
 # ---------------------------------------------------------------------------------------------- the models
@@ -81,7 +82,7 @@ class Hash(_Table):
 
 class Sim(_Table):
     """Time stepping and numerics."""
-    accuracy: Literal["custom", "draft", "balanced", "reference"] = _f(
+    accuracy: Literal[("custom", *PRESETS)] = _f(
         "custom", "preset of dt, integrator, detection and precision (keys set in the file win)")
     dt: Float = _f(0.002, "s, time step, in (0, 0.1]", gt=0, le=0.1)
     integrator: Literal["symplectic_euler", "heun", "rk4"] = _f("symplectic_euler", "integrator of flying rocks")

@@ -199,7 +199,7 @@ def classify_rim(w: ti.template(), c, d, shift_tiles, check_all):
 
 
 @ti.func
-def tire_box(w: ti.template(), t, reach):
+def tire_box(w: ti.template(), plan: ti.template(), t, reach):
     """XY box (lo, hi) of everything tire t can hit this step: its rays, the swept parallelogram's fourth
     corner, the tread's footprint; grown by ``reach``."""
     lo = ti.Vector([w.ray[t, A0], w.ray[t, A0 + 1]])
@@ -211,7 +211,7 @@ def tire_box(w: ti.template(), t, reach):
     q = ti.Vector([w.ray[t, A1] + w.ray[t, B0] - w.ray[t, A0], w.ray[t, A1 + 1] + w.ray[t, B0 + 1] - w.ray[t, A0 + 1]])
     lo = ti.min(lo, q)
     hi = ti.max(hi, q)
-    if ti.static(w.patch):
+    if ti.static(plan.patch):
         if w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0:
             f_lo, f_hi = footprint_box(w, t)
             lo = ti.min(lo, f_lo)
@@ -220,7 +220,7 @@ def tire_box(w: ti.template(), t, reach):
 
 
 @ti.func
-def classify_tires(w: ti.template(), c, shift_tiles):
+def classify_tires(w: ti.template(), plan: ti.template(), c, shift_tiles):
     """Step 1 for the tires: mark the occupied tiles under every active tire's query box; the boxes go to
     ``w.tire_box`` and each tile notes which tires (bit t mod 32 of ``w.ts_tires``) marked it. One flat loop
     over (tire, tile of the largest box) (see classify_rim on inner loops)."""
@@ -228,7 +228,7 @@ def classify_tires(w: ti.template(), c, shift_tiles):
         reach = w.par[Par.R_MAX] + rounding_margin(w, c)
         g = w.store_grid
         for t in range(w.n_tires):
-            lo, hi = tire_box(w, t, reach)
+            lo, hi = tire_box(w, plan, t, reach)
             on = w.ray[t, ACTIVE] != 0.0
             w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
             k_lo = tile_key(w, lo, shift_tiles)
@@ -408,7 +408,7 @@ def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dt
     st = ti.cast(frame[TILES], ti.i32)
     classify_rim(w, c, m, st, check_all)
     if ti.static(plan.splash):
-        classify_tires(w, c, st)
+        classify_tires(w, plan, c, st)
     gather(w, c)
     for i in range(w.ipar[IPar.N_ROCKS]):
         rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: the last point is unused
@@ -425,7 +425,7 @@ def active_finish(w: ti.template(), plan: ti.template(), frame: ti.types.ndarray
         hashgrid.scatter_all(w, plan.center)
         if ti.static(not plan.swept):
             tires.trace_all(w)
-        launched = tires.launch_all(w, step, plan.swept, plan.center, plan.ground)
+        launched = tires.launch_all(w, plan, step)
         hashgrid.clear_all(w)
     settle_rocks(w, ti.cast(frame[TILES], ti.i32))
     compact(w)

@@ -17,6 +17,7 @@ vehicle's heading and a crescent one rock diameter thick. Rocks that fall more t
 
 import taichi as ti
 
+from ..config.streams import RECYCLE_CHORD, RECYCLE_TRIES
 from .randomness import uniform01
 from .world import RESTING, IPar, Par
 
@@ -40,14 +41,14 @@ def leading_crescent_point(center_xy, move, lead, radius, thickness, seed, rock,
     chord_max = ti.min(2.0 * radius, dist)
     y = 0.0 * radius
     chord = chord_max
-    for attempt in range(32):
-        y = radius * (2.0 * uniform01(seed, rock, step, 2 * attempt) - 1.0)
+    for attempt in range(RECYCLE_TRIES.count // 2):
+        y = radius * (2.0 * uniform01(seed, rock, step, RECYCLE_TRIES.first + 2 * attempt) - 1.0)
         w = ti.sqrt(ti.max(radius * radius - y * y, 0.0))
         chord = ti.min(2.0 * w, dist)
-        if uniform01(seed, rock, step, 2 * attempt + 1) * chord_max <= chord:
+        if uniform01(seed, rock, step, RECYCLE_TRIES.first + 2 * attempt + 1) * chord_max <= chord:
             break
     w = ti.sqrt(ti.max(radius * radius - y * y, 0.0))
-    x = w - chord * uniform01(seed, rock, step, 101)
+    x = w - chord * uniform01(seed, rock, step, RECYCLE_CHORD.first)
     q = x * e1 + y * e2
     r2 = q.norm_sqr()
     if r2 > radius * radius:  # rounding at the rim

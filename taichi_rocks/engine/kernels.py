@@ -2,8 +2,11 @@
 
 Every kernel takes the World ``w`` and, where it has compile-time switches, the Plan's switches it reads
 (``plan``: a :class:`Switches`, one ``ti.template()`` argument) as ``ti.static(plan.flight)``: passes a plan
-leaves out are not compiled. Points and displacements in the bed's local frame (world = origin + local) come
-as 2-vectors of float64, cast to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
+leaves out are not compiled. The Plan is the one switch mechanism: the World holds fields and their layout
+only, so scenes that differ in a switch (an integrator, the launch model, the fenders, ...) share a World from
+the pool and compile only the kernels that read it.
+Points and displacements in the bed's local frame (world = origin + local) come as 2-vectors of float64, cast
+to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
 ``rock_pass``, launched every step, which takes its four as one array of 2-vectors (``frame``, rows CENTRE,
 MOVE, LEAD, GRID): Taichi 1.7.4 builds a Matrix in Python for every vector argument of a launch (~10 us
 each, ~4x two scalars), an array of them costs about what the scalars did.
@@ -56,9 +59,11 @@ class Switches:
 READS = {
     "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground"),
     "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground"),
-    "hash_and_tires": ("center", "swept", "ground"),
+    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders"),  # also tires.tire_pass
     "health": ("recycle", "ground"),
-    "active_step": ("splash", "flight", "recycle", "center", "swept", "integrator", "gravity", "drag", "ground"),
+    "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
+                    "ground"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders"),
 }
 
 
@@ -149,7 +154,7 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32) -> ti.i3
     hashgrid.scatter_all(w, plan.center)
     if ti.static(not plan.swept):
         tires.trace_all(w)
-    launched = tires.launch_all(w, step, plan.swept, plan.center, plan.ground)
+    launched = tires.launch_all(w, plan, step)
     hashgrid.clear_all(w)
     return launched
 

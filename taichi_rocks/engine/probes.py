@@ -102,7 +102,8 @@ def separate_passes(sim) -> list[tuple[str, Callable]]:
                 ("hash scatter", lambda: hashgrid.scatter(w, p.center))]
         if not p.swept:
             out.append(("trace rays", lambda: tires.trace_rays(w)))
-        out.append(("tire pass", lambda: tires.tire_pass(w, step, p.swept, p.center, p.ground)))
+        tire_switches = Switches(p, READS["hash_and_tires"])
+        out.append(("tire pass", lambda: tires.tire_pass(w, tire_switches, step)))
     return out
 
 

@@ -1,5 +1,5 @@
-"""Setting a simulation up from a Scene: the initial rocks, the hash sizing, the derived physics constants
-and the packing of the parameters into ``World.par`` / ``World.ipar``. No Taichi field is written here.
+"""Setting a simulation up from a Scene: the initial rocks, the hash sizing and the packing of the parameters
+into ``World.par`` / ``World.ipar``. No Taichi field is written here.
 
 Initial rocks: radius uniform in [r_min, r_max], static friction uniform in the scene's range, position
 uniform over the bed's disk (radius R sqrt(u), angle uniform), resting on the ground; all drawn from one
@@ -12,9 +12,8 @@ Hash sizing (Teschner et al. 2003: a table of about as many slots as entries, pr
               the hashed share of the bed (a tire's query region is about (2 margin + 2 tile + v dt)^2);
     table     the smallest prime >= expected (>= 1024 with the tire mask), or the scene's table_size.
 
-Drag of a sphere of radius r and density rho in air (viscosity mu_air, density rho_air, drag coefficient C_d):
-    Stokes (linear):  a = -(9 mu_air / (2 rho r^2)) v        -> LINEAR_DRAG = 4.5 mu_air / rho   (a = -k v / r^2)
-    quadratic:        a = -(3 rho_air C_d / (8 rho r)) |v| v -> QUAD_DRAG = 3 rho_air C_d / (8 rho) (a = -k |v| v / r)
+The parameters: engine/params.py declares each one (its scene key or derivation); ``scene_params`` packs
+them.
 """
 
 from __future__ import annotations
@@ -24,14 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .throw import tread_params
-from .world import IPar, Par, dilation_cells, next_prime
-
-
-def drag_coefficients(scene) -> tuple[float, float]:
-    """(LINEAR_DRAG, QUAD_DRAG) of the scene's rocks; see the module docstring. The one place they are derived."""
-    wd, bed = scene.world, scene.bed
-    return 4.5 * wd.air_viscosity / bed.density, 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density)
+from .params import Source, dilation_cells, pack_source
+from .world import next_prime
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -138,45 +131,7 @@ def hash_sizing(scene, plan, radius, n_tires: int) -> HashSizing:
 # ---------------------------------------------------------------------------------------------------
 # Parameters
 
-def pack_params(*, n_rocks: int, cell: float, r_max: float, center: bool, gravity: float = 0.0,
-                ground_z: float = 0.0, bed_radius: float = 0.0, restitution: float = 0.0,
-                ground_friction: float = 0.0, rest_speed: float = 0.0, release_angle=(0.0, 0.0),
-                spread: float = 0.0, drag=(0.0, 0.0), margin: float = 0.0, seed: int = 0, table: int = 0):
-    """``World.par`` (float64) and ``World.ipar`` (int64) as NumPy arrays: angles in degrees, ``ground_z``
-    in the kernels' local frame, ``drag`` = (LINEAR_DRAG, QUAD_DRAG)."""
-    par = np.zeros(Par.COUNT)
-    par[Par.GRAVITY] = gravity
-    par[Par.GROUND_Z] = ground_z
-    par[Par.BED_RADIUS] = bed_radius
-    par[Par.RESTITUTION] = restitution
-    par[Par.GROUND_FRICTION] = ground_friction
-    par[Par.REST_SPEED] = rest_speed
-    par[Par.CELL] = cell
-    par[Par.ANGLE_MIN], par[Par.ANGLE_MAX] = np.radians(release_angle)
-    par[Par.SPREAD] = np.radians(spread)
-    par[Par.LINEAR_DRAG], par[Par.QUAD_DRAG] = drag
-    par[Par.R_MAX] = r_max
-    par[Par.TIE_EPS] = 1e-5
-    par[Par.MARGIN] = margin
-    ipar = np.zeros(IPar.COUNT, dtype=np.int64)
-    ipar[IPar.SEED] = seed & 0x7FFFFFFF
-    ipar[IPar.DILATE] = dilation_cells(r_max, cell) if center else 0
-    ipar[IPar.N_ROCKS] = n_rocks
-    ipar[IPar.TABLE] = table
-    return par, ipar
-
-
 def scene_params(scene, plan, sizing: HashSizing, ground_z: float):
-    """:func:`pack_params` of a scene: ``ground_z`` is the ground's height in the kernels' local frame."""
-    wd, bed = scene.world, scene.bed
-    par, ipar = pack_params(n_rocks=int(bed.rocks), cell=plan.cell_size, r_max=float(bed.rock_radius[1]),
-                            center=plan.center, gravity=wd.gravity, ground_z=ground_z, bed_radius=bed.radius,
-                            restitution=wd.restitution, ground_friction=wd.ground_friction,
-                            rest_speed=wd.rest_speed, release_angle=scene.launch.release_angle,
-                            spread=scene.launch.spread, drag=drag_coefficients(scene), margin=sizing.margin,
-                            seed=scene.seed, table=sizing.table)
-    for k, value in tread_params(scene).items():
-        par[k] = value
-    # a rock resting on the ground: its bottom is the ground's height up to a few float spacings
-    par[Par.PATCH_TOL] = 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * abs(wd.ground_z)
-    return par, ipar
+    """``World.par`` (float64) and ``World.ipar`` (int64) of a scene, as engine/params.py declares them:
+    ``ground_z`` is the ground's height in the kernels' local frame."""
+    return pack_source(Source(scene, plan, sizing, ground_z))

@@ -116,8 +116,7 @@ class Simulation:
         ray_len = max((v.tire_radius for v in self.scene.vehicles), default=1.0)
         return acquire(self, self.n_rocks, self.real, hash_table=s.table, hash_entries=s.entries, n_tires=n_tires,
                        substeps=p.substeps, ray_capacity=hashgrid.ray_capacity(ray_len, self.cell_size),
-                       reorder=p.reorder_every > 0, tiles=s.tiles, tile_size=s.tile,
-                       patch=p.patch, throw=p.throw, fenders=p.fenders, store=self._store_layout())
+                       reorder=p.reorder_every > 0, tiles=s.tiles, tile_size=s.tile, store=self._store_layout())
 
     def _store_layout(self):
         """Active stepping's tile store (engine/active.py) as the World's layout argument, or None."""
@@ -245,7 +244,7 @@ class Simulation:
                 with timer("trace rays"):
                     tires.trace_rays(w)
             with timer("tire pass"):
-                launched = tires.tire_pass(w, self.step_count, p.swept, p.center, p.ground)
+                launched = tires.tire_pass(w, self._switches["hash_and_tires"], self.step_count)
             with timer("hash clear"):
                 hashgrid.clear_counts(w)
             return launched
@@ -335,7 +334,8 @@ class Simulation:
             plan = self._switches["active_step"]
             with self.timer("active step"):
                 active.active_step(self.world, plan, rays, frame, dt, self.step_count, int(self._check_all))
-                self.last_launches = active.active_finish(self.world, plan, frame, self.step_count)
+                self.last_launches = active.active_finish(self.world, self._switches["active_finish"], frame,
+                                                          self.step_count)
             self._check_all = False
             if self.step_count % 32 == 0:
                 self._fit_table()

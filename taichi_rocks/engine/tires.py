@@ -7,32 +7,23 @@ handles a zero-length segment). "swept" detection tests the parallelogram the ra
 previous and the current step instead, so a fast tire misses nothing it passed over; "substeps" evaluates
 the ray at several positions interpolated within the step.
 
-Launch (rolling-wheel kinematics). A tread point at angle alpha up the back of a wheel with centre velocity
-V (along the heading f), spin omega and radius R moves in the ground frame at
-    (V - omega R cos(alpha)) f  +  omega R sin(alpha) z,    omega R = V (1 + slip) for a driven wheel.
-A rock caught by the tread leaves with
-    v_xy = v_wheel_xy - omega R cos(alpha) Rot(beta) f      (v_wheel includes the yaw rate: the rear wheels
-                                                            of a turning vehicle slide outwards)
-    v_z  = mu_s |omega R| sin(alpha)                        (lift needs grip: static friction mu_s)
-with alpha uniform in the release-angle range and beta uniform in [-spread, spread]. Relative to the wheel
-the rock always leaves backwards (against the wheel's travel, also when reversing). This is [launch]
-model = "uniform"; the default, "tread", is engine/throw.py (capture, force balance, fenders). A rock is
-launched at most once per step, by the first ray (in tire order) that finds it; flying rocks are not
-re-launched.
+Launch. A rock run over is thrown with the velocity of the scene's launch model (engine/launch/, a module per
+model), picked at compile time from the Plan's ``throw``. A rock is launched at most once per step, by the
+first ray (in tire order) that finds it; flying rocks are not re-launched.
 
 "patch" detection (engine/patch.py) adds the tread's swept footprint to the swept test: a rock on the ground
 anywhere under the tread is run over. The query box is then the union of the swept ray's box and the
-footprint's XY box. Tire model and detection are compile-time switches of the World (from the Plan).
+footprint's XY box. Launch model and detection are compile-time switches of the Plan (``plan``: the kernel's
+Switches, engine/kernels.py).
 """
 
 import taichi as ti
 
-from . import patch, throw
+from . import patch
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
-from .randomness import uniform01
-from .world import A0, A1, ACTIVE, B0, B1, FLYING, FWD, HALF_L, HALF_W, SLIDING, SPIN, VEL, IPar, Par
-
+from .launch import MODELS
+from .world import A0, A1, ACTIVE, B0, B1, FLYING, HALF_L, HALF_W, SLIDING, IPar, Par
 
 
 @ti.func
@@ -65,20 +56,6 @@ def parallelogram_dist2(o, e1, e2, c):
 
 
 @ti.func
-def launch_velocity(w: ti.template(), wheel_vel, forward, spin, mu, seed, rock, step):
-    """Velocity of a rock thrown by a tread (see the module docstring). spin = omega * R, signed."""
-    u_alpha = uniform01(seed, rock, step, 201)
-    u_beta = uniform01(seed, rock, step, 202)
-    alpha = w.par[Par.ANGLE_MIN] + (w.par[Par.ANGLE_MAX] - w.par[Par.ANGLE_MIN]) * u_alpha
-    beta = w.par[Par.SPREAD] * (2.0 * u_beta - 1.0)
-    cb, sb = ti.cos(beta), ti.sin(beta)
-    back = -spin * ti.cos(alpha)
-    fx = cb * forward[0] - sb * forward[1]
-    fy = sb * forward[0] + cb * forward[1]
-    return ti.Vector([wheel_vel[0] + back * fx, wheel_vel[1] + back * fy, mu * ti.abs(spin) * ti.sin(alpha)])
-
-
-@ti.func
 def ray_vec(w: ti.template(), t, k):
     return ti.Vector([w.ray[t, k], w.ray[t, k + 1], w.ray[t, k + 2]])
 
@@ -99,21 +76,15 @@ def trace_all(w: ti.template()):
 
 
 @ti.func
-def try_launch(w: ti.template(), i, t, step, ground: ti.template()):
+def try_launch(w: ti.template(), plan: ti.template(), i, t, step):
     """Launch rock i by tire t unless already launched this step or flying; returns 1 if launched."""
     launched = 0
     if w.hit_step[i] != step and w.phase[i] != FLYING:
-        v = ray_vec(w, t, VEL)
-        if ti.static(w.throw == "uniform"):
-            forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
-            v = launch_velocity(w, ray_vec(w, t, VEL), forward, w.ray[t, SPIN], w.friction[i],
-                                w.ipar[IPar.SEED], w.rock_id[i], step)
-        else:
-            v = throw.throw_velocity(w, t, w.radius[i], w.friction[i], w.rock_id[i], step, w.fenders)
+        v = MODELS[plan.throw].launch_velocity(w, plan, t, i, step)  # the model: a compile-time choice
         if v.norm() > w.par[Par.REST_SPEED]:
             w.hit_step[i] = step
             w.vel[i] = v
-            if ti.static(ground == "none"):
+            if ti.static(plan.ground == "none"):
                 w.phase[i] = FLYING
             else:
                 w.phase[i] = FLYING if v[2] > 0.0 else SLIDING
@@ -128,20 +99,21 @@ def slot_range(w: ti.template(), c):
 
 
 @ti.kernel
-def tire_pass(w: ti.template(), step: ti.i32, swept: ti.template(), center: ti.template(),
-              ground: ti.template()) -> ti.i32:
-    return launch_all(w, step, swept, center, ground)
+def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32) -> ti.i32:
+    """The tire pass alone (``plan``: the switches of kernels.hash_and_tires)."""
+    return launch_all(w, plan, step)
 
 
 @ti.func
-def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template(), ground: ti.template()):
+def launch_all(w: ti.template(), plan: ti.template(), step):
     """Find and launch the rocks under every tire ray. Serial over tires: the first tire wins a rock,
-    whatever the thread count (a handful of rays; the cost is in the cells, not the loop)."""
+    whatever the thread count (a handful of rays; the cost is in the cells, not the loop). Reads the switches
+    ``center``, ``swept``, ``patch``, ``ground``, ``throw`` and ``fenders`` of ``plan``."""
     launched = 0
     ti.loop_config(serialize=True)
     for t in range(w.n_tires):
-        dil = w.ipar[IPar.DILATE] if ti.static(center) else 0
-        if ti.static(swept):
+        dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
+        if ti.static(plan.swept):
             a0, b0 = ray_vec(w, t, A0), ray_vec(w, t, B0)
             a1 = ray_vec(w, t, A1)
             e1 = a1 - a0  # the step's motion
@@ -150,7 +122,7 @@ def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template
             hi = ti.max(ti.max(a0, b0), ti.max(a1, a1 + e2))
             tread = False  # patch: the footprint counts (an active tire with a footprint of some size)
             floor = b0[2]  # patch: the highest a run-over rock's bottom may be
-            if ti.static(w.patch):
+            if ti.static(plan.patch):
                 tread = w.ray[t, ACTIVE] != 0.0 and (w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0)
                 floor = ti.min(b0[2], w.ray[t, B1 + 2]) + w.par[Par.PATCH_TOL]
                 if tread:
@@ -166,11 +138,11 @@ def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template
                     i = w.entries[e]
                     r2 = w.radius[i] * w.radius[i]
                     hit = parallelogram_dist2(a0, e1, e2, w.pos[i]) <= r2
-                    if ti.static(w.patch):
+                    if ti.static(plan.patch):
                         if tread and not hit and w.pos[i][2] - w.radius[i] <= floor:
                             hit = patch.footprint_dist2(w, t, ti.Vector([w.pos[i][0], w.pos[i][1]])) <= r2
                     if hit:
-                        launched += try_launch(w, i, t, step, ground)
+                        launched += try_launch(w, plan, i, t, step)
         else:
             for s in range(w.substeps):
                 f = ti.cast(s + 1, w.real) / w.substeps
@@ -184,6 +156,6 @@ def launch_all(w: ti.template(), step, swept: ti.template(), center: ti.template
                         for e in range(start, end):
                             i = w.entries[e]
                             if segment_hits_sphere(a, b, w.pos[i], w.radius[i]):
-                                launched += try_launch(w, i, t, step, ground)
+                                launched += try_launch(w, plan, i, t, step)
     w.launches[None] += launched
     return launched

@@ -2,56 +2,35 @@
 
 Two kinds of scene keys, by how they reach the kernels:
 
-* runtime keys (:data:`RUNTIME_KEYS`) are only numbers in ``World.par`` (engine/setup.py ``scene_params``;
-  the tread model's ``tread_params``): :func:`set_runtime` validates a changed Scene (``scene_with``: the same
-  ranges and messages as a scene file), packs its parameters again and uploads them; the next step uses them.
-  Nothing is recompiled and the rocks keep their state.
-* switches (:data:`SWITCH_KEYS`) are read by the kernels at compile time (config/plan.py, ``ti.static``):
-  :func:`rebuilder` takes a checkpoint of the simulation and returns a function that builds a Simulation of
-  the changed scene and restores the checkpoint into it (same rocks, clock and origin; a World of the same
-  layout comes back from the pool, engine/world.py ``acquire``, once the old Simulation is gone).
+* runtime keys (:data:`RUNTIME_KEYS`, the rows of engine/params.py with ``runtime``; :data:`SLIDERS`, those
+  the panel shows as sliders) are only numbers in ``World.par``: :func:`set_runtime` validates a changed Scene
+  (``scene_with``: the same ranges and messages as a scene file), packs its parameters again and uploads them;
+  the next step uses them. Nothing is recompiled and the rocks keep their state.
+* switches (:data:`SWITCH_KEYS`, their choices from the scene's types) are read by the kernels at compile time
+  (config/plan.py, ``ti.static``): :func:`rebuilder` takes a checkpoint of the simulation and returns a
+  function that builds a Simulation of the changed scene and restores the checkpoint into it (same rocks, clock
+  and origin; a World of the same layout comes back from the pool, engine/world.py ``acquire``, once the old
+  Simulation is gone).
 """
 
 from __future__ import annotations
 
 import gc
-import math
 
 import numpy as np
 
+from ..config.keys import choices, scene_value
 from ..config.plan import Plan
 from ..config.scene import scene_with
+from .params import RUNTIME_KEYS, SLIDERS
 from .setup import scene_params
 from .simulation import Simulation
-from .world import Par
 
-__all__ = ["RUNTIME_KEYS", "SWITCH_KEYS", "set_runtime", "runtime_values", "scene_value", "rebuilder"]
+__all__ = ["RUNTIME_KEYS", "SLIDERS", "SWITCH_KEYS", "set_runtime", "runtime_values", "scene_value", "rebuilder"]
 
-# key -> (Par index or pair of indices, factor from the scene's unit to the kernels')
-_DEG = math.pi / 180.0
-RUNTIME_KEYS = {
-    "world.gravity": (Par.GRAVITY, 1.0),
-    "world.wetness": (Par.WETNESS, 1.0),
-    "world.restitution": (Par.RESTITUTION, 1.0),
-    "world.ground_friction": (Par.GROUND_FRICTION, 1.0),
-    "world.rest_speed": (Par.REST_SPEED, 1.0),
-    "launch.release_angle": ((Par.ANGLE_MIN, Par.ANGLE_MAX), _DEG),
-    "launch.spread": (Par.SPREAD, _DEG),
-    "launch.groove": (Par.GROOVE, 1.0),
-    "launch.grip": (Par.GRIP, 1.0),
-    "launch.grip_relax": (Par.GRIP_RELAX, _DEG),
-    "launch.grip_spread": (Par.GRIP_SPREAD, 1.0),
-    "launch.adhesion": (Par.ADHESION, 1.0),
-    "launch.transfer": (Par.TRANSFER, 1.0),
-}
-# switches a Simulation compiles in, and their choices (a new Simulation each: see the module docstring)
-SWITCH_KEYS = {
-    "sim.integrator": ("symplectic_euler", "heun", "rk4"),
-    "effects.drag": ("none", "linear", "quadratic"),
-    "effects.ground": ("none", "stop", "bounce"),
-    "effects.gravity": (False, True),
-    "effects.fenders": (False, True),
-}
+# switches the view's panel may change, and their choices (a new Simulation each: see the module docstring)
+SWITCH_KEYS = {key: choices(key) for key in ("sim.integrator", "effects.drag", "effects.ground", "effects.gravity",
+                                             "effects.fenders")}
 
 
 def set_runtime(sim, values: dict):
@@ -69,14 +48,6 @@ def set_runtime(sim, values: dict):
     sim._par = par  # what restore() uploads again
     sim.world.par.from_numpy(par.astype(sim.world.np_real()))  # ipar (rock and table counts) stays as it is
     return scene
-
-
-def scene_value(scene, key: str):
-    """The value of a dotted key of the tables (e.g. "world.wetness") in ``scene``; pairs as lists."""
-    node = scene
-    for part in key.split("."):
-        node = getattr(node, part)
-    return list(node) if isinstance(node, tuple) else node
 
 
 def runtime_values(sim) -> dict:

@@ -6,13 +6,14 @@ asks for that pass: no hash table without splashing tires, no ray buffers withou
 """
 
 
-import math
 import weakref
 
 import numpy as np
 import taichi as ti
 from taichi.lang.field import Field
 from taichi.lang.util import to_numpy_type
+
+from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 
 # Rock phases.
 RESTING, FLYING, SLIDING = 0, 1, 2
@@ -31,46 +32,6 @@ A0, B0, A1, B1, VEL, FWD, SPIN, ACTIVE = 0, 3, 6, 9, 12, 15, 17, 18
 HALF_W, HALF_L, TIRE_R, FENDER, FLAP, HULL = 19, 20, 21, 22, 23, 24
 HULL_VERTICES = 8
 RAY_FIELDS = HULL + 2 * HULL_VERTICES
-
-
-class Par:
-    """Indices of the static physics parameters in ``World.par`` (values come from the scene)."""
-
-    GRAVITY = 0
-    GROUND_Z = 1
-    BED_RADIUS = 2
-    RESTITUTION = 3
-    GROUND_FRICTION = 4
-    REST_SPEED = 5
-    CELL = 6
-    ANGLE_MIN = 7
-    ANGLE_MAX = 8
-    SPREAD = 9
-    LINEAR_DRAG = 10  # 9 mu_air / (2 rho): Stokes drag acceleration is -LINEAR_DRAG / r^2 * v
-    QUAD_DRAG = 11  # 3 rho_air C_d / (8 rho): quadratic drag acceleration is -QUAD_DRAG / r * |v| v
-    R_MAX = 12
-    TIE_EPS = 13
-    MARGIN = 14  # reach of a tire's query beyond its ray in XY (scope "tires" mask)
-    DENSITY = 15  # rock density, kg/m^3 (the tread model's centrifugal pull)
-    WETNESS = 16
-    GROOVE = 17  # the tread model (engine/throw.py): groove size, m
-    GRIP = 18  # clamp stress, Pa
-    GRIP_RELAX = 19  # relaxation angle of the clamp, rad
-    GRIP_SPREAD = 20
-    ADHESION = 21  # adhesion stress of a soaked film, Pa
-    TRANSFER = 22
-    PATCH_TOL = 23  # m: how far above the tire's bottom a rock's bottom may be and still be run over
-    COUNT = 24
-
-
-class IPar:
-    """Indices of the static integer parameters in ``World.ipar``."""
-
-    SEED = 0
-    DILATE = 1
-    N_ROCKS = 2
-    TABLE = 3  # hash slots in use (active stepping; the table's size otherwise)
-    COUNT = 4
 
 
 def next_prime(n: int) -> int:
@@ -135,12 +96,9 @@ class World:
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
-                 tile_size: float = 1.0, patch: bool = False, throw: str = "uniform", fenders: bool = False,
-                 store=None):
+                 tile_size: float = 1.0, store=None):
         self.n = n
         self.stored = store is not None  # active stepping's tile store (below)
-        # compile-time switches of the tire pass, from the Plan (part of the layout: see acquire)
-        self.patch, self.throw, self.fenders = bool(patch), str(throw), bool(fenders)
         self.real = real
         cap = max(n, 1)  # Taichi fields cannot be empty
         trees = _Trees()
@@ -277,10 +235,3 @@ def acquire(owner, n: int, real, **layout) -> World:
     w.owner = weakref.ref(owner)
     _POOL.setdefault(key, []).append(w)
     return w
-
-
-def dilation_cells(r_max: float, cell: float) -> int:
-    """Cells to dilate a centre-insert query by: a rock whose centre is within r_max of a point lies in a
-    cell at most floor(r_max / cell) + 1 away per axis (the + 1 covers floor() on both sides and
-    rounding when r_max / cell is an integer)."""
-    return int(math.floor(r_max / cell * (1.0 + 1e-6))) + 1 if r_max > 0 else 1

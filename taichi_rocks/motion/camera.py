@@ -11,9 +11,11 @@ import math
 
 import numpy as np
 
+from ..config.keys import choices
+
 __all__ = ["VIEWS", "CHASE_OFFSET", "view_preset", "CameraRig", "camera_of"]
 
-VIEWS = ("chase", "side", "low", "orbit")
+VIEWS = choices("camera.view")  # the presets, in the scene's order
 CHASE_OFFSET = (-9.0, 0.0, 3.5)  # m: the chase view's eye, in the followed vehicle's frame
 
 

@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from ..config.streams import EXPORT_ORIENTATION, EXPORT_PROTOTYPE, EXPORT_SPIN_AXIS, EXPORT_SPIN_RATE
 from .shapes import axis_angle, quat_mul, random_quaternions, uniforms
 
 __all__ = ["RockTracker", "VehicleTracker", "PROTOTYPES", "SPIN_RANGE"]
@@ -61,9 +62,9 @@ class RockTracker:
         self.prev = (pos.copy(), vel, int(st["recycles_total"]))
         ids = np.arange(self.n, dtype=np.int64) + self.n * self.generation
         axis, rate = self._spin(ids)
-        q = quat_mul(axis_angle(axis, rate * self.moving_time), random_quaternions(ids, 0))
+        q = quat_mul(axis_angle(axis, rate * self.moving_time), random_quaternions(ids, EXPORT_ORIENTATION.first))
         omega = axis * (rate * (moving & ~recycled))[:, None]
-        proto = np.minimum((uniforms(ids, 7) * PROTOTYPES).astype(np.int32), PROTOTYPES - 1)
+        proto = np.minimum((uniforms(ids, EXPORT_PROTOTYPE.first) * PROTOTYPES).astype(np.int32), PROTOTYPES - 1)
         return {"ids": ids, "active": active, "proto": proto, "orientations": q, "angular_velocities": omega,
                 "recycled": recycled}
 
@@ -81,12 +82,12 @@ class RockTracker:
 
     @staticmethod
     def _spin(ids):
-        z = 2.0 * uniforms(ids, 4) - 1.0
-        phi = 2.0 * np.pi * uniforms(ids, 5)
+        z = 2.0 * uniforms(ids, EXPORT_SPIN_AXIS.first) - 1.0
+        phi = 2.0 * np.pi * uniforms(ids, EXPORT_SPIN_AXIS.first + 1)
         s = np.sqrt(np.maximum(0.0, 1.0 - z * z))
         axis = np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
         lo, hi = SPIN_RANGE
-        return axis, lo + (hi - lo) * uniforms(ids, 6)
+        return axis, lo + (hi - lo) * uniforms(ids, EXPORT_SPIN_RATE.first)
 
 
 class VehicleTracker:

@@ -9,12 +9,13 @@ wears white stripes over its top and a white band along its sides.
 
 import numpy as np
 
+from ..config.keys import choices
 from .looks import BUMPER_COLOR, GLASS_COLOR, HEADLIGHT_COLOR, PLAYER_MARK_COLOR, TAIL_LIGHT_COLOR, TIRE_COLOR
 from .meshes import VehicleMesh, box, frustum, merge, wheel
 
 __all__ = ["KINDS", "vehicle_kind", "vehicle_mesh", "scene_meshes"]
 
-KINDS = ("car", "van", "truck")
+KINDS = tuple(k for k in choices("vehicle.kind") if k != "auto")  # the bodies drawn
 GAP = 0.04  # m between a wheel and its well
 EPS = 0.01  # m: pieces that touch overlap this much (their touching faces hidden inside)
 PROUD = 0.004  # m: lights, stripes and bands stand this far off the surface they are on

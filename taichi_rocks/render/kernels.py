@@ -17,6 +17,7 @@ below (local f32 coordinates, the simulation's Z up); the buffers live in a :cla
 
 import taichi as ti
 
+from ..config.streams import LOOK_THIN
 from ..engine.world import FLYING, RESTING, IPar, Par
 from .looks import KEY
 from .rocklook import _rock_color, _unit, rock_color, rock_shape
@@ -290,7 +291,7 @@ def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
                     pr = r * fr.px_per_rad / ti.max(z, fr.near)  # projected radius, pixels
                     if pr < size.lod_px:
                         q = pr / size.lod_px
-                        if _unit(rid, 7) < q * q:  # keep a fraction q^2, drawn 1/q larger: same coverage
+                        if _unit(rid, LOOK_THIN.first) < q * q:  # keep a fraction q^2, drawn 1/q larger: same coverage
                             draw_r = r / q
                         else:
                             keep = False

@@ -2,9 +2,9 @@
 
 * "taichi-rocks" (bottom left): the HUD (time and frame, playing or paused and the speed, frames per second
   shown, rocks in the air, launches, the camera, notices such as "recompiling") and the time slider;
-* "tune" (right): the runtime parameters as sliders (engine/tuning.py RUNTIME_KEYS; they act at once), the
-  switches that need a recompile as buttons that step through their choices, the
-  camera presets as buttons and the overlays as check boxes.
+* "tune" (right): the runtime parameters as sliders (engine/tuning.py SLIDERS, from engine/params.py; they act
+  at once; a [min, max] pair gets two), the switches that need a recompile (engine/tuning.py SWITCH_KEYS) as
+  buttons that step through their choices, the camera presets as buttons and the overlays as check boxes.
 
 Widgets only read the viewer and return what the user changed (:class:`Changes`); the viewer applies it.
 The first widget of "tune" is the wetness slider, a fixed place the tests drag with the mouse.
@@ -12,24 +12,11 @@ The first widget of "tune" is the wetness slider, a fixed place the tests drag w
 
 from dataclasses import dataclass, field
 
+from ..engine.tuning import SLIDERS
 from ..motion.camera import VIEWS
 
 __all__ = ["SLIDERS", "Changes", "draw_panel", "hud_lines", "panel_width"]
 
-# runtime key -> (label, min, max): the sliders of "tune", in order (release_angle: two sliders)
-SLIDERS = {
-    "world.wetness": ("wetness", 0.0, 1.0),
-    "world.gravity": ("gravity", 0.0, 20.0),  # m/s^2
-    "launch.release_angle": ("angle", 0.0, 90.0),  # deg: "angle min", "angle max"
-    "launch.spread": ("spread", 0.0, 90.0),  # deg
-    "launch.grip": ("grip", 0.0, 1.0e6),  # Pa
-    "launch.adhesion": ("adhesion", 0.0, 2.0e5),  # Pa
-    "launch.transfer": ("transfer", 0.0, 2.0),
-    "world.restitution": ("bounce", 0.0, 1.0),
-    "world.ground_friction": ("friction", 0.0, 2.0),
-}
-SWITCH_LABELS = {"sim.integrator": "integrator", "effects.drag": "drag", "effects.ground": "ground",
-                 "effects.gravity": "gravity", "effects.fenders": "fenders"}
 OVERLAYS = (("bed_edge", "bed edge"), ("tire_rays", "tire rays"), ("hash_cells", "hash cells"),
             ("tread_patch", "tread patch"))
 PANEL_PX = 300  # width of "tune" in pixels (at most 45% of the window)
@@ -80,10 +67,9 @@ def draw_panel(gui, v) -> Changes:
     with gui.sub_window("tune", 1.0 - pw, 0.0, pw, 1.0) as w:
         _sliders(w, v, ch)
         w.text("recompile:")
-        for key, label in SWITCH_LABELS.items():
+        for key, choices in v.switch_choices.items():
             cur = v.switches[key]
-            if w.button(f"{label}: {_word(cur)}"):
-                choices = v.switch_choices[key]
+            if w.button(f"{key.rsplit('.', 1)[-1]}: {_word(cur)}"):
                 ch.switch = (key, choices[(choices.index(cur) + 1) % len(choices)])
         w.text("camera (c cycles, f free):")
         for name in VIEWS + ("free",):
@@ -102,7 +88,7 @@ def _sliders(w, v, ch: Changes) -> None:
     values = v.runtime
     for key, (label, lo, hi) in SLIDERS.items():
         cur = values[key]
-        if key == "launch.release_angle":
+        if isinstance(cur, (list, tuple)):  # a [min, max] pair
             a = w.slider_float(f"{label} min", float(cur[0]), lo, hi)
             b = w.slider_float(f"{label} max", float(cur[1]), lo, hi)
             if _moved(a, cur[0], lo, hi) or _moved(b, cur[1], lo, hi):

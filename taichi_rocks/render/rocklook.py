@@ -8,6 +8,7 @@ import math
 import numpy as np
 import taichi as ti
 
+from ..config.streams import LOOK_COLOUR, LOOK_SHAPE
 from ..engine.randomness import mix32, mix32_np
 from ..engine.world import FLYING
 
@@ -45,9 +46,9 @@ _LIFT = 0.06
 
 @ti.func
 def _rock_color(rid, phase):
-    a = _unit(rid, 1)
-    b = _unit(rid, 2)
-    c = _unit(rid, 3)
+    a = _unit(rid, LOOK_COLOUR.first)
+    b = _unit(rid, LOOK_COLOUR.first + 1)
+    c = _unit(rid, LOOK_COLOUR.first + 2)
     grey = ti.Vector(_GREY)
     brown = ti.Vector(_BROWN)
     dark = ti.Vector(_DARK)
@@ -61,7 +62,7 @@ def _rock_color(rid, phase):
 
 def rock_color(rock_id, phase: int = 0) -> np.ndarray:
     """Host twin of the kernels' rock colour (float64; equal to the kernels' to f32 round-off)."""
-    a, b, c = (float(_unit_np(rock_id, salt)) for salt in (1, 2, 3))
+    a, b, c = (float(_unit_np(rock_id, salt)) for salt in LOOK_COLOUR.ids)
     grey, brown, dark = np.array(_GREY), np.array(_BROWN), np.array(_DARK)
     col = grey + (brown - grey) * a * a
     col = col + (dark - col) * 0.55 * c * c
@@ -78,13 +79,14 @@ def rock_shape(rid):
     amplitudes drawn in ELONGATION, TRIANGULARITY and CORNERS and phases uniform (the rock's orientation);
     k keeps the rock's area that of its circle (the mean of the outline squared is 1 + the sum of the squared
     amplitudes / 2); ``outer`` bounds the outline."""
-    a2 = ELONGATION[0] + (ELONGATION[1] - ELONGATION[0]) * _unit(rid, 11)
-    a3 = TRIANGULARITY[0] + (TRIANGULARITY[1] - TRIANGULARITY[0]) * _unit(rid, 12)
-    a5 = CORNERS[0] + (CORNERS[1] - CORNERS[0]) * _unit(rid, 16)
-    p2 = 2.0 * math.pi * _unit(rid, 13)
-    p3 = 2.0 * math.pi * _unit(rid, 14)
-    p5 = 2.0 * math.pi * _unit(rid, 17)
-    tilt = FACETS[0] + (FACETS[1] - FACETS[0]) * _unit(rid, 15)
+    s = ti.static(LOOK_SHAPE.first)  # + 0 A2, 1 A3, 2 phase 2, 3 phase 3, 4 tilt, 5 A5, 6 phase 5
+    a2 = ELONGATION[0] + (ELONGATION[1] - ELONGATION[0]) * _unit(rid, s)
+    a3 = TRIANGULARITY[0] + (TRIANGULARITY[1] - TRIANGULARITY[0]) * _unit(rid, s + 1)
+    a5 = CORNERS[0] + (CORNERS[1] - CORNERS[0]) * _unit(rid, s + 5)
+    p2 = 2.0 * math.pi * _unit(rid, s + 2)
+    p3 = 2.0 * math.pi * _unit(rid, s + 3)
+    p5 = 2.0 * math.pi * _unit(rid, s + 6)
+    tilt = FACETS[0] + (FACETS[1] - FACETS[0]) * _unit(rid, s + 4)
     k = 1.0 / ti.sqrt(1.0 + 0.5 * (a2 * a2 + a3 * a3 + a5 * a5))
     return ti.Vector([a2 * ti.cos(p2), a2 * ti.sin(p2), a3 * ti.cos(p3), a3 * ti.sin(p3), a5 * ti.cos(p5),
                       a5 * ti.sin(p5), tilt, k, k * (1.0 + a2 + a3 + a5)])
@@ -92,14 +94,14 @@ def rock_shape(rid):
 
 def rock_shape_np(rock_id) -> np.ndarray:
     """Host twin of :func:`rock_shape` (float64)."""
-    u = {salt: float(_unit_np(rock_id, salt)) for salt in (11, 12, 13, 14, 15, 16, 17)}
-    a2 = ELONGATION[0] + (ELONGATION[1] - ELONGATION[0]) * u[11]
-    a3 = TRIANGULARITY[0] + (TRIANGULARITY[1] - TRIANGULARITY[0]) * u[12]
-    a5 = CORNERS[0] + (CORNERS[1] - CORNERS[0]) * u[16]
-    p2, p3, p5 = (2.0 * math.pi * u[k] for k in (13, 14, 17))
+    u = [float(_unit_np(rock_id, salt)) for salt in LOOK_SHAPE.ids]  # in rock_shape's order
+    a2 = ELONGATION[0] + (ELONGATION[1] - ELONGATION[0]) * u[0]
+    a3 = TRIANGULARITY[0] + (TRIANGULARITY[1] - TRIANGULARITY[0]) * u[1]
+    a5 = CORNERS[0] + (CORNERS[1] - CORNERS[0]) * u[5]
+    p2, p3, p5 = (2.0 * math.pi * u[k] for k in (2, 3, 6))
     k = 1.0 / math.sqrt(1.0 + 0.5 * (a2 * a2 + a3 * a3 + a5 * a5))
     return np.array([a2 * math.cos(p2), a2 * math.sin(p2), a3 * math.cos(p3), a3 * math.sin(p3),
-                     a5 * math.cos(p5), a5 * math.sin(p5), FACETS[0] + (FACETS[1] - FACETS[0]) * u[15], k,
+                     a5 * math.cos(p5), a5 * math.sin(p5), FACETS[0] + (FACETS[1] - FACETS[0]) * u[4], k,
                      k * (1.0 + a2 + a3 + a5)])
 
 

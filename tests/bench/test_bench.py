@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 from taichi_rocks.bench.run import OUTPUTS
+from taichi_rocks.bench.config import CASE_OF_DRAG
+from taichi_rocks.config.keys import choices
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
@@ -53,7 +55,7 @@ def test_every_section_present(bench_run):
     # accuracy rows cover every integrator and case, with finite errors
     rows = data["accuracy"]["integrator_dt"]["rows"]
     assert {(r["integrator"], r["case"]) for r in rows} == {
-        (i, c) for i in ("symplectic_euler", "heun", "rk4") for c in ("gravity", "linear", "quadratic")}
+        (i, CASE_OF_DRAG[d]) for i in choices("sim.integrator") for d in choices("effects.drag")}
     assert all(math.isfinite(r["max_error_m"]) and r["max_error_m"] >= 0 for r in rows)
     # the closed forms are right: Heun and RK4 are exact for gravity (f32 rounding only), symplectic Euler is
     # off by g dt t / 2 at t = 2 s (about 0.196 m at dt = 0.02)

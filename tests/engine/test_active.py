@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from scenes_util import FakePath, scene, uniformity_pvalue
+from taichi_rocks.config.keys import choices
 from taichi_rocks.config.scene import scene_with
 from taichi_rocks.engine.simulation import Simulation
 from taichi_rocks.engine.world import FLYING, RESTING
@@ -158,7 +159,7 @@ def test_bookkeeping_holds_after_every_step_of_random_scenes(seed):
                vehicles=[{"name": "lead", **CAR, "path": {"points": pts.tolist(), "speed": speed}},
                          {"name": "player", **CAR, "path": {"points": (pts - [0.0, 3.0]).tolist(), "speed": speed}}],
                bed={"follow": "player", "rock_radius": [0.01, float(rng.uniform(0.02, 0.08))]},
-               sim={"detection": str(rng.choice(["ray", "swept", "patch"])), "dt": float(rng.uniform(0.002, 0.02))})
+               sim={"detection": str(rng.choice(list(choices("sim.detection")))), "dt": float(rng.uniform(0.002, 0.02))})
     sim = Simulation(sc)
     assert sim.plan.active
     flown = 0

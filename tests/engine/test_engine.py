@@ -15,8 +15,8 @@ pytestmark = pytest.mark.usefixtures("taichi_cpu")
 @pytest.fixture(scope="module")
 def launch_kernel(taichi_cpu):
     from harness import Probe
-    from taichi_rocks.engine import tires
-    from taichi_rocks.engine.world import Par
+    from taichi_rocks.engine.launch import uniform
+    from taichi_rocks.engine.params import Par
 
     probe = Probe(np.zeros((1, 3)), [0.02], cell=0.1)
     w = probe.w
@@ -30,7 +30,7 @@ def launch_kernel(taichi_cpu):
     @ti.kernel
     def run(k: ti.i32):
         for i in range(k):
-            out[i] = tires.launch_velocity(w, wheel[i], fwd[i], spin[i], mu[i], 1, i, 7)
+            out[i] = uniform.wheel_throw(w, wheel[i], fwd[i], spin[i], mu[i], 1, i, 7)
 
     def call(wheel_v, forward, spin_v, mu_v, angle=(30.0, 30.0), spread=0.0):
         par = w.par.to_numpy()

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from harness import Probe, np_cell, np_hash, np_segment_sphere, segment_sphere_kernel
 from scenes_util import reload_probe
+from taichi_rocks.config.keys import choices
 from taichi_rocks.engine import hashgrid, tires
 from test_hashgrid import brute_cells, cell_kernels  # noqa: F401  (cell_kernels: module fixture)
 from test_tires import seg_kernel  # noqa: F401  (module fixture: f64 segment-sphere kernel)
@@ -247,7 +248,7 @@ def hit_probes(taichi_cpu):
     rays = np.zeros((N_RAYS, 2, 3))
     rays[:, 0, 2] = 0.5
     r = np.full(N_ROCKS, 0.05)
-    return {ins: Probe(pos, r, cell=0.01, insert=ins, rays=rays) for ins in ("center", "aabb")}
+    return {ins: Probe(pos, r, cell=0.01, insert=ins, rays=rays) for ins in choices("sim.hash.insert")}
 
 
 @st.composite

@@ -1,4 +1,5 @@
-"""The throw (engine/throw.py) and the tread's footprint (engine/patch.py), each against NumPy references."""
+"""The tread launch model (engine/launch/tread.py) and the tread's footprint (engine/patch.py), each against
+NumPy references."""
 
 import itertools
 import math
@@ -9,7 +10,8 @@ import taichi as ti
 from scipy.optimize import brentq
 
 from harness import Probe
-from taichi_rocks.engine import patch, throw
+from taichi_rocks.engine import patch
+from taichi_rocks.engine.launch import tread
 from taichi_rocks.engine.world import (FENDER, FLAP, FWD, HALF_L, HALF_W, RAY_FIELDS, SPIN, TIRE_R, VEL, IPar,
                                        Par, World)
 from taichi_rocks.motion.vehicles import RearTires
@@ -56,7 +58,7 @@ def np_release(ap, r, mu, xi, centripetal, wet, n=20001):
 
 @pytest.fixture(scope="module")
 def angle_kernel(taichi_cpu):
-    """throw.release_angle over batches, float64."""
+    """tread.release_angle over batches, float64."""
     m = 4096
     w = World(1, ti.f64)
     inp = ti.field(ti.f64, shape=(m, 5))
@@ -65,7 +67,7 @@ def angle_kernel(taichi_cpu):
     @ti.kernel
     def run(k: ti.i32):
         for i in range(k):
-            out[i] = throw.release_angle(w, inp[i, 0], inp[i, 1], inp[i, 2], inp[i, 3], inp[i, 4])
+            out[i] = tread.release_angle(w, inp[i, 0], inp[i, 1], inp[i, 2], inp[i, 3], inp[i, 4])
 
     def call(ap, r, mu, xi, centripetal, wet):
         set_tread_params(w, wetness=wet)
@@ -108,7 +110,7 @@ def test_release_angle_matches_the_force_balance(angle_kernel, wet):
     assert np.all(np.abs(got[5:10] - np.pi) < 1e-12) and np.all(ref[5:10] == np.pi)
     off = np.abs(got - ref) > 1e-6
     # the march steps (pi - ap) / 32: a first region of release narrower than that can be stepped over
-    step = (np.pi - x["ap"]) / throw.MARCH
+    step = (np.pi - x["ap"]) / tread.MARCH
     assert np.all(width[off] < step[off]), (got[off], ref[off], width[off])
     assert off.mean() < 0.01
     at_patch, never = np.isclose(ref, x["ap"]), ref == np.pi
@@ -137,7 +139,7 @@ def test_release_angle_trends(angle_kernel):
 def throw_world(taichi_cpu):
     """A World whose ray rows are per-case tires: throw_velocity, throw_angle and guarded over batches."""
     m = 512
-    w = World(1, ti.f64, n_tires=m, ray_capacity=1, throw="tread", fenders=True)
+    w = World(1, ti.f64, n_tires=m, ray_capacity=1)
     rock = ti.field(ti.f64, shape=(m, 2))
     v_open = ti.Vector.field(3, ti.f64, shape=m)
     v_guard = ti.Vector.field(3, ti.f64, shape=m)
@@ -147,10 +149,10 @@ def throw_world(taichi_cpu):
     def run(k: ti.i32, step: ti.i32):
         for i in range(k):
             seed = w.ipar[IPar.SEED]
-            alpha[i] = throw.throw_angle(w, rock[i, 0], rock[i, 1], w.ray[i, SPIN], w.ray[i, TIRE_R],
+            alpha[i] = tread.throw_angle(w, rock[i, 0], rock[i, 1], w.ray[i, SPIN], w.ray[i, TIRE_R],
                                          w.ray[i, HALF_L], seed, i, step)
-            v_open[i] = throw.throw_velocity(w, i, rock[i, 0], rock[i, 1], i, step, False)
-            v_guard[i] = throw.throw_velocity(w, i, rock[i, 0], rock[i, 1], i, step, True)
+            v_open[i] = tread.throw_velocity(w, i, rock[i, 0], rock[i, 1], i, step, False)
+            v_guard[i] = tread.throw_velocity(w, i, rock[i, 0], rock[i, 1], i, step, True)
 
     def call(rows, r, mu, step=7, **params):
         set_tread_params(w, **params)

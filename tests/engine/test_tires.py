@@ -5,6 +5,7 @@ import pytest
 import taichi as ti
 
 from harness import Probe, np_segment_sphere, segment_sphere_kernel
+from taichi_rocks.config.keys import choices
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
 
@@ -97,7 +98,7 @@ def test_hash_stress_same_hits(table):
     pos, r = bed_rocks(rng, 2000, (0.02, 0.05), half=0.3)
     rays = np.array([[[x, y, 0.33], [x, y, 0.0]] for x, y in rng.uniform(-0.3, 0.3, (8, 2))])
     ref = brute_hits(pos.astype(np.float32).astype(np.float64), r.astype(np.float32).astype(np.float64), rays)
-    for insert in ("aabb", "center"):
+    for insert in choices("sim.hash.insert"):
         np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, table=table, rays=rays).hits(), ref)
 
 
@@ -115,7 +116,7 @@ def test_all_rocks_in_one_cell():
     expected = np.flatnonzero(np.hypot(p32[:, 0] - 0.05, p32[:, 1] - 0.05) <= np.float32(0.005))
     assert {0, 1, 2} <= set(expected) and 3 not in expected and len(expected) >= 5
     np.testing.assert_array_equal(brute_hits(p32, r.astype(np.float32).astype(np.float64), rays), expected)
-    for insert in ("aabb", "center"):
+    for insert in choices("sim.hash.insert"):
         np.testing.assert_array_equal(Probe(pos, r, cell=0.1, insert=insert, rays=rays).hits(), expected)
 
 

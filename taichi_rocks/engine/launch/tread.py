@@ -1,5 +1,5 @@
-"""The throw ([launch] model = "tread"): which stones a tread carries, where they leave it, how fast, and
-what the fender and the mud flap stop.
+"""The tread launch model ([launch] model = "tread", the default): which stones a tread carries, where they
+leave it, how fast, and what the fender and the mud flap stop.
 
 Sources. Chen, Fu & Wegman 1999, "A cellular automata model of vehicle-generated dust", ACM TOMACS 9(2):81-104:
 the stones stick to the tread by its adhesive forces and friction and leave it at a height that depends on the
@@ -41,11 +41,16 @@ import math
 import numpy as np
 import taichi as ti
 
-from .randomness import uniform01
-from .world import FENDER, FLAP, FWD, HALF_L, SPIN, TIRE_R, VEL, IPar, Par
+from ...config.streams import LAUNCH
+from ..randomness import uniform01
+from ..world import FENDER, FLAP, FWD, HALF_L, SPIN, TIRE_R, VEL, IPar, Par
 
-# random streams of the tread model (the uniform model uses 201 and 202)
-S_CAPTURE, S_PINCH, S_GRIP, S_SPREAD = 211, 212, 213, 214
+NAME = "tread"
+PARAMS = ("WETNESS", "GRAVITY", "SPREAD", "GROOVE", "GRIP", "GRIP_RELAX", "GRIP_SPREAD", "ADHESION", "TRANSFER",
+          "RESTITUTION", "DENSITY")
+# the draws of steps 1 (carried?), 2 (where a pinched stone leaves), 3 (xi) and 4 (beta)
+S_CAPTURE, S_PINCH, S_GRIP, S_SPREAD = (LAUNCH.id(k) for k in range(10, 14))
+STREAMS = (S_CAPTURE, S_PINCH, S_GRIP, S_SPREAD)
 MARCH, BISECT = 32, 24
 FLAP_DISTANCE = 1.1  # tire radii behind the axle
 PI_HI = float(np.float32(math.pi))
@@ -170,9 +175,8 @@ def throw_velocity(w: ti.template(), t, r, mu, rock, step, fenders: ti.template(
     return v
 
 
-def tread_params(scene) -> dict:
-    """The tread model's entries of World.par (index -> value), from the scene."""
-    ln, bed = scene.launch, scene.bed
-    return {Par.DENSITY: bed.density, Par.WETNESS: scene.world.wetness, Par.GROOVE: ln.groove, Par.GRIP: ln.grip,
-            Par.GRIP_RELAX: math.radians(ln.grip_relax), Par.GRIP_SPREAD: ln.grip_spread,
-            Par.ADHESION: ln.adhesion, Par.TRANSFER: ln.transfer}
+
+@ti.func
+def launch_velocity(w: ti.template(), plan: ti.template(), t, i, step):
+    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``."""
+    return throw_velocity(w, t, w.radius[i], w.friction[i], w.rock_id[i], step, plan.fenders)

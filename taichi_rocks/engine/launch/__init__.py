@@ -1,0 +1,21 @@
+"""The launch models ([launch] model): how a tread throws a rock it runs over. One module per model, each
+with the same interface:
+
+    NAME             its name in scene files (one of the choices of ``launch.model`` in config/scene.py)
+    PARAMS           the rows of engine/params.py it reads (``w.par[Par.X]``)
+    STREAMS          the random-stream ids it draws, from the launch models' block (config/streams.py LAUNCH)
+    launch_velocity(w, plan, t, i, step)
+                     a ``ti.func``: the velocity of rock i (an index of the rock arrays) run over by tire t
+                     (its row of ``World.ray``) at step ``step``; ``plan``: the tire pass's switches
+                     (engine/kernels.py Switches: ``plan.fenders``, ...)
+    its docstring    the physics: what it computes, the equations, the sources
+
+The tire pass (engine/tires.py ``try_launch``) picks the model at compile time: ``MODELS[plan.throw]``. A new
+model is a module here, its line in :data:`MODELS` and its name among the scene's choices (config/scene.py).
+"""
+
+from . import tread, uniform
+
+__all__ = ["MODELS"]
+
+MODELS = {m.NAME: m for m in (tread, uniform)}

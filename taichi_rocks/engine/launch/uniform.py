@@ -1,0 +1,46 @@
+"""The uniform launch model ([launch] model = "uniform"): rolling-wheel kinematics at a release angle drawn
+uniformly in [launch] release_angle.
+
+A tread point at angle alpha up the back of a wheel with centre velocity V (along the heading f), spin omega
+and radius R moves in the ground frame at
+    (V - omega R cos(alpha)) f  +  omega R sin(alpha) z,    omega R = V (1 + slip) for a driven wheel.
+A rock caught by the tread leaves with
+    v_xy = v_wheel_xy - omega R cos(alpha) Rot(beta) f      (v_wheel includes the yaw rate: the rear wheels
+                                                            of a turning vehicle slide outwards)
+    v_z  = mu_s |omega R| sin(alpha)                        (lift needs grip: static friction mu_s)
+with alpha uniform in the release-angle range and beta uniform in [-spread, spread]. Relative to the wheel
+the rock always leaves backwards (against the wheel's travel, also when reversing).
+"""
+
+import taichi as ti
+
+from ...config.streams import LAUNCH
+from ..randomness import uniform01
+from ..world import FWD, SPIN, VEL, IPar, Par
+
+NAME = "uniform"
+PARAMS = ("ANGLE_MIN", "ANGLE_MAX", "SPREAD")
+S_ANGLE, S_SPREAD = LAUNCH.id(0), LAUNCH.id(1)  # the release angle, the lateral scatter
+STREAMS = (S_ANGLE, S_SPREAD)
+
+
+@ti.func
+def wheel_throw(w: ti.template(), wheel_vel, forward, spin, mu, seed, rock, step):
+    """Velocity of a rock thrown by a tread (see the module docstring). spin = omega * R, signed."""
+    u_alpha = uniform01(seed, rock, step, S_ANGLE)
+    u_beta = uniform01(seed, rock, step, S_SPREAD)
+    alpha = w.par[Par.ANGLE_MIN] + (w.par[Par.ANGLE_MAX] - w.par[Par.ANGLE_MIN]) * u_alpha
+    beta = w.par[Par.SPREAD] * (2.0 * u_beta - 1.0)
+    cb, sb = ti.cos(beta), ti.sin(beta)
+    back = -spin * ti.cos(alpha)
+    fx = cb * forward[0] - sb * forward[1]
+    fy = sb * forward[0] + cb * forward[1]
+    return ti.Vector([wheel_vel[0] + back * fx, wheel_vel[1] + back * fy, mu * ti.abs(spin) * ti.sin(alpha)])
+
+
+@ti.func
+def launch_velocity(w: ti.template(), plan: ti.template(), t, i, step):
+    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``."""
+    forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
+    wheel_vel = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]])
+    return wheel_throw(w, wheel_vel, forward, w.ray[t, SPIN], w.friction[i], w.ipar[IPar.SEED], w.rock_id[i], step)
