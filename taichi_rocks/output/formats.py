@@ -16,7 +16,8 @@ app/export.py runs the frames and drives the writer; output/export.py makes the 
 (``world - origin``), ``velocities`` (M, 3), ``radii`` (M,), ``ids`` (M,) int64 (new after a recycle),
 ``proto`` (M,) rock shape, ``orientations`` (M, 4) quaternions (x, y, z, w), ``angular_velocities`` (M, 3)
 rad/s (output/instances.py); ``vehicles``: positions (V, 3), unwrapped headings (V,), wheel angles
-``front`` and ``rear`` (V,); ``camera``: (eye, target) of the scene's camera rig, world points; and
+``front`` and ``rear`` (V,); ``camera``: (eye, target) of the scene's camera, world points; ``cut``: True
+where a shot of the camera starts (a cut between the previous frame and this one); and
 ``state``: the engine's whole state of the frame (``Simulation.state()``: every rock, phase included).
 
 Adding a format (impact events as CSV or PLY from the phase changes in ``frame["state"]``, per-rock

@@ -11,7 +11,8 @@ code f is frame f, t = f / fps). Prims::
       Vehicles/<name>               Xform: translate (double, world) and rotateZ (heading, deg), time-sampled
         Body                        Mesh: a box
         Wheel_<FL|FR|RL|RR>         Xform: translate, rotateY (spin, deg, time-sampled); its Tire: a cylinder
-      Camera                        Camera: xformOp:transform (double), time-sampled; the [camera] follow rig
+      Camera                        Camera: xformOp:transform (double), time-sampled; the scene's camera
+                                    ([camera] and its shots; at a cut the shot before is held, as below)
 
 Per frame the PointInstancer has protoIndices, ids (int64), positions, orientations (quath), scales
 (the rock radius on each axis), velocities (m/s, for motion blur) and angularVelocities (deg/s) of the
@@ -27,7 +28,9 @@ between frames f - 1 and f, the frame is also written at time code f - STEP_HOLD
 origin (the Bed translate holding the old value): a tool interpolating the samples linearly then composes
 the interpolated world positions, and one extrapolating from a sample with its velocities (motion blur)
 stays in that sample's frame, instead of sliding the rocks across the step (64 m or more) in between (only
-extrapolation from the extra sample, within STEP_HOLD of the step, still sees the slide).
+extrapolation from the extra sample, within STEP_HOLD of the step, still sees the slide). A camera cut (a
+[[camera.shot]] starting) is held the same way: the camera of the previous frame is written again at
+f - STEP_HOLD, so that a tool interpolating between the two shots cuts instead of flying the camera across.
 
 The layer is saved after every frame: a crate (.usdc) file saved again to the same file appends the new time
 samples, and the samples already written are no longer held in memory, so memory stays flat.
@@ -138,7 +141,7 @@ class UsdWriter(FileWriter):
         self._rocks()
         self._vehicles(scene)
         self._camera_prim(scene)
-        self.last_origin = None
+        self.last_origin = self.last_camera = None
         self.layer.Save()
 
     # -------------------------------------------------------------------------------------- static parts
@@ -211,7 +214,11 @@ class UsdWriter(FileWriter):
             ops[1].Set(math.degrees(float(veh["headings"][i])), t)
             for j, (label, sx, _) in enumerate(WHEELS):
                 ops[2 + j].Set(math.degrees(float(veh["front" if sx > 0 else "rear"][i])), t)
-        self.camera_op.Set(Gf.Matrix4d(*map(float, camera_matrix(*fr["camera"]).reshape(-1))), t)
+        camera = Gf.Matrix4d(*map(float, camera_matrix(*fr["camera"]).reshape(-1)))
+        if fr.get("cut") and self.last_camera is not None:  # a cut: the shot before holds up to it
+            self.camera_op.Set(self.last_camera, t - STEP_HOLD)
+        self.camera_op.Set(camera, t)
+        self.last_camera = camera
         self.layer.Save()
 
     def _rock_samples(self, fr: dict, local: np.ndarray, t: float) -> None:
