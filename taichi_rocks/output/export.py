@@ -7,6 +7,8 @@ the rocks within R metres (horizontally) of the camera's followed vehicle. Ids, 
 output/instances.py. The camera: motion/camera.py's scene_camera, the renderer's own ([camera] view, offset,
 look_ahead, fov, smoothing and the [[camera.shot]] cuts) computed here from the scene, since output/ does not
 import render/; ``cut``: a shot starts at this frame (the writer holds the camera of the shot before up to it).
+Colours (output/looks.py): each rock's tint (the renderer's resting colour of it) and the entry of the tint
+palette nearest to it.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 
 from ..motion.camera import scene_camera
 from .instances import RockTracker, VehicleTracker
+from .looks import nearest_tint, rock_tints, tint_palette
 from .runs import crop_mask, crop_vehicle
 
 __all__ = ["ExportFrames"]
@@ -29,6 +32,9 @@ class ExportFrames:
         self.rocks = RockTracker(n_rocks, scene.world.gravity, fps)
         self.vehicles = VehicleTracker(scene.vehicles)
         self.only, self.crop, self.crop_around = only, crop, crop_vehicle(scene)
+        self.tints = rock_tints(np.arange(int(n_rocks)))  # the renderer's colour of each rock (output/looks.py)
+        self.palette = tint_palette()
+        self.tint = nearest_tint(self.tints, self.palette)
 
     def frame(self, f: int, st: dict, origin) -> dict:
         """Frame ``f``: ``st`` = ``Simulation.state()`` at f / fps, ``origin`` the engine's floating origin."""
@@ -46,6 +52,6 @@ class ExportFrames:
         return {"frame": f, "time": float(st["time"]), "origin": origin, "world": world,
                 "local": (world - origin).astype(np.float32), "velocities": st["velocities"][idx],
                 "radii": st["radii"][idx], "ids": r["ids"][idx], "proto": r["proto"][idx],
-                "orientations": r["orientations"][idx],
+                "orientations": r["orientations"][idx], "tints": self.tints[idx], "tint": self.tint[idx],
                 "angular_velocities": r["angular_velocities"][idx], "vehicles": v, "camera": eye_target,
                 "cut": cut, "state": st}

@@ -11,8 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..motion.camera import (CHASE_OFFSET, MOUNTED, VIEWS, CameraRig, SceneCamera, camera_of, scene_camera,  # noqa: F401
-                             view_preset)
+from ..motion.camera import (CHASE_OFFSET, MOUNTED, VIEWS, CameraRig, SceneCamera, camera_of,  # noqa: F401
+                             scene_camera, view_preset)
 from .looks import SUN_DIR_CAMERA
 
 __all__ = ["GL_UP", "NEAR", "VIEWS", "MOUNTED", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of",

@@ -6,8 +6,8 @@ inside of the glass and the roof. From the inside, the pieces above the belt lin
 greenhouse: windows, the roof and its stripes, a van's or a truck cab's upper part) are left out, and the
 windscreen's frame is drawn from the same cabin dimensions (motion/cabin.py): the A-pillars along the
 windscreen's sides, the roof's front edge (the header) and the roof's lining behind it, the dashboard in
-front of the driver and the cabin's floor at the belt line (in the interior's colour, not the paint's). What stays of the body (the bonnet, the cabin's floor at the belt line, the wheels) is
-drawn as outside.
+front of the driver and the cabin's floor at the belt line (in the interior's colour, not the paint's). What
+stays of the body (the bonnet, the doors' tops, the wheels) is drawn as from outside.
 
 The dashboard's top stays below the line from the driver's eye over the bonnet's front edge, so it never
 hides what the bonnet does not: the road and the vehicle ahead stay in view (a pixel test checks that in a
