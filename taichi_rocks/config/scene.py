@@ -20,11 +20,11 @@ from pydantic_core import PydanticCustomError
 
 from .presets import PRESETS
 from .resolution import MIN_SIDE, SIDE_MULTIPLE
-from .summary import estimate_memory, physical_memory, summarise
+from .summary import summarise
 from .tomltext import TomlTextError, loads as toml_loads
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
-           "scene_json_schema", "estimate_memory", "summarise"]
+           "scene_json_schema", "summarise"]
 
 
 class SceneError(Exception):
@@ -526,11 +526,6 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
             problems = [p for err in e.errors() for p in _messages(err)] + problems
     except RecursionError:   # not seen: validating goes as deep as the models, _show as deep as it prints
         raise SceneError([f"{source}: lists and tables nested too deeply to check"]) from None
-    if scene is not None:
-        need, have = estimate_memory(scene), physical_memory()
-        if have and need > have:
-            problems.append((("bed", "rocks"), f"needs about {need / 1e9:.1f} GB of memory, more than this machine "
-                                               f"has ({have / 1e9:.1f} GB), got {scene.bed.rocks}"))
     if problems:
         raise SceneError([_line(source, loc, msg) for loc, msg in problems])
     scene._source = source
