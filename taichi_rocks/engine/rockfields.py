@@ -75,7 +75,6 @@ ROCK_FIELDS = (
     RockField("phase", "i32", stored=False, rest=RESTING, initial=RESTING, state="phase", state_dtype="int8"),
     RockField("hit_step", "i32", when="splash", initial=-1),  # the step it was last launched at (-1: never)
     RockField("slot", "i32", when="splash", stored=False, carried=False, saved=False),  # its hash slot (centre)
-    RockField("spin", "real", 3, state="spins"),  # scratch check: a dummy angular velocity, rad/s
 )
 
 
