@@ -18,6 +18,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
                       ValidationError, ValidationInfo, field_validator, model_validator)
 from pydantic_core import PydanticCustomError
 
+from .impacts import Impacts
 from .presets import PRESETS
 from .resolution import MIN_SIDE, SIDE_MULTIPLE
 from .summary import estimate_memory, physical_memory, summarise
@@ -154,6 +155,7 @@ class Effects(_Table):
     drag: Literal["none", "linear", "quadratic"] = _f("quadratic", "air drag model")
     ground: Literal["none", "stop", "bounce"] = _f("bounce", "what flying rocks do when they reach the ground")
     fenders: Bool = _f(True, "fenders (and mud flaps) stop stones thrown into them (tread model)")
+    impacts: Bool = _f(False, "flying stones hit the bodies of the other vehicles and are recorded ([impacts])")
 
 
 class Hash(_Table):
@@ -255,6 +257,7 @@ class Vehicle(_Table):
     color: Color = _f((0.8, 0.2, 0.1), 'RGB in [0, 1], or "#rrggbb"')
     kind: Literal["auto", "car", "van", "truck"] = _f("auto", "body drawn in videos; auto: from the proportions")
     splash: Bool = _f(True, "its rear tires launch rocks")
+    hit: Bool = _f(True, "stones thrown by the other vehicles hit its body ([effects] impacts)")
     slip: Float = _f(0.15, "wheel spin = speed / tire_radius * (1 + slip)", ge=0)
     path: Path_ = Field(WaypointPath(), discriminator="kind", description="path of the body centre")
 
@@ -340,6 +343,7 @@ class Scene(_Table):
     bed: Bed = _f(Bed(), Bed.__doc__)
     launch: Launch = _f(Launch(), Launch.__doc__)
     effects: Effects = _f(Effects(), Effects.__doc__)
+    impacts: Impacts = _f(Impacts(), Impacts.__doc__)
     sim: Sim = _f(Sim(), Sim.__doc__)
     vehicles: tuple[Vehicle, ...] = Field(alias="vehicle", min_length=1,
                                           description="the vehicles ([[vehicle]] tables), at least one")
@@ -364,7 +368,7 @@ class Scene(_Table):
 
 # tables by the key that holds them (or the path kind), to list the keys allowed where an unknown one is found
 _TABLES: dict[str, type[BaseModel]] = {
-    "world": World, "bed": Bed, "launch": Launch, "effects": Effects, "sim": Sim, "hash": Hash,
+    "world": World, "bed": Bed, "launch": Launch, "effects": Effects, "impacts": Impacts, "sim": Sim, "hash": Hash,
     "vehicle": Vehicle, "camera": Camera, "render": Render, "sun": SunAngles, **PATH_KINDS}
 _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error locations
 
