@@ -49,11 +49,14 @@ def _corner(corners: ti.template(), i: ti.template()):
 
 @ti.func
 def _entry(a, b, c):
-    """The entering root t of a t^2 + 2 b t + c = 0 for a path that starts outside (c > 0) and closes in
-    (b < 0); -1 when there is none."""
+    """The entering root t >= 0 of a t^2 + 2 b t + c = 0 (c: the start's squared distance minus r^2): 0 for
+    a start already within (c <= 0: at the entry point, which lies on the dilated part up to rounding),
+    else the first root of a path that closes in (b < 0); -1 when there is none."""
     t = c * 0.0 - 1.0
     disc = b * b - a * c
-    if c > 0.0 and b < 0.0 and disc >= 0.0:
+    if c <= 0.0:
+        t = c * 0.0
+    elif b < 0.0 and disc >= 0.0:
         t = c / (-b + ti.sqrt(disc))
     return t
 

@@ -110,7 +110,7 @@ def _golden_min(f, lo, hi, iters):
     return cand_f[k, idx], cand_t[k, idx]
 
 
-def first_contacts(hull: Hull, p0, p1, r, iters=100, roots=True):
+def first_contacts(hull: Hull, p0, p1, r, iters=80, roots=True):
     """For N paths (arrays (N, 3), (N, 3), (N,)): hit, the first t in [0, 1] with dist(p(t)) <= r (nan if
     none; not searched without ``roots``), the least f = dist - r on the path and where it is."""
     p0, p1 = np.atleast_2d(np.asarray(p0, np.float64)), np.atleast_2d(np.asarray(p1, np.float64))
@@ -123,20 +123,20 @@ def first_contacts(hull: Hull, p0, p1, r, iters=100, roots=True):
     fmin, tmin = np.where(start, np.minimum(f0, fmin), fmin), np.where(start, 0.0, tmin)
     hit = start | (fmin <= 0.0)
     a, b = zero.copy(), np.where(start, 0.0, tmin)
-    for _ in range(80 if roots else 0):  # bisection on [0, argmin], where f changes sign once
+    for _ in range(64 if roots else 0):  # bisection on [0, argmin], where f changes sign once
         m = 0.5 * (a + b)
         inside = f(m) <= 0.0
         a, b = np.where(inside, a, m), np.where(inside, m, b)
     return hit, np.where(hit, b, np.nan), fmin, tmin
 
 
-def first_contact(hull: Hull, p0, p1, r, iters=100):
+def first_contact(hull: Hull, p0, p1, r, iters=80):
     """:func:`first_contacts` of one path: (hit, t, fmin, t_min)."""
     hit, t, fmin, tmin = first_contacts(hull, p0, p1, r, iters)
     return bool(hit[0]), float(t[0]), float(fmin[0]), float(tmin[0])
 
 
-def min_on(hull: Hull, p0, p1, r, t_hi, iters=100):
+def min_on(hull: Hull, p0, p1, r, t_hi, iters=80):
     """Per path, the least f = dist - r for t in [0, t_hi] (f is convex)."""
     p0, p1 = np.atleast_2d(np.asarray(p0, np.float64)), np.atleast_2d(np.asarray(p1, np.float64))
     f = lambda t: hull.distance(p0 + t[:, None] * (p1 - p0)) - r
