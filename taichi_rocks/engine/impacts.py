@@ -8,15 +8,15 @@ corners (motion/bodies.py: ``hexahedron_planes``, ``Part.corners``; boxes are he
 Swept test (Ericson, Real-Time Collision Detection, 2005, 5.5.7). The set the centre must not enter is the part
 dilated by r: faces pushed out by r, joined by cylinders round the edges and spheres round the corners. The
 path p(t) = p0 + t (p1 - p0), t in [0, 1], is clipped against the 6 planes pushed out by r (a convex set that
-holds the dilated part). A path that misses it misses the part. If it enters from outside through plane k at
-t_in and the foot q - r n_k lies on face k, that is the contact. Otherwise the contact is on an edge cylinder
-(first root of |(m + t d) x e|^2 = r^2 whose foot lies within the edge) or a corner sphere (|m + t d|^2 = r^2),
-whichever comes first: every such root is a time of contact, and the first contact lies on one of them, so
+holds the dilated part). A path that misses it misses the part (12 dot products: the common case). If it
+enters from outside through plane k at t_in and the foot q - r n_k lies on face k, that is the contact.
+Otherwise the contact is on an edge cylinder (first root of |(m + t d) x e|^2 = r^2 whose foot lies within the
+edge) or a corner sphere (|m + t d|^2 = r^2), whichever comes first: every such root is a time of contact, and the first contact lies on one of them, so
 the earliest is exact. These roots are solved from the entry point on (no contact comes before it, and it lies
 within ~2 r of the contact, which keeps them precise in float32) as c / (-b + sqrt(b^2 - a c)), free of
-cancellation. A stone that
+cancellation; a feature the entry point is already within r of (up to rounding) is touched there. A stone that
 starts within r of the part (exact distance: the feet on faces and the closest points of edges) or inside it
-counts at t = 0. No seam opens between neighbouring pieces through rounding: an edge's cylinder is taken
+counts at t = 0 (only a path that starts within the pushed-out planes can). No seam opens between neighbouring pieces through rounding: an edge's cylinder is taken
 wherever its foot lies on the edge, beyond the edge's own share of the dilated part, and a corner's sphere
 everywhere, so a contact a face test rejects by a rounding error is found on its edge, and one an edge rejects
 at its end on the corner.
@@ -33,9 +33,10 @@ m |u_n|; they are proxies, see there).
 
 import taichi as ti
 
-from ..motion.bodies import EDGES, FACE_CORNERS
+from ..motion.bodies import EDGES
 
 __all__ = ["swept_sphere_hull", "surface_velocity", "bounce", "damage_class", "stone_mass"]
+
 
 @ti.func
 def _plane(planes: ti.template(), k: ti.template()):
@@ -171,25 +172,29 @@ def swept_sphere_hull(p0, p1, r, planes: ti.template(), corners: ti.template()):
     the move; point the part's surface point touched; normal the outward unit normal there (the direction from
     it to the centre at contact); face the part's face the normal leans to."""
     d = p1 - p0
-    hit, point, normal = _start_contact(p0, r, planes, corners)
+    hit = 0
     t = r * 0.0
-    if hit == 0:
-        # clip the path against the planes pushed out by r
-        t_in, t_out = r * 0.0, r * 0.0 + 1.0
-        k_in = -1
-        for k in ti.static(range(6)):
-            n, off = _plane(planes, k)
-            s = n.dot(p0) - off - r
-            dn = n.dot(d)
-            if dn < 0.0:
-                tk = s / -dn
-                if tk > t_in:
-                    t_in, k_in = tk, k
-            elif dn > 0.0:
-                t_out = ti.min(t_out, -s / dn)
-            elif s > 0.0:
-                t_out = -r - 1.0  # parallel to the plane and outside it
-        if t_in <= t_out:
+    point = p0
+    normal = p0 * 0.0
+    # clip the path against the planes pushed out by r: nearly every path that misses stops here
+    t_in, t_out = r * 0.0, r * 0.0 + 1.0
+    k_in = -1
+    for k in ti.static(range(6)):
+        n, off = _plane(planes, k)
+        s = n.dot(p0) - off - r
+        dn = n.dot(d)
+        if dn < 0.0:
+            tk = s / -dn
+            if tk > t_in:
+                t_in, k_in = tk, k
+        elif dn > 0.0:
+            t_out = ti.min(t_out, -s / dn)
+        elif s > 0.0:
+            t_out = -r - 1.0  # parallel to the plane and outside it
+    if t_in <= t_out:
+        if k_in < 0:  # starts within the pushed-out planes: it may touch already
+            hit, point, normal = _start_contact(p0, r, planes, corners)
+        if hit == 0:
             done = 0
             if k_in >= 0:
                 for k in ti.static(range(6)):

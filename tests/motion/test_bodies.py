@@ -1,5 +1,7 @@
 """The body shapes (motion/bodies.py): convex parts that are what the renderer draws, and their hit labels."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -16,8 +18,7 @@ SIZES = {"car": {}, "van": {"height": 2.2, "length": 5.2}, "truck": {"height": 3
 
 def specs():
     """Every shipped scene's vehicles, and one of each kind at typical sizes."""
-    out = [v for p in sorted(__import__("pathlib").Path(__file__).parents[2].joinpath("scenes").glob("*.toml"))
-           for v in load_scene(p).vehicles]
+    out = [v for p in sorted((Path(__file__).parents[2] / "scenes").glob("*.toml")) for v in load_scene(p).vehicles]
     sc = scene(vehicles=[{"name": k, "kind": k, **sz, "path": {"points": [[0.0, 3.0 * i], [99.0, 3.0 * i]]}}
                          for i, (k, sz) in enumerate(SIZES.items())])
     return out + list(sc.vehicles)
@@ -75,7 +76,7 @@ def test_windscreens_lean_back_and_every_kind_has_one():
         (v,) = scene(vehicles=[{"name": "v", "kind": kind, **SIZES[kind]}]).vehicles
         body = body_parts(v)
         faces = [(p, f) for p in body.parts for f in range(6) if p.labels[f] == "windscreen"
-                 and p.name not in ("upper",)]
+                 and p.name != "upper"]  # a van's closed upper body: its front is hidden in the glazed part
         normals = [hexahedron_planes(p.corners())[f, :3] for p, f in faces]
         assert normals and max(n[0] for n in normals) > 0.7, kind
         if kind != "truck":
