@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["KINDS", "LABELS", "FACES", "FACE_CORNERS", "EDGES", "GAP", "EPS", "Part", "Body", "vehicle_kind",
-           "body_parts", "hexahedron_planes", "label_table"]
+           "body_parts", "inner_width", "hexahedron_planes", "label_table"]
 
 KINDS = ("car", "van", "truck")
 # What a hit is on. front_bumper: the front below the bonnet or windscreen (bumper, grille, lights); bonnet: the
@@ -103,6 +103,11 @@ def vehicle_kind(spec) -> str:
     return "car"
 
 
+def inner_width(spec) -> float:
+    """m: the width of the body between the wheels (a truck's chassis; the inner part of a wheel well)."""
+    return max(float(spec.track) - float(spec.tire_width) - 0.06, 0.3 * float(spec.width))
+
+
 def _labels(front, back, side, top, bottom="underbody"):
     return (front, back, side, side, top, bottom)
 
@@ -150,7 +155,7 @@ def _van(spec, z0) -> list:
 
 def _truck(spec, z0) -> list:
     L, W, H, R = float(spec.length), float(spec.width), float(spec.height), float(spec.tire_radius)
-    inner = max(float(spec.track) - float(spec.tire_width) - 0.06, 0.3 * W)
+    inner = inner_width(spec)
     chassis_top = max(z0 + 0.22 * H, 2.0 * R + GAP)
     cab_l = min(2.2, 0.3 * L)
     cab_top = z0 + 0.78 * H

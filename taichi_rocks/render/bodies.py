@@ -11,7 +11,7 @@ along its sides.
 
 import numpy as np
 
-from ..motion.bodies import EPS, GAP, KINDS, body_parts, vehicle_kind
+from ..motion.bodies import EPS, GAP, KINDS, body_parts, inner_width, vehicle_kind
 from .looks import BUMPER_COLOR, GLASS_COLOR, HEADLIGHT_COLOR, PLAYER_MARK_COLOR, TAIL_LIGHT_COLOR, TIRE_COLOR
 from .meshes import VehicleMesh, box, frustum, merge, wheel
 
@@ -36,7 +36,7 @@ def _lower_body(spec, part, color):
     fender that starts just above the wheel."""
     x_lo, x_hi, hw, z_bot, z_top = part.bounds
     W, R = 2.0 * hw, float(spec.tire_radius)
-    inner = max(float(spec.track) - float(spec.tire_width) - 0.06, 0.3 * W)
+    inner = inner_width(spec)
     wells = sorted((max(x - R - GAP, x_lo), min(x + R + GAP, x_hi))
                    for x in (0.5 * float(spec.wheelbase), -0.5 * float(spec.wheelbase)))
     parts, cur = [], x_lo
