@@ -82,6 +82,10 @@ class _Trees:
         fb.dense(ti.axes(*range(len(shape))), shape).place(f)
         return f
 
+    def field(self, dtype, shape):
+        """A scalar field of a Taichi ``dtype`` over ``shape`` (fields outside a World's layout: test buffers)."""
+        return self._place(ti.field(dtype), dtype, shape)
+
     def place(self, spec, real):
         """The field of a :class:`FieldSpec` (``real``: the World's Taichi precision)."""
         dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64}[spec.dtype]
