@@ -170,18 +170,20 @@ def _check_arch(scene, arch: str) -> None:
 
 def cmd_check(args) -> int:
     from .config.scene import SceneError, load_scene, summarise
+    from .engine.layout import check_fits, estimate_memory
 
     status = EXIT_OK
     for i, path in enumerate(args.scenes):
         try:
             scene = load_scene(path)
+            check_fits(scene)
         except SceneError as e:
             _err(str(e))
             status = EXIT_USAGE
             continue
         if i:
             print()
-        print(summarise(scene))
+        print(summarise(scene, estimate_memory(scene)))
     return status
 
 
@@ -344,7 +346,7 @@ def cmd_sweep(args) -> int:
 # binary's lookup); a Ctrl-C that lands in such a late first import can be swallowed (CPython reports it as
 # "Exception ignored in: <function _get_module_lock.<locals>.cb ...>" and the run goes on). Imported if present.
 _PRELOAD = {
-    "check": ("taichi_rocks.config.scene",),
+    "check": ("taichi_rocks.config.scene", "taichi_rocks.engine.layout"),
     "schema": ("taichi_rocks.config.scene",),
     "simulate": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.simulate", "tqdm"),
     "export": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.export", "tqdm"),

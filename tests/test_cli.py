@@ -44,6 +44,16 @@ def test_simulate_bad_scene_creates_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_scene_too_big_for_the_machine_is_refused_by_simulate_in_one_line(tmp_path):
+    """The engine's memory check (engine/layout.py) refuses it before allocating: exit 2, nothing written."""
+    huge = ROOT / "tests" / "bad_scenes" / "too_many_rocks.toml"
+    r = cli("simulate", huge, "--out", tmp_path / "x.npz")
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    [line] = r.stderr.strip().splitlines()
+    assert line.startswith(f"{huge}: bed.rocks: needs about ") and "more than this machine has" in line
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("command", ["check", "simulate", "render"])
 def test_deeply_nested_scene_is_bad_input_for_every_command(tmp_path, command):
     """5,000 levels of arrays once ended in a RecursionError (exit 1); it is bad input: one line with the place."""

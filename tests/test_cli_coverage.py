@@ -271,8 +271,9 @@ def studies(monkeypatch):
 
     calls = []
 
-    def full(out, cfg, arch, progress):
-        calls.append(("all", {"out": out, "mode": cfg.mode, "arch": arch, "progress": progress}))
+    def full(out, cfg, arch, progress, backend="local", address=None):
+        calls.append(("all", {"out": out, "mode": cfg.mode, "arch": arch, "progress": progress, "backend": backend,
+                              "address": address}))
         return {"report": str(out / "report.md")}
 
     def launch_study(out, quick, arch, progress, tiny):
@@ -353,7 +354,7 @@ def failing_check(monkeypatch):
     """``check`` meets an error nobody planned for (a bug): summarise divides by zero."""
     from taichi_rocks.config import scene
 
-    def summarise(s):
+    def summarise(s, *args, **kwargs):
         return 1 / 0
 
     monkeypatch.setattr(scene, "summarise", summarise)
@@ -375,9 +376,9 @@ def test_an_unexpected_error_is_one_line_unless_debugging(capsys, monkeypatch, f
 
 @pytest.mark.parametrize("debug", [False, True])
 def test_taichi_rocks_debug_shows_the_traceback_of_python_m(tmp_path, debug):
-    """The process as a user runs it (``python -m taichi_rocks``; the check command, so no Taichi start-up):
+    """The process as a user runs it (``python -m taichi_rocks``; the check command):
     the traceback reaches the terminal only with TAICHI_ROCKS_DEBUG set."""
-    code = ("import runpy, sys; import taichi_rocks.config.scene as s; s.summarise = lambda scene: 1 / 0; "
+    code = ("import runpy, sys; import taichi_rocks.config.scene as s; s.summarise = lambda scene, *a, **k: 1 / 0; "
             f"sys.argv = ['taichi-rocks', 'check', {str(MINIMAL)!r}]; runpy.run_module('taichi_rocks', "
             "run_name='__main__')")
     env = dict(os.environ, PYTHONPATH=str(ROOT))

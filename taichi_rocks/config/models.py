@@ -11,6 +11,7 @@ from pydantic import (BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo,
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
                      _f, _follow, _is_list, _raise_problems, _show)
 from .resolution import MIN_SIDE
+from .impacts import Impacts
 from .presets import PRESETS
 
 
@@ -67,6 +68,7 @@ class Effects(_Table):
     drag: Literal["none", "linear", "quadratic"] = _f("quadratic", "air drag model")
     ground: Literal["none", "stop", "bounce"] = _f("bounce", "what flying rocks do when they reach the ground")
     fenders: Bool = _f(True, "fenders (and mud flaps) stop stones thrown into them (tread model)")
+    impacts: Bool = _f(False, "flying stones hit the bodies of the other vehicles and are recorded ([impacts])")
 
 
 class Hash(_Table):
@@ -168,6 +170,7 @@ class Vehicle(_Table):
     color: Color = _f((0.8, 0.2, 0.1), 'RGB in [0, 1], or "#rrggbb"')
     kind: Literal["auto", "car", "van", "truck"] = _f("auto", "body drawn in videos; auto: from the proportions")
     splash: Bool = _f(True, "its rear tires launch rocks")
+    hit: Bool = _f(True, "stones thrown by the other vehicles hit its body ([effects] impacts)")
     slip: Float = _f(0.15, "wheel spin = speed / tire_radius * (1 + slip)", ge=0)
     path: Path_ = Field(WaypointPath(), discriminator="kind", description="path of the body centre")
 
@@ -281,6 +284,7 @@ class Scene(_Table):
     bed: Bed = _f(Bed(), Bed.__doc__)
     launch: Launch = _f(Launch(), Launch.__doc__)
     effects: Effects = _f(Effects(), Effects.__doc__)
+    impacts: Impacts = _f(Impacts(), Impacts.__doc__)
     sim: Sim = _f(Sim(), Sim.__doc__)
     vehicles: tuple[Vehicle, ...] = Field(alias="vehicle", min_length=1,
                                           description="the vehicles ([[vehicle]] tables), at least one")
@@ -312,7 +316,7 @@ class Scene(_Table):
 
 # tables by the key that holds them (or the path kind), to list the keys allowed where an unknown one is found
 _TABLES: dict[str, type[BaseModel]] = {
-    "world": Environment, "bed": Bed, "launch": Launch, "effects": Effects, "sim": Sim, "hash": Hash,
+    "world": Environment, "bed": Bed, "launch": Launch, "effects": Effects, "impacts": Impacts, "sim": Sim, "hash": Hash,
     "vehicle": Vehicle, "camera": CameraSettings, "shot": Shot, "render": Render, "sun": SunAngles, **PATH_KINDS}
 _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error locations
 

@@ -28,6 +28,7 @@ class Plan:
     ground: str
     cell_size: float
     active: bool = False  # activity-proportional stepping: resting rocks in ground tiles (engine/active.py)
+    impacts: bool = False  # flying rocks against the vehicles' bodies (engine/impacts.py); see impacts_on
 
     @classmethod
     def from_scene(cls, scene) -> "Plan":
@@ -44,7 +45,8 @@ class Plan:
                    reorder_every=(int(sim.hash.reorder_every) if (splash and center and scope_all
                                                                    and sim.stepping == "full") else 0),
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
-                   cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0)
+                   cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0,
+                   impacts=impacts_on(scene, splash))
 
     def passes(self) -> list[str]:
         out = []
@@ -60,6 +62,15 @@ class Plan:
             throw = self.throw + (" model, fenders" if self.fenders else " model")
             out.append(f"tire pass ({how}, {throw})")
         return out
+
+
+def impacts_on(scene, splash: bool) -> bool:
+    """Impacts run when the scene asks for them, rocks fly, and some vehicle with ``hit`` can be reached by the
+    stones of another one that splashes (a thrower's own body is left to its fenders and mud flaps)."""
+    if not (scene.effects.impacts and splash):
+        return False
+    throwers = [i for i, v in enumerate(scene.vehicles) if v.splash]
+    return any(v.hit and any(t != i for t in throwers) for i, v in enumerate(scene.vehicles))
 
 
 def cell_size(scene) -> float:

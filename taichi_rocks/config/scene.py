@@ -22,12 +22,12 @@ from .messages import _key_path, _line, _messages, _unknown
 from .models import (CAMERA_VIEWS, PATH_KINDS, Bed, CameraSettings, CirclePath, Effects, Environment, Hash, Launch,
                      Render, Scene, Shot, Sim, SunAngles, Vehicle, WaypointPath)
 from .presets import PRESETS
-from .summary import estimate_memory, physical_memory, summarise
+from .summary import summarise
 from .tomltext import TomlTextError, loads as toml_loads
 from .values import _is_list, _show
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
-           "scene_json_schema", "estimate_memory", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
+           "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
            "Sim", "WaypointPath", "CirclePath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings", "Shot",
            "SunAngles", "Render", "PRESETS"]
 
@@ -106,11 +106,6 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
             problems = [p for err in e.errors() for p in _messages(err)] + problems
     except RecursionError:   # not seen: validating goes as deep as the models, _show as deep as it prints
         raise SceneError([f"{source}: lists and tables nested too deeply to check"]) from None
-    if scene is not None:
-        need, have = estimate_memory(scene), physical_memory()
-        if have and need > have:
-            problems.append((("bed", "rocks"), f"needs about {need / 1e9:.1f} GB of memory, more than this machine "
-                                               f"has ({have / 1e9:.1f} GB), got {scene.bed.rocks}"))
     if problems:
         raise SceneError([_line(source, loc, msg) for loc, msg in problems])
     scene._source = source

@@ -1,36 +1,13 @@
-"""What a scene will cost and do, in words and bytes: the memory estimate and the summary ``taichi-rocks check``
-prints. Works on validated scenes (config/scene.py); no Taichi."""
+"""What a scene will do, in words: the summary ``taichi-rocks check`` prints. Works on validated scenes
+(config/scene.py); no Taichi. What it costs in memory is the engine's to say (engine/layout.py
+``estimate_memory``: the bytes of the fields it allocates); the summary prints the figure it is given."""
 
 from __future__ import annotations
 
 import math
-import os
 from typing import Optional
 
 from .plan import Plan
-
-
-def physical_memory() -> Optional[int]:
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
-
-def estimate_memory(scene) -> int:
-    """Bytes the simulation allocates, roughly. The one place this estimate lives:
-
-    * per rock, 8 reals (position 3, velocity 3, radius, friction; 4 bytes in f32, 8 in f64) and 4 int32
-      (id, phase, slot, scratch), plus a second copy of the reals as the reorder double buffer;
-    * the spatial hash: one int32 entry per (rock, cell) pair, ~1 per rock with insert = "center" and ~60 with
-      "aabb"; and a table of 2 int32 per slot, with as many slots as entries unless sim.hash.table_size is set.
-    """
-    rocks, real = scene.bed.rocks, 4 if scene.sim.precision == "f32" else 8
-    entries = rocks * (1 if scene.sim.hash.insert == "center" else 60)
-    table = scene.sim.hash.table_size
-    slots = table if isinstance(table, int) else entries
-    return rocks * (2 * 8 * real + 4 * 4) + 4 * entries + 2 * 4 * slots
 
 
 def _speed(path) -> str:
@@ -54,8 +31,9 @@ def _camera_line(cam) -> str:
     return "; ".join(lines)
 
 
-def summarise(scene) -> str:
-    """A few lines describing the scene and what the simulation will do (``taichi-rocks check``)."""
+def summarise(scene, memory_bytes: Optional[int] = None) -> str:
+    """A few lines describing the scene and what the simulation will do (``taichi-rocks check``), with the
+    memory its fields take if ``memory_bytes`` is given (engine/layout.py ``estimate_memory``)."""
     e, sim, h, bed = scene.effects, scene.sim, scene.sim.hash, scene.bed
     on = {True: "on", False: "off"}
     passes = Plan.from_scene(scene).passes()
@@ -76,6 +54,7 @@ def summarise(scene) -> str:
         + (f" reorder every {h.reorder_every} steps" if h.reorder_every else " never reordered"),
         f"camera: {_camera_line(scene.camera)}, {scene.render.resolution[0]}x{scene.render.resolution[1]}"
         f" at {scene.render.fps:g} fps",
-        f"memory: about {estimate_memory(scene) / 1e6:.1f} MB (estimate)",
     ]
+    if memory_bytes is not None:
+        lines.append(f"memory: about {memory_bytes / 1e6:.1f} MB for the simulation's fields (estimate)")
     return "\n".join(lines)

@@ -8,8 +8,10 @@ the floating origin's shifts, whole multiples of 64 m, move no tile boundary). A
 coordinates relative to the origin's anchor, key = floor(p_local / s) + shift / s. Keys live in a G x G table
 addressed modulo G (a toroidal grid, G s > 2R + 2s): the tiles the bed covers never share a slot, and the slots
 the bed's rim leaves behind are taken by the tiles it reaches. Each slot holds up to C rocks stored together
-(position, radius, static friction, id and the step it was last launched at: a resting rock has no
-velocity), its key and its count.
+(the rock fields declared ``stored`` in engine/rockfields.py, ``ts_<name>``: position, radius, static friction,
+id, the step it was last launched at; a resting rock has no velocity, and a rock out of a tile gets each other
+field's rest value), its key and its count. The copies between the active list and the tiles are loops over
+that declaration.
 
 One step (two kernel launches, :func:`active_step` and :func:`active_finish`; their loops run in order):
   1. classify the occupied tiles (one thread per slot), with the bed's new centre c, its move d (old centre
@@ -264,25 +266,34 @@ def under_a_tire(w: ti.template(), p, bits):
 
 @ti.func
 def to_active(w: ti.template(), j, a):
-    """Copy stored rock j (store index) to active index a, at rest."""
-    w.pos[a] = w.ts_pos[j]
-    w.vel[a] = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
-    w.radius[a] = w.ts_radius[j]
-    w.friction[a] = w.ts_friction[j]
-    w.rock_id[a] = w.ts_id[j]
-    w.phase[a] = RESTING
-    if ti.static(w.hashed):
-        w.hit_step[a] = w.ts_hit[j]
+    """Copy stored rock j (store index) to active index a, at rest: every carried rock field, from the tiles
+    or (not stored) its rest value (engine/rockfields.py)."""
+    for f in ti.static(w.rocks):
+        if ti.static(f.stored):
+            ti.static(getattr(w, f.name))[a] = ti.static(getattr(w, f.store_name))[j]
+        elif ti.static(f.carried):
+            g = ti.static(getattr(w, f.name))
+            if ti.static(f.n > 1):
+                g[a] = ti.Vector(ti.static([f.rest] * f.n), dt=g.dtype)
+            else:
+                g[a] = f.rest
 
 
 @ti.func
 def store_copy(w: ti.template(), src, dst):
-    w.ts_pos[dst] = w.ts_pos[src]
-    w.ts_radius[dst] = w.ts_radius[src]
-    w.ts_friction[dst] = w.ts_friction[src]
-    w.ts_id[dst] = w.ts_id[src]
-    if ti.static(w.hashed):
-        w.ts_hit[dst] = w.ts_hit[src]
+    """Stored rock src to store index dst (every stored field)."""
+    for f in ti.static(w.rocks):
+        if ti.static(f.stored):
+            g = ti.static(getattr(w, f.store_name))
+            g[dst] = g[src]
+
+
+@ti.func
+def to_store(w: ti.template(), i, j):
+    """Active rock i to store index j (every stored field)."""
+    for f in ti.static(w.rocks):
+        if ti.static(f.stored):
+            ti.static(getattr(w, f.store_name))[j] = ti.static(getattr(w, f.name))[i]
 
 
 @ti.func
@@ -312,13 +323,13 @@ def gather(w: ti.template(), c):
                     leave = under_a_tire(w, p, w.ts_tires[t])
             if leave:
                 to_active(w, t * cap + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
-                w.ts_id[t * cap + j] = -1
+                w.ts_rock_id[t * cap + j] = -1
     for k in range(listed):
         t = w.ts_list[k]
         keep = 0
         if w.ts_sel[t] != MOVE_ALL:
             for j in range(w.ts_count[t]):
-                if w.ts_id[t * cap + j] >= 0:
+                if w.ts_rock_id[t * cap + j] >= 0:
                     if keep != j:
                         store_copy(w, t * cap + j, t * cap + keep)
                     keep += 1
@@ -346,26 +357,17 @@ def settle_rocks(w: ti.template(), shift_tiles):
                 if k >= cap:  # full: undo (the count never drops below cap again, so slots stay distinct)
                     ti.atomic_sub(w.ts_count[sl], 1)
                 else:
-                    j = sl * cap + k
-                    w.ts_pos[j] = w.pos[i]
-                    w.ts_radius[j] = w.radius[i]
-                    w.ts_friction[j] = w.friction[i]
-                    w.ts_id[j] = w.rock_id[i]
-                    if ti.static(w.hashed):
-                        w.ts_hit[j] = w.hit_step[i]
+                    to_store(w, i, sl * cap + k)
                     w.rock_id[i] = -1
 
 
 @ti.func
 def active_copy(w: ti.template(), src, dst):
-    w.pos[dst] = w.pos[src]
-    w.vel[dst] = w.vel[src]
-    w.radius[dst] = w.radius[src]
-    w.friction[dst] = w.friction[src]
-    w.rock_id[dst] = w.rock_id[src]
-    w.phase[dst] = w.phase[src]
-    if ti.static(w.hashed):
-        w.hit_step[dst] = w.hit_step[src]
+    """Active rock src to active index dst (every carried rock field)."""
+    for f in ti.static(w.rocks):
+        if ti.static(f.carried):
+            g = ti.static(getattr(w, f.name))
+            g[dst] = g[src]
 
 
 @ti.func

@@ -9,7 +9,8 @@ Points and displacements in the bed's local frame (world = origin + local) come 
 to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
 ``rock_pass``, launched every step, which takes its four as one array of 2-vectors (``frame``, rows CENTRE,
 MOVE, LEAD, GRID): Taichi 1.7.4 builds a Matrix in Python for every vector argument of a launch (~10 us
-each, ~4x two scalars), an array of them costs about what the scalars did.
+each, ~4x two scalars), an array of them costs about what the scalars did. The kernels that move every rock
+field (``reorder_rocks``) loop over the declaration (engine/rockfields.py, ``w.rocks``) at compile time.
 """
 
 
@@ -18,7 +19,7 @@ import taichi as ti
 from . import hashgrid, tires
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
-from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par
+from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par, tmp_name
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -168,21 +169,30 @@ def shift_origin(w: ti.template(), shift: vec2):
 
 
 @ti.kernel
-def gather_vec(w: ti.template(), src: ti.template(), dst: ti.template()):
-    for k in range(w.ipar[IPar.N_ROCKS]):
-        dst[k] = src[w.entries[k]]
-
-
-@ti.kernel
-def copy_field(w: ti.template(), src: ti.template(), dst: ti.template()):
-    for k in range(w.ipar[IPar.N_ROCKS]):
-        dst[k] = src[k]
-
-
-@ti.kernel
-def identity_entries(w: ti.template()):
+def reorder_rocks(w: ti.template()):
+    """Re-sort the rocks in memory by hash slot after a scatter of every rock (centre insert: ``entries[k]`` is
+    the rock at place k): every carried rock field (engine/rockfields.py) through its buffer, then ``entries``
+    is the identity."""
+    for f in ti.static(w.rocks):
+        if ti.static(f.carried):
+            src = ti.static(getattr(w, f.name))
+            tmp = ti.static(getattr(w, tmp_name(f)))
+            for k in range(w.ipar[IPar.N_ROCKS]):
+                tmp[k] = src[w.entries[k]]
+            for k in range(w.ipar[IPar.N_ROCKS]):
+                src[k] = tmp[k]
     for k in range(w.ipar[IPar.N_ROCKS]):
         w.entries[k] = k
+
+
+@ti.kernel
+def count_flying(w: ti.template()) -> ti.i32:
+    """Rocks of the rock arrays (the active list with active stepping: rocks in the tiles rest) in flight."""
+    n = 0
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        if w.phase[i] == FLYING:
+            n += 1
+    return n
 
 
 @ti.kernel

@@ -10,6 +10,9 @@ or reaches into a Simulation.
 * :func:`fly_only` - chosen test rocks flown by the flight part of the rock pass alone (no ground, no
   recycling, no hash), the rock fields restored afterwards; :func:`set_flying` - every rock flying with given
   velocities; :func:`active_rocks` - the rock loops limited to the first n rock slots inside a ``with`` block.
+* :func:`rocks_in_air` - rocks in flight (a kernel's count, both stepping modes); :func:`activity` - where the
+  rocks are (active list, tiles, full tiles, resting rocks left active); :func:`move_frame` - the kernels'
+  frame moved by any distance (tests of drawing far from the origin).
 
 The pass-level probes take the rocks from the World's rock arrays: they need ``[sim] stepping = "full"``
 (every rock in those arrays) and raise ValueError otherwise; :func:`set_flying` works in both modes.
@@ -27,7 +30,7 @@ import numpy as np
 
 from . import hashgrid, tires
 from .kernels import READS, Switches, rock_pass
-from .world import FLYING, RAY_FIELDS, IPar
+from .world import FLYING, RAY_FIELDS, RESTING, SLIDING, IPar
 
 
 def _full_only(sim) -> None:
@@ -47,7 +50,8 @@ def _pass_args(sim) -> tuple:
     if sim.step_count > 0:
         before = sim.fleet.poses(sim.time - sim.dt)[sim.follow].position
         move = sim.bed_center[:2] - np.asarray(before[:2], float)
-    frame = np.array([sim._local_centre(), move, sim._lead, sim._grid_origin()])  # kernels.CENTRE .. GRID
+    c = sim._host.local_centre()
+    frame = np.array([c, move, sim._host.lead, sim._stepper.grid_origin(c)])  # kernels.CENTRE .. GRID
     return rays, frame, float(sim.dt), int(sim.step_count)
 
 
@@ -119,7 +123,7 @@ def reorder(sim) -> None:
     _full_only(sim)
     if not sim.plan.reorder_every:
         raise ValueError("this simulation's plan does not reorder the rocks (reorder_every = 0)")
-    sim._reorder()
+    sim._stepper.reorder()
 
 
 @contextlib.contextmanager
@@ -178,8 +182,33 @@ def fly_only(sim, x0_local, v0, radius, dt: float, steps: int, every: int, integ
 
 
 def rocks_in_air(sim) -> int:
-    """How many rocks fly now (phase FLYING): one read-back of the phase field."""
-    n = int(sim.active_count)  # resting rocks in the tiles (active stepping) do not fly
-    if n == 0:
-        return 0
-    return int(np.count_nonzero(sim.world.phase.to_numpy()[:n] == FLYING))
+    """How many rocks fly now (phase FLYING): counted in a kernel (Simulation.rocks_in_air)."""
+    return sim.rocks_in_air()
+
+
+def activity(sim) -> dict:
+    """Where the rocks are now: "active" (the World's rock arrays: the active list with active stepping, every
+    rock with full stepping), of them "flying", "sliding" and "resting"; with active stepping "stored" (in the
+    tiles), "full_tiles" (tiles holding as many rocks as a tile can) and "homeless" (resting rocks left in the
+    active list: their tile was full when they came to rest). One read-back of the active list's phases."""
+    n = int(sim.active_count)
+    ph = sim.world.phase.to_numpy()[:n] if n else np.zeros(0, np.int32)
+    out = {"active": n, "flying": int(np.count_nonzero(ph == FLYING)), "sliding": int(np.count_nonzero(ph == SLIDING)),
+           "resting": int(np.count_nonzero(ph == RESTING))}
+    if sim.plan.active:
+        w = sim.world
+        counts = w.ts_count.to_numpy()
+        out.update(stored=int(counts.sum()), full_tiles=int(np.count_nonzero(counts >= w.store_capacity)),
+                   homeless=out["resting"])
+    return out
+
+
+def move_frame(sim, d) -> None:
+    """Move the kernels' local frame by ``d`` (XY, m; any distance, unlike the floating origin's whole steps of
+    ORIGIN_SNAP): every rock's local position (tiles included) by -d, the origin and its shift by +d. The same
+    world drawn from another frame; the tiles keep their keys, so move the frame back before stepping."""
+    d = np.asarray(d, np.float64)
+    sim._stepper.shift_origin(d)
+    h = sim._host
+    h.shift = h.shift + d
+    h.origin[:2] += d

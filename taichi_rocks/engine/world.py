@@ -1,12 +1,17 @@
 """The Taichi fields of one simulation, allocated once from a Scene, and nothing else.
 
-Rock state is structure-of-arrays (one field per quantity) in the bed's *local* frame: world position =
-``origin`` (float64, host) + local position (f32 or f64). Fields of a pass are allocated only when the scene
-asks for that pass: no hash table without splashing tires, no ray buffers without tires.
+Rock state is structure-of-arrays (one field per quantity, declared in engine/rockfields.py) in the bed's
+*local* frame: world position = ``origin`` (float64, host) + local position (f32 or f64). Fields of a pass are
+allocated only when the scene asks for that pass: no hash table without splashing tires, no ray buffers without
+tires. :func:`field_specs` lists every field of a layout; the World allocates exactly that list, and the memory
+estimate (engine/layout.py) adds it up.
 """
 
 
+import math
 import weakref
+from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
@@ -14,9 +19,7 @@ from taichi.lang.field import Field
 from taichi.lang.util import to_numpy_type
 
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
-
-# Rock phases.
-RESTING, FLYING, SLIDING = 0, 1, 2
+from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
 
 # Hash primes of Teschner et al. 2003, "Optimized Spatial Hashing for Collision Detection of Deformable
 # Objects", VMV.
@@ -80,105 +83,146 @@ class _Trees:
         return f
 
     def field(self, dtype, shape):
+        """A scalar field of a Taichi ``dtype`` over ``shape`` (fields outside a World's layout: test buffers)."""
         return self._place(ti.field(dtype), dtype, shape)
 
-    def vector(self, n: int, dtype, shape):
-        return self._place(ti.Vector.field(n, dtype), dtype, shape)
+    def place(self, spec, real):
+        """The field of a :class:`FieldSpec` (``real``: the World's Taichi precision)."""
+        dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64}[spec.dtype]
+        f = ti.field(dtype) if spec.n == 1 else ti.Vector.field(spec.n, dtype)
+        return self._place(f, dtype, spec.shape)
 
     def finalize(self) -> None:
         for fb in self._builders.values():
             fb.finalize()
 
 
+@dataclass(frozen=True)
+class FieldSpec:
+    """One Taichi field of a World: ``n`` components (1: a scalar field) of ``dtype`` ("real": the World's
+    precision, "i32", "i64") over ``shape``."""
+
+    name: str
+    dtype: str
+    n: int
+    shape: tuple
+
+    def nbytes(self, real: str) -> int:
+        size = {"f32": 4, "f64": 8, "i32": 4, "i64": 8}[real if self.dtype == "real" else self.dtype]
+        return size * self.n * math.prod(self.shape)
+
+
+def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
+                substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None, store=None,
+                rocks=None, **_switches) -> list[FieldSpec]:
+    """Every field of the World of this layout (``real``: "f32" | "f64"; the arguments are World's), in the
+    order they are allocated: the one list both the World and the memory estimate (engine/layout.py) read.
+    ``rocks``: the rock fields (engine/rockfields.py ``present``; default: those of this layout's mode)."""
+    cap = max(n, 1)  # Taichi fields cannot be empty
+    hashed = hash_table > 0
+    rocks = default_rock_fields(hashed, store is not None) if rocks is None else rocks
+    out = [FieldSpec(f.name, f.dtype, f.n, (cap,)) for f in rocks]
+    out += [FieldSpec("par", "real", 1, (Par.COUNT,)), FieldSpec("ipar", "i32", 1, (IPar.COUNT,)),
+            FieldSpec("launches", "i64", 1, ()), FieldSpec("recycles", "i64", 1, ())]
+    if hashed:
+        # cell_start[s] .. cell_start[s + 1] is slot s's range of `entries` after a build
+        out += [FieldSpec("cell_start", "i32", 1, (hash_table + 1,)),
+                FieldSpec("entries", "i32", 1, (max(hash_entries, 1),))]
+    if hashed and tiles is not None:  # scope "tires": the mask's tiles, the rocks listed on them
+        out += [FieldSpec("tile_mask", "i32", 1, tuple(int(t) for t in tiles)), FieldSpec("listed", "i32", 1, (cap,)),
+                FieldSpec("n_listed", "i32", 1, ())]
+    if n_tires > 0:
+        n_rays = n_tires * substeps
+        out += [FieldSpec("ray", "real", 1, (n_tires, RAY_FIELDS)),
+                FieldSpec("ray_cells", "i32", 3, (n_rays, max(ray_capacity, 1))),
+                FieldSpec("ray_cell_count", "i32", 1, (n_rays,))]
+    if reorder:  # the re-sort's buffers: one per (dtype, components) of the carried rock fields
+        out += [FieldSpec(tmp_name(f), f.dtype, f.n, (cap,)) for f in _distinct_kinds(rocks)]
+    if store is not None:
+        out += _store_specs(store, cap, n_tires, rocks)
+    out.append(FieldSpec("health_out", "i32", 1, (6,)))  # the runtime guard's counts (Simulation.check_health)
+    return out
+
+
+def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
+    """Active stepping's tile store (engine/active.py): ``store`` = (tile edge, slots per axis, rocks per slot,
+    recycle?); ``cap``: the active list's capacity."""
+    _, grid, capacity, _ = store
+    slots = int(grid) * int(grid)
+    out = [FieldSpec(f.store_name, f.dtype, f.n, (slots * int(capacity),)) for f in rocks if f.stored]
+    out += [FieldSpec("ts_count", "i32", 1, (slots,)), FieldSpec("ts_key", "i32", 2, (slots,)),
+            FieldSpec("ts_sel", "i32", 1, (slots,)), FieldSpec("a_hole", "i32", 1, (cap,)),
+            FieldSpec("a_mover", "i32", 1, (cap,)),
+            FieldSpec("ts_list", "i32", 1, (slots,))]  # the slots marked this step
+    if n_tires > 0:
+        out += [FieldSpec("ts_tires", "i32", 1, (slots,)),  # which tires marked a slot (bit t mod 32)
+                FieldSpec("tire_box", "real", 4, (n_tires,)),  # each tire's query box (lo, hi) this step
+                FieldSpec("tire_keys", "i32", 4, (n_tires,))]  # and its tiles (first and last key)
+    out.append(FieldSpec("a_counts", "i32", 1, (6,)))
+    return out
+
+
+def tmp_name(f) -> str:
+    """The re-sort buffer of rock fields of f's dtype and components."""
+    return f"tmp_{f.dtype}x{f.n}"
+
+
+def _distinct_kinds(rocks) -> list:
+    seen = {}
+    for f in rocks:
+        if f.carried:
+            seen.setdefault(tmp_name(f), f)
+    return list(seen.values())
+
+
+def default_rock_fields(hashed: bool, stored: bool) -> tuple:
+    """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed."""
+    return present(SimpleNamespace(splash=hashed), "active" if stored else "full")
+
+
 @ti.data_oriented
 class World:
-    """All fields of one simulation. ``n`` rocks; ``n_tires`` splashing rear tires."""
+    """All fields of one simulation. ``n`` rocks; ``n_tires`` splashing rear tires. The fields are those of
+    :func:`field_specs`; ``rocks`` the rock fields (engine/rockfields.py), each an attribute of its name."""
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
-                 tile_size: float = 1.0, store=None):
+                 tile_size: float = 1.0, store=None, rocks=None):
         self.n = n
         self.stored = store is not None  # active stepping's tile store (below)
         self.real = real
-        cap = max(n, 1)  # Taichi fields cannot be empty
-        trees = _Trees()
-        vec3 = ti.types.vector(3, real)
-        self.vec3 = vec3
-        self.pos = trees.vector(3, real, cap)
-        self.vel = trees.vector(3, real, cap)
-        self.radius = trees.field(real, cap)
-        self.friction = trees.field(real, cap)
-        self.rock_id = trees.field(ti.i32, cap)
-        self.phase = trees.field(ti.i32, cap)
-        self.par = trees.field(real, Par.COUNT)
-        self.ipar = trees.field(ti.i32, IPar.COUNT)
-        self.launches = trees.field(ti.i64, ())
-        self.recycles = trees.field(ti.i64, ())  # rocks moved to the leading edge so far (bed.py)
+        self.vec3 = ti.types.vector(3, real)
         self.hashed = hash_table > 0
+        self.rocks = default_rock_fields(self.hashed, self.stored) if rocks is None else tuple(rocks)
         if self.hashed:
             self.table_size = hash_table
             self.entry_capacity = max(hash_entries, 1)
-            # cell_start[s] .. cell_start[s + 1] is slot s's range of `entries` after a build.
-            self.cell_start = trees.field(ti.i32, hash_table + 1)
-            self.entries = trees.field(ti.i32, self.entry_capacity)
-            self.slot = trees.field(ti.i32, cap)  # centre-cell slot of each rock (centre insert)
-            self.hit_step = trees.field(ti.i32, cap)  # last step a rock was launched
         # scope "tires": a coarse XY mask around the tires' query regions; only rocks on marked tiles are
         # hashed, listed in `listed` (compile-time switch: `masked` is a Python attribute)
         self.masked = self.hashed and tiles is not None
         if self.masked:
             self.tiles = tuple(int(t) for t in tiles)
             self.tile_size = float(tile_size)
-            self.tile_mask = trees.field(ti.i32, self.tiles)
-            self.listed = trees.field(ti.i32, cap)
-            self.n_listed = trees.field(ti.i32, ())
         self.n_tires = n_tires
         self.substeps = substeps
         if n_tires > 0:
             self.n_rays = n_tires * substeps
             self.ray_capacity = ray_capacity
-            # per tire (layout in tires.py): ray a0, b0 at the previous step, a1, b1 now, wheel velocity,
-            # heading, spin speed omega * R
-            self.ray = trees.field(real, (n_tires, RAY_FIELDS))
-            self.ray_cells = trees.vector(3, ti.i32, (self.n_rays, max(ray_capacity, 1)))
-            self.ray_cell_count = trees.field(ti.i32, self.n_rays)
         self.reorder = reorder
-        if reorder:
-            self.tmp_vec = trees.vector(3, real, cap)
-            self.tmp_real = trees.field(real, cap)
-            self.tmp_int = trees.field(ti.i32, cap)
-        # active stepping (engine/active.py): resting rocks in ground tiles; the rock arrays above are the
-        # active list (ipar[N_ROCKS] rocks). ``store``: (tile edge, slots per axis, rocks per slot, recycle?)
+        # active stepping (engine/active.py): resting rocks in ground tiles; the rock arrays are the active
+        # list (ipar[N_ROCKS] rocks). ``store``: (tile edge, slots per axis, rocks per slot, recycle?)
         if self.stored:
-            self._store_fields(trees, store, cap, real)
-        self.health_out = trees.field(ti.i32, 6)  # the runtime guard's counts (Simulation.check_health)
+            tile, grid, capacity, recycle = store
+            self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
+            self.recycles_rocks = bool(recycle)
+        trees = _Trees()
+        for spec in field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table,
+                                hash_entries=hash_entries, n_tires=n_tires, substeps=substeps,
+                                ray_capacity=ray_capacity, reorder=reorder, tiles=tiles, store=store,
+                                rocks=self.rocks):
+            setattr(self, spec.name, trees.place(spec, real))
         trees.finalize()
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
-
-    def _store_fields(self, trees, store, cap: int, real) -> None:
-        """Active stepping's tile store (engine/active.py): ``store`` = (tile edge, slots per axis, rocks per
-        slot, recycle?); ``cap``: the active list's capacity."""
-        tile, grid, capacity, recycle = store
-        self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
-        self.recycles_rocks = bool(recycle)
-        slots = self.store_grid * self.store_grid
-        self.ts_pos = trees.vector(3, real, slots * self.store_capacity)
-        self.ts_radius = trees.field(real, slots * self.store_capacity)
-        self.ts_friction = trees.field(real, slots * self.store_capacity)
-        self.ts_id = trees.field(ti.i32, slots * self.store_capacity)
-        if self.hashed:
-            self.ts_hit = trees.field(ti.i32, slots * self.store_capacity)  # last launch step (hit_step)
-        self.ts_count = trees.field(ti.i32, slots)
-        self.ts_key = trees.vector(2, ti.i32, slots)
-        self.ts_sel = trees.field(ti.i32, slots)
-        self.a_hole = trees.field(ti.i32, cap)
-        self.a_mover = trees.field(ti.i32, cap)
-        self.ts_list = trees.field(ti.i32, slots)  # the slots marked this step
-        if self.n_tires > 0:
-            self.ts_tires = trees.field(ti.i32, slots)  # which tires marked a slot (bit t mod 32)
-            self.tire_box = trees.vector(4, real, self.n_tires)  # each tire's query box (lo, hi) this step
-            self.tire_keys = trees.vector(4, ti.i32, self.n_tires)  # and its tiles (first and last key)
-        self.a_counts = trees.field(ti.i32, 6)
 
     def fields(self) -> list:
         """Every Taichi field of this World."""
@@ -191,20 +235,9 @@ class World:
     def np_real(self):
         return np.float64 if self.real == ti.f64 else np.float32
 
-    def load_rocks(self, pos: np.ndarray, radius: np.ndarray, friction: np.ndarray) -> None:
-        """Rocks 0..n-1 at rest at ``pos`` ((max(n, 1), 3), local frame), in id order, never launched
-        (hit step -1); the padding slot of an empty World gets radius 1."""
-        n, cap = len(radius), max(len(radius), 1)
-        pad = lambda a, fill=0: np.concatenate([a, np.full(cap - n, fill, dtype=a.dtype)])
-        npr = self.np_real()
-        self.pos.from_numpy(pos.astype(npr))
-        self.vel.from_numpy(np.zeros((cap, 3), npr))
-        self.radius.from_numpy(pad(radius.astype(npr), 1))
-        self.friction.from_numpy(pad(friction.astype(npr)))
-        self.rock_id.from_numpy(pad(np.arange(n, dtype=np.int32)))
-        self.phase.from_numpy(np.zeros(cap, np.int32))
-        if self.hashed:
-            self.hit_step.from_numpy(np.full(cap, -1, np.int32))
+    def np_dtype(self, f):
+        """The NumPy dtype of rock field ``f`` (engine/rockfields.py) in this World."""
+        return self.np_real() if f.dtype == "real" else np.int32
 
 
 @ti.kernel

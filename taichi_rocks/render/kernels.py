@@ -18,7 +18,8 @@ below (local f32 coordinates, the simulation's Z up); the buffers live in a :cla
 import taichi as ti
 
 from ..config.streams import LOOK_THIN
-from ..engine.world import FLYING, RESTING, IPar, Par
+from ..engine import drawing
+from ..engine.world import FLYING
 from .looks import KEY
 from .rocklook import _rock_color, _unit, rock_color, rock_shape
 from .shadows import SHADE_ONE, Shade, smooth01 as _smooth01, splat_shadow as _splat_shadow, \
@@ -300,12 +301,12 @@ def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
 
 
 @ti.kernel
-def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.template(), cam: CameraBasis,
-               fr: Frustum, size: Sizing, light: Light, sh: Shade, vis: ti.template(), tiles: _vec2):
-    """Cull the rocks of ``world`` to the view frustum and the draw distance: the first ``n`` (or, with
-    active stepping, ``world.stored``, the active list: ``ipar[N_ROCKS]`` rocks), then with ``world.stored``
-    the rocks of the tile store's tiles in view (:mod:`.tiles`: the slots whose tile may be in view are listed
-    in ``vis``; ``tiles`` is the floating origin's shift in tiles, ``Simulation._tile_shift()``). Then
+def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), cam: CameraBasis, fr: Frustum,
+               size: Sizing, light: Light, sh: Shade, vis: ti.template(), tiles: _vec2):
+    """Cull the rocks of ``world`` to the view frustum and the draw distance, as the engine offers them
+    (engine/drawing.py): the listed rocks (every rock, or with active stepping the active list), then, if the
+    resting rocks wait in tiles, the tiles in view (:mod:`.tiles`: the slots whose tile may be in view are
+    listed in ``vis``; ``tiles`` is the floating origin's shift in tiles, ``Simulation.tile_shift()``). Then
 
     * ``buf.splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`),
       flying rocks are compacted into ``bucket`` for GGUI;
@@ -327,29 +328,21 @@ def rocks_pass(world: ti.template(), n: ti.i32, buf: ti.template(), bucket: ti.t
     if ti.static(buf.shadows):
         buf.rows[2] = buf.shade.shape[1]
         buf.rows[3] = -1
-    m = n
-    if ti.static(world.stored):
-        m = world.ipar[IPar.N_ROCKS]
-    for i in range(m):
-        _draw_rock(buf, bucket, ti.cast(world.pos[i], ti.f32), ti.cast(world.radius[i], ti.f32), world.phase[i],
-                   world.rock_id[i], cam, fr, size, light, sh)
-    if ti.static(world.stored):
-        s = ti.static(world.store_tile)
-        cap = ti.static(world.store_capacity)
+    for i in range(drawing.listed_count(world)):
+        p, r, ph, rid = drawing.listed_rock(world, i)
+        _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh)
+    if ti.static(drawing.has_tiles(world)):
         vis.count[None] = 0
-        for t in range(world.store_grid * world.store_grid):
-            if world.ts_count[t] > 0:
-                key = world.ts_key[t]
-                lo = (ti.Vector([ti.cast(key[0], ti.f32), ti.cast(key[1], ti.f32)]) - tiles) * s
-                if tile_in_view(lo, s, ti.cast(world.par[Par.GROUND_Z], ti.f32),
-                                ti.cast(world.par[Par.R_MAX], ti.f32), cam, fr):
+        for t in range(drawing.slot_count(world)):
+            if drawing.slot_rocks(world, t) > 0:
+                lo, s, ground, r_max = drawing.slot_bounds(world, t, tiles)
+                if tile_in_view(lo, s, ground, r_max, cam, fr):
                     vis.slots[ti.atomic_add(vis.count[None], 1)] = t
-        for v, k in ti.ndrange(vis.count[None], cap):
+        for v, k in ti.ndrange(vis.count[None], drawing.slot_capacity(world)):
             t = vis.slots[v]
-            if k < world.ts_count[t]:
-                j = t * cap + k
-                _draw_rock(buf, bucket, ti.cast(world.ts_pos[j], ti.f32), ti.cast(world.ts_radius[j], ti.f32),
-                           RESTING, world.ts_id[j], cam, fr, size, light, sh)
+            if k < drawing.slot_rocks(world, t):
+                p, r, ph, rid = drawing.slot_rock(world, t, k)
+                _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh)
 
 
 @ti.kernel

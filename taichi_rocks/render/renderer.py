@@ -46,6 +46,7 @@ import numpy as np
 import taichi as ti
 
 from ..config.resolution import check_resolution
+from ..engine import drawing
 from . import kernels as K
 from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
@@ -125,8 +126,7 @@ class Renderer:
         # background image, splat buffers, shadows
         self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows)
         # active stepping: the tile store's slots in view, listed by the rock pass
-        wd = sim.world
-        self._visible = K.Visible(wd.store_grid * wd.store_grid if wd.stored else 1)
+        self._visible = K.Visible(drawing.slot_total(sim.world))
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
@@ -312,11 +312,11 @@ class Renderer:
         size = K.Sizing(lod_px=self.lod_pixels, radius_scale=h / w)  # GGUI 1.7.4 draws particles w/h too large
         light = K.Light(sun=_vec(sun), ambient=ti.Vector(AMBIENT), sun_color=ti.Vector(SUN_COLOR))
         shade = self._shade(sun)
-        tiles = ti.Vector([float(x) for x in self.sim._tile_shift()] if self.sim.world.stored else [0.0, 0.0])
+        tiles = ti.Vector([float(x) for x in self.sim.tile_shift()])
         need = max(int(self.last_count * 1.25), 1)
         while True:
             bucket = self._bucket(need)
-            K.rocks_pass(self.sim.world, n, self._buf, bucket, cam, self._frustum(), size, light, shade,
+            K.rocks_pass(self.sim.world, self._buf, bucket, cam, self._frustum(), size, light, shade,
                          self._visible, tiles)
             count = int(self._buf.count[None])
             if count <= bucket.cap:
@@ -325,7 +325,7 @@ class Renderer:
             if self.rocks == "splat" or self.shadows:  # splats in the buffers already: clear them first
                 K.clear_buffers(self._buf)
         self.last_count = count
-        self.tiles_in_view = int(self._visible.count[None]) if self.sim.world.stored else 0
+        self.tiles_in_view = int(self._visible.count[None]) if drawing.has_tiles(self.sim.world) else 0
         self._drawn = (bucket, count)
         return count
 

@@ -1,17 +1,16 @@
-"""Culling the tile store of active stepping (``[sim] stepping = "active"``, :mod:`..engine.active`) by tiles.
+"""Culling the resting rocks of active stepping (``[sim] stepping = "active"``) by the tiles they wait in.
 
-Under active stepping the World's rock arrays hold only the active list; the resting rocks wait in ground
-tiles of edge s. The rock pass (:func:`.kernels.rocks_pass`) draws the active list rock by rock, then the
-store tile by tile: one parallel loop over the G^2 slots keeps the occupied tiles whose rocks may be in view
-(:func:`tile_in_view`), compacted into a :class:`Visible` list by an atomic counter, then one parallel loop
-over (visible tile, rock of the tile) runs the same per-rock test and drawing as the active list.
+Under active stepping the engine lists only the active rocks; the resting ones wait in ground tiles, which the
+engine offers slot by slot (engine/drawing.py). The rock pass (:func:`.kernels.rocks_pass`) draws the listed
+rocks rock by rock, then the tiles: one parallel loop over the slots keeps the occupied tiles whose rocks may be
+in view (:func:`tile_in_view`), compacted into a :class:`Visible` list by an atomic counter, then one parallel
+loop over (visible tile, rock of the tile) runs the same per-rock test and drawing as the listed rocks.
 
-A tile's rocks have their centres in the box (key - shift / s) * s .. + s in XY (the store's keys,
-:func:`..engine.active.tile_key`) and, at rest, z = ground + r <= ground + r_max: the box's bounding sphere,
-grown by r_max, holds every one of their spheres. The per-rock test is a sphere against the frustum's side
-planes and the near plane (signed distances, 1-Lipschitz) plus the centre's distance against the draw
-distance; so a tile whose sphere fails the same tests holds no rock that passes them, and skipping it changes
-no pixel. The rounding margin keeps that true in f32.
+A tile's rocks have their centres in an XY box of edge s (``drawing.slot_bounds``) and, at rest,
+z = ground + r <= ground + r_max: the box's bounding sphere, grown by r_max, holds every one of their spheres.
+The per-rock test is a sphere against the frustum's side planes and the near plane (signed distances,
+1-Lipschitz) plus the centre's distance against the draw distance; so a tile whose sphere fails the same tests
+holds no rock that passes them, and skipping it changes no pixel. The rounding margin keeps that true in f32.
 """
 
 import taichi as ti

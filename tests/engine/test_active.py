@@ -130,7 +130,7 @@ def _bookkeeping(sim):
     cap = w.store_capacity
     assert counts.min() >= 0 and counts.max() <= cap
     taken = (np.arange(cap)[None, :] < counts[:, None]).ravel()
-    ids_store = w.ts_id.to_numpy()[taken]
+    ids_store = w.ts_rock_id.to_numpy()[taken]
     assert m + len(ids_store) == n
     everything = np.concatenate([ids_active, ids_store])
     assert np.array_equal(np.sort(everything), np.arange(n)), "a rock is missing or in two places"
@@ -138,11 +138,11 @@ def _bookkeeping(sim):
     slot = np.repeat(np.arange(len(counts)), counts)
     key = w.ts_key.to_numpy()[slot]
     s = w.store_tile
-    local_key = np.floor(pos[:, :2] / s).astype(np.int64) + np.round(sim._shift / s).astype(np.int64)
+    local_key = np.floor(pos[:, :2] / s).astype(np.int64) + np.round(sim._host.shift / s).astype(np.int64)
     assert np.array_equal(local_key, key), "a stored rock is off its tile"
     g = w.store_grid
     assert np.array_equal((key[:, 0] % g) * g + key[:, 1] % g, slot), "a tile is in the wrong slot"
-    c = sim._local_centre()
+    c = sim._host.local_centre()
     assert np.hypot(pos[:, 0] - c[0], pos[:, 1] - c[1]).max(initial=0.0) <= sim.scene.bed.radius * (1 + 1e-6)
     phase = w.phase.to_numpy()[:m]
     # the active list holds the rocks in the air or sliding, and resting ones only when their tile was full

@@ -1,4 +1,4 @@
-"""The lookahead (engine/lookahead.py) changes no bit: the tire rays every step hands the rock pass, and the
+"""The lookahead (engine/host.py) changes no bit: the tire rays every step hands the rock pass, and the
 final state, are the same with the host side computed 32 steps at a time, step by step (``lookahead = 0``),
 and by a reference copy of the step-by-step computation as it was before the lookahead (per-tire monotone
 chain ``patch._hull``, per-step ``Fleet.rear_tires``), over the shipped scenes, the bench fleet scene,
@@ -13,7 +13,7 @@ import pytest
 from scenes_util import FakePath, scene
 from taichi_rocks.bench.scenes import fleet_scene
 from taichi_rocks.config.scene import load_scene, scene_with
-from taichi_rocks.engine import patch, simulation
+from taichi_rocks.engine import patch, simulation, steppers
 from taichi_rocks.engine.simulation import Simulation
 from taichi_rocks.engine.world import ACTIVE, HALF_W, HULL, HULL_VERTICES, RAY_FIELDS
 
@@ -33,12 +33,13 @@ def _old_hulls(b0, f0, b1, f1, half_width, half_length):
 
 
 def _old_ray_data(sim, prev, cur, dt=0.0):
-    """Simulation._ray_data as it was before the lookahead (one tire at a time through patch._hull)."""
+    """HostSide.ray_data as it was before the lookahead (one tire at a time through patch._hull)."""
     n_tires = sim.world.n_tires
     data = np.zeros((max(n_tires, 1), RAY_FIELDS))
     if n_tires == 0:
         return data
-    o = np.array([sim._shift[0], sim._shift[1], 0.0])
+    h = sim._host
+    o = np.array([h.shift[0], h.shift[1], 0.0])
     moved = np.linalg.norm(cur.center - prev.center, axis=1)
     speed = np.maximum(np.linalg.norm(cur.velocity, axis=1), np.linalg.norm(prev.velocity, axis=1))
     jumped = moved > 2.0 * speed * dt + 0.05
@@ -55,9 +56,9 @@ def _old_ray_data(sim, prev, cur, dt=0.0):
     head = np.column_stack([cur.half_width, cur.half_length, cur.radius, cur.fender, cur.flap])
     data[:, HALF_W:] = np.concatenate([head, hulls.reshape(len(hulls), -1)], axis=1)
     reach = sim.scene.bed.radius + 2.0 * float(sim.scene.bed.rock_radius[1]) + 2.0
-    far = np.hypot(cur.center[:, 0] - sim._bed_rel[0], cur.center[:, 1] - sim._bed_rel[1]) > reach
+    far = np.hypot(cur.center[:, 0] - h.bed_rel[0], cur.center[:, 1] - h.bed_rel[1]) > reach
     if far.any():
-        lc = sim._local_centre()
+        lc = h.local_centre()
         park = np.array([lc[0], lc[1], sim.bed_center[2] - sim.origin[2] + 1000.0])
         data[far, 0:12] = np.tile(park, 4)
         data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
@@ -78,7 +79,7 @@ def _simulation(sc, mode, monkeypatch, paths=None):
     if mode == "reference":
         sim.lookahead = 0
         sim.fleet.rear_tires_table = None  # nothing may use the batched motion
-        monkeypatch.setattr(sim, "_ray_data", lambda prev, cur, dt=0.0: _old_ray_data(sim, prev, cur, dt))
+        monkeypatch.setattr(sim._host_side, "ray_data", lambda st, prev, cur, dt=0.0: _old_ray_data(sim, prev, cur, dt))
     elif mode == "per step":
         sim.lookahead = 0
     sim.recorded = []
@@ -89,7 +90,7 @@ def _simulation(sc, mode, monkeypatch, paths=None):
 def recording(monkeypatch):
     """Every rock pass launch's rays, as bytes, into the simulation's ``recorded`` (the pass still runs)."""
     sims = {}
-    real = simulation.rock_pass
+    real = steppers.rock_pass
 
     def rock_pass(w, plan, rays, frame, dt, step):
         owner = sims.get(id(w))
@@ -97,7 +98,7 @@ def recording(monkeypatch):
             owner.recorded.append((step, np.ascontiguousarray(rays).tobytes(), frame.tobytes(), dt))
         return real(w, plan, rays, frame, dt, step)
 
-    monkeypatch.setattr(simulation, "rock_pass", rock_pass)
+    monkeypatch.setattr(steppers, "rock_pass", rock_pass)
 
     def make(sc, mode, paths=None):
         sim = _simulation(sc, mode, monkeypatch, paths)
@@ -120,7 +121,7 @@ def _run_modes(recording, sc, drive, paths=None):
     for mode in MODES:
         sim = recording(sc, mode, paths)
         drive(sim)
-        runs.append((mode, sim.recorded, _final(sim), sim._ahead.batches, sim))
+        runs.append((mode, sim.recorded, _final(sim), sim._host_side.ahead.batches, sim))
         del sim
     (_, ref, ref_final, ref_batches, _), rest = runs[0], runs[1:]
     assert len(ref) > 50, "the drive took too few steps to say anything"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from scenes_util import scene
-from taichi_rocks.engine import simulation
+from taichi_rocks.engine import host, simulation
 from taichi_rocks.engine.simulation import Simulation
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
@@ -30,7 +30,7 @@ def drive(offset):
 
 @pytest.fixture
 def early_moves(monkeypatch):
-    monkeypatch.setattr(simulation, "ORIGIN_RANGE", MOVE_AT)
+    monkeypatch.setattr(host, "ORIGIN_RANGE", MOVE_AT)
 
 
 def frames(offset):

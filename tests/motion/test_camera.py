@@ -11,7 +11,8 @@ from hypothesis import given, settings, strategies as st
 from scenes_util import scene as make_scene
 from shots_util import CUTS, VIEWS, expected_eyes, rot, write_shots_scene
 from taichi_rocks.config.scene import load_scene, scene_with
-from taichi_rocks.motion.cabin import cabin_of, vehicle_kind
+from taichi_rocks.motion.bodies import vehicle_kind
+from taichi_rocks.motion.cabin import cabin_of
 from taichi_rocks.motion.camera import SceneCamera, scene_camera, shots_of, view_preset
 from taichi_rocks.motion.vehicles import Fleet
 

@@ -45,26 +45,6 @@ def test_the_cabin_is_the_windscreen_the_body_draws(k):
     np.testing.assert_allclose(foot[:, 0], x_at_foot, atol=2e-3 * spec.length)
 
 
-def test_the_kind_rule_is_the_bodies():
-    from hypothesis import given, settings, strategies as st
-
-    from taichi_rocks.motion.cabin import vehicle_kind as cabin_kind
-    from taichi_rocks.render.bodies import vehicle_kind
-
-    class Spec:
-        def __init__(self, L, H, kind):
-            self.length, self.height, self.kind = L, H, kind
-
-    @settings(max_examples=300, deadline=None)
-    @given(st.floats(1.0, 20.0), st.floats(0.5, 6.0), st.sampled_from(["auto", "car", "van", "truck"]))
-    def check(L, H, kind):
-        assert cabin_kind(Spec(L, H, kind)) == vehicle_kind(Spec(L, H, kind))
-
-    check()
-    for L, H in ((6.5, 1.0), (6.49, 2.59), (4.0, 2.6), (4.0, 1.75), (4.0, 1.7499)):  # the rule's edges
-        assert cabin_kind(Spec(L, H, "auto")) == vehicle_kind(Spec(L, H, "auto"))
-
-
 @pytest.mark.parametrize("k", range(3), ids=("car", "van", "truck"))
 def test_from_inside_the_greenhouse_is_left_out_and_the_bonnet_stays(k):
     """From the driver's eye, rays through the windscreen's opening (inside the pillars, below the header, above

@@ -296,18 +296,12 @@ def test_resting_rocks_are_irregular_with_the_outline_of_their_id(pipeline, shar
 def test_ground_is_anchored_to_the_world(shared):
     """Moving the floating origin (here by 37.3 m, not a whole number of tiles) changes no pixel but rounding:
     the checker, the rocks and the vehicles are all drawn where they are in the world."""
-    from taichi_rocks.engine.simulation import shift_origin
-
-    from taichi_rocks.engine import active
+    from taichi_rocks.engine.probes import move_frame
 
     sim, r = shared
 
     def move(d):
-        shift_origin(sim.world, d)
-        if sim.world.stored:  # active stepping: the tiles' rocks move too, and their boxes with the shift
-            active.shift_store(sim.world, d)
-            sim._shift = sim._shift + d
-        sim.origin[:2] += d
+        move_frame(sim, d)  # the rocks (tiles included) by -d, the origin and the tiles' boxes by +d
 
     a = r.render_frame().copy()
     d = np.array([37.3, -21.7])

@@ -50,7 +50,7 @@ def _culling(sim, r):
     return {"state": sim.state(), "active": sim.active_count, "shift": sim.origin[:2] - sim.anchor[:2],
             "view": r.view(), "visited": set(vis.slots.to_numpy()[:r.tiles_in_view].tolist()),
             "occupied": int((w.ts_count.to_numpy() > 0).sum()), "keys": w.ts_key.to_numpy(),
-            "tile": w.store_tile, "grid": w.store_grid, "tiles": sim._tile_shift(), "origin": sim.origin.copy()}
+            "tile": w.store_tile, "grid": w.store_grid, "tiles": sim.tile_shift(), "origin": sim.origin.copy()}
 
 
 @pytest.mark.parametrize("rocks", ["splat", "particles"])

@@ -81,12 +81,13 @@ def layout(img) -> dict:
     camera buttons, overlay check boxes; each (row, x to click)) and "time" (the HUD's time slider: row, bar
     start and end)."""
     from taichi_rocks.motion.camera import VIEWS
-    from taichi_rocks.render.panel import HUD_PX, OVERLAYS, SLIDERS, SWITCH_LABELS, panel_width
+    from taichi_rocks.engine.tuning import SWITCH_KEYS
+    from taichi_rocks.render.panel import HUD_PX, OVERLAYS, SLIDERS, panel_width
 
     left = int(round(W * (1.0 - panel_width(W))))
     runs, _ = _blue_rows(img, left + 4, W - 4, 0, H)
     rows = [(a + b) // 2 for a, b in runs if a > 2 and b - a >= 12]  # not the title bar, not the border
-    n = {"sliders": len(SLIDERS) + 1, "switches": len(SWITCH_LABELS), "cameras": len(VIEWS) + 1,
+    n = {"sliders": len(SLIDERS) + 1, "switches": len(SWITCH_KEYS), "cameras": len(VIEWS) + 1,
          "overlays": len(OVERLAYS)}  # release_angle: two sliders; the cameras and "free"
     assert len(rows) == sum(n.values()), rows
     tune, k = {}, 0
@@ -269,14 +270,13 @@ def test_time_slider_jumps_to_the_frame_clicked(view, widgets):
 
 
 def test_recompile_buttons_step_each_switch_and_keep_the_state(view, widgets):
-    """Each button sets its switch to the next choice; the simulation is rebuilt (one rebuild each, the
-    fenders one in a World of another layout) and continues from the same state: the same frame and launches."""
+    """Each button sets its switch to the next choice; the simulation is rebuilt (one rebuild each, every
+    one into a World of the same layout from the pool) and continues from the same state: the same frame and launches."""
     from taichi_rocks.engine.tuning import SWITCH_KEYS
-    from taichi_rocks.render.panel import SWITCH_LABELS
 
     s = view.still(panel=True)
-    keys = list(SWITCH_LABELS)
-    assert keys == list(SWITCH_KEYS)
+    keys = list(SWITCH_KEYS)  # the panel's buttons, in order
+    assert keys == list(s["switches"])
     for k, key in enumerate(keys):
         s = view.status()
         choices = SWITCH_KEYS[key]

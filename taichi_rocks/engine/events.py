@@ -1,0 +1,142 @@
+"""Impact events: one declaration of the record (:data:`EVENT_FIELDS`, the NumPy dtype :data:`EVENT_DTYPE`), a
+device buffer appended atomically from kernels (:class:`EventBuffer`), and its drain to a structured array.
+
+The device layout derives from the declaration: integer fields are columns of one int32 matrix, float fields
+(vectors: one column per component) columns of one matrix in the simulation's precision, placed in trees of one
+element size each (engine/world.py, _Trees: Vulkan packs a tree without alignment). A kernel builds an
+:meth:`EventBuffer.record` struct by field name and appends it with :func:`append`: a slot from an atomic
+counter; past the capacity the counter still counts, so an overflow is counted and reported by the drain
+(``dropped``), never lost silently. Which events an overflow drops depends on thread timing.
+
+:meth:`EventBuffer.drain` returns the events since the previous drain (sorted by step, rock and vehicle, so
+that a run gives the same array whatever the order threads appended in) and empties the buffer. Times: on the
+device relative to the buffer's reference time ``t_ref`` (the simulation time at the last drain, float64 on the
+host), so float32 keeps them to ~1e-7 of the time between drains.
+"""
+
+import numpy as np
+import taichi as ti
+
+from ..config.impacts import DAMAGE_CLASSES
+from ..motion.bodies import LABELS
+from .world import _Trees
+
+__all__ = ["EVENT_FIELDS", "EVENT_DTYPE", "EventBuffer", "append", "LABELS", "DAMAGE_CLASSES"]
+
+# name, host dtype, shape, meaning. Indices: ``part`` into motion.bodies.LABELS, ``damage`` into
+# config.impacts.DAMAGE_CLASSES. Vectors are in the frame of the vehicle hit (x forward, y left, z up).
+EVENT_FIELDS = (
+    ("time", np.float64, (), "s, when the stone touched the body"),
+    ("step", np.int64, (), "the simulation step it touched in (step count after that step)"),
+    ("vehicle", np.int32, (), "the vehicle hit (index in the scene's [[vehicle]] list)"),
+    ("part", np.int8, (), "what was hit: index into LABELS"),
+    ("damage", np.int8, (), "damage class: index into DAMAGE_CLASSES (mark, chip, crack)"),
+    ("point", np.float64, (3,), "m, contact point on the body, vehicle frame"),
+    ("normal", np.float64, (3,), "outward unit normal of the body at the contact, vehicle frame"),
+    ("speed", np.float64, (), "m/s, speed of the stone relative to the body's contact point"),
+    ("normal_speed", np.float64, (), "m/s, its component into the body (>= 0)"),
+    ("normal_momentum", np.float64, (), "N s, m times the normal speed"),
+    ("energy", np.float64, (), "J, kinetic energy of the relative motion, 1/2 m speed^2"),
+    ("radius", np.float64, (), "m, the stone's radius"),
+    ("rock", np.int32, (), "the stone's id"),
+    ("thrower", np.int32, (), "the vehicle whose tire threw it (-1: unknown)"),
+)
+EVENT_DTYPE = np.dtype([(name, dt, shape) for name, dt, shape, _ in EVENT_FIELDS])
+
+
+def _columns():
+    """(name, is_int, first column, components) per field, and the int and real column counts."""
+    out, n_int, n_real = [], 0, 0
+    for name, dt, shape, _ in EVENT_FIELDS:
+        width = int(np.prod(shape)) if shape else 1
+        is_int = np.issubdtype(dt, np.integer)
+        out.append((name, is_int, n_int if is_int else n_real, width, len(shape) > 0))
+        if is_int:
+            n_int += width
+        else:
+            n_real += width
+    return tuple(out), n_int, n_real
+
+
+COLUMNS, N_INT, N_REAL = _columns()
+
+
+@ti.data_oriented
+class EventBuffer:
+    """``capacity`` events on the device, in precision ``real``; ``trees``: the _Trees to place the fields in
+    (a World's, finalized by it), or None for trees of its own."""
+
+    def __init__(self, capacity: int, real, trees=None):
+        if int(capacity) < 1:
+            raise ValueError(f"an event buffer holds at least one event, got capacity {capacity}")
+        self.capacity = int(capacity)
+        self.real = real
+        own = trees is None
+        trees = _Trees() if own else trees
+        self.ints = trees.field(ti.i32, (self.capacity, N_INT))
+        self.reals = trees.field(real, (self.capacity, N_REAL))
+        self.count = trees.field(ti.i32, ())  # events appended since the last drain, kept or not
+        if own:
+            trees.finalize()
+        self.np_real = np.float64 if real == ti.f64 else np.float32
+        vec3 = ti.types.vector(3, real)
+        members = {name: (vec3 if vector else (ti.i32 if is_int else real))
+                   for name, is_int, _, _, vector in COLUMNS}
+        self.record = ti.types.struct(**members)  # build one in a kernel by keyword and append() it
+        self.dropped = 0  # events lost to overflow, over all drains
+        self.t_ref = 0.0  # s: device times are relative to this
+
+    def drain(self, t_now: float | None = None) -> np.ndarray:
+        """The events since the last drain as a structured array of :data:`EVENT_DTYPE`; empties the buffer and,
+        given ``t_now`` (the simulation time), makes it the reference of the times appended from now on."""
+        appended = int(self.count[None])
+        n = min(appended, self.capacity)
+        self.dropped += appended - n
+        ints = np.empty((n, N_INT), np.int32)
+        reals = np.empty((n, N_REAL), self.np_real)
+        if appended:
+            _gather(self, n, ints, reals)
+        out = np.empty(n, EVENT_DTYPE)
+        for name, is_int, col, width, vector in COLUMNS:
+            src = ints if is_int else reals
+            out[name] = src[:, col:col + width] if vector else src[:, col]
+        out["time"] += self.t_ref
+        if t_now is not None:
+            self.t_ref = float(t_now)
+        return out[np.lexsort((out["vehicle"], out["rock"], out["step"]))]
+
+    def reset(self, t_now: float = 0.0) -> None:
+        """Forget every event and the overflow count (a restart, a restore)."""
+        _clear(self)
+        self.dropped, self.t_ref = 0, float(t_now)
+
+
+@ti.kernel
+def _gather(buf: ti.template(), n: ti.i32, ints: ti.types.ndarray(), reals: ti.types.ndarray()):
+    for k in range(n):
+        for c in ti.static(range(N_INT)):
+            ints[k, c] = buf.ints[k, c]
+        for c in ti.static(range(N_REAL)):
+            reals[k, c] = buf.reals[k, c]
+    buf.count[None] = 0
+
+
+@ti.kernel
+def _clear(buf: ti.template()):
+    buf.count[None] = 0
+
+
+@ti.func
+def append(buf: ti.template(), ev):
+    """Append event ``ev`` (a ``buf.record``; ``time`` relative to ``buf.t_ref``); past the capacity only the
+    count grows."""
+    slot = ti.atomic_add(buf.count[None], 1)
+    if slot < buf.capacity:
+        for name, is_int, col, width, vector in ti.static(COLUMNS):
+            if ti.static(vector):
+                for j in ti.static(range(width)):
+                    buf.reals[slot, col + j] = ev[name][j]
+            elif ti.static(is_int):
+                buf.ints[slot, col] = ev[name]
+            else:
+                buf.reals[slot, col] = ev[name]

@@ -1,0 +1,339 @@
+"""The host side of a simulation: its clock, frame and vehicles (:class:`HostState`) and what each step needs
+from the host (:class:`HostSide`): the vehicles' poses at t + dt (motion/vehicles.py), the bed following its
+vehicle, the floating origin, the rear tires and their rays, computed a batch of steps at a time
+(:class:`Lookahead`). No Taichi here: the steppers (engine/steppers.py) take a :class:`StepInput` to the kernels.
+
+One step of length dt on the host:
+  1. the clock advances (``time += dt``, exactly as step by step);
+  2. poses at the new time; the bed centre moves under ``bed.follow`` and its leading direction turns to that
+     vehicle's travel (kept while it stands); ``move`` is the bed's move, anchor-relative;
+  3. floating origin: once the bed centre is farther than ORIGIN_RANGE from the origin, the shift moves to the
+     snapped point nearest it (the kernels then move every rock by the difference, ``StepInput.origin_moved``);
+  4. the rear tires now and their rays from the previous step's tires (``ray_rows``), in the kernels' frame
+     (``local_rays``), tires far from the bed parked high above it.
+
+Coordinates: kernels work in a local frame, world = origin + local. With ``origin = "floating"`` the origin is
+anchor + shift: the anchor is the point the followed path is computed from (its first waypoint, where the bed
+starts; a circle's centre), exact as the scene gives it; the shift moves in whole multiples of ORIGIN_SNAP
+(exact in f32) to stay within ORIGIN_RANGE of the bed. All the kernels get (bed centre and its move, tire
+rays, initial rocks) is computed relative to the anchor (``Pose.from_anchor``,
+``Fleet.rear_tires(relative=True)``), never as a difference of world coordinates: the same scene moved anywhere
+runs on the same bits (up to the rounding of the moved waypoints themselves), so f32 keeps sub-millimetre
+precision and the same motion relative to the bed at any distance. ``origin = "world"``:
+anchor and shift are 0 (world coordinates in the kernels).
+
+Lookahead: what a step needs from the host depends only on the clock, the scripted paths and the previous
+step's tires, so the next ``lookahead`` steps are computed at once (the times accumulated exactly as
+``time += dt`` does, so every row has the bits the step-by-step computation gives) and served one step at a
+time. Ray rows are kept relative to the anchor; ``local_rays`` moves a step's rows into the kernels' frame
+(the shift at that step, which is still decided step by step), so a shift in the middle of a batch costs
+nothing. A batch is used only while it is the continuation of the steps taken: the same dt, the clock at the
+time its next row was computed for, and the previous tires the ones it served last. Anything else (restore, a
+shorter last step of ``advance_to``, coasting, a step taken without it) starts a new batch on the next step.
+Batches adapt to how long they last: one left after u steps is followed by one of u + 1 (the whole steps of an
+``advance_to`` frame, then its short step), one used up by one twice as long (up to ``lookahead``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from . import patch
+from ..motion.vehicles import RearTires, TablePoses, VehiclePose, tire_fields
+from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS
+
+__all__ = ["ORIGIN_SNAP", "ORIGIN_RANGE", "LOOKAHEAD", "HostState", "HostSide", "StepInput", "Lookahead",
+           "ray_rows", "local_rays", "reach"]
+
+ORIGIN_SNAP = 64.0  # m: the origin moves from its anchor in whole multiples of this, so a shift is exact in f32
+ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
+LOOKAHEAD = 64  # at most this many steps have their host side computed at once
+
+
+def snapped(xy: np.ndarray) -> np.ndarray:
+    """The origin nearest to ``xy`` (XY, m): whole multiples of ORIGIN_SNAP."""
+    return np.round(xy / ORIGIN_SNAP) * ORIGIN_SNAP
+
+
+class HostState:
+    """Everything of a simulation that lives on the host, in float64: the clock (``time``, ``step_count``),
+    the frame (``anchor``, ``shift``, ``origin`` = anchor + shift), the bed (``bed_center`` in world
+    coordinates, ``bed_rel`` relative to the anchor, ``lead`` its unit leading direction), the vehicles
+    (``poses``, ``tires_prev``: the rear tires at the last step, anchor-relative) and the counters
+    (``steps_coasted``, ``last_launches``)."""
+
+    def __init__(self):
+        self.step_count = 0
+        self.time = 0.0
+        self.anchor = np.zeros(3)
+        self.shift = np.zeros(2)
+        self.origin = np.zeros(3)
+        self.bed_center = np.zeros(3)
+        self.bed_rel = np.zeros(2)
+        self.lead = np.array([1.0, 0.0])
+        self.poses = []
+        self.tires_prev = None
+        self.steps_coasted = 0
+        self.last_launches = 0
+
+    def set_shift(self, shift) -> None:
+        """Put the floating origin at anchor + shift (shift: whole multiples of ORIGIN_SNAP, or 0)."""
+        self.shift = np.array(shift, dtype=np.float64)
+        self.origin = self.anchor.copy()
+        self.origin[:2] += self.shift
+
+    def local_centre(self) -> np.ndarray:
+        """The bed centre (XY) in the kernels' local frame, from anchor-relative coordinates only."""
+        return self.bed_rel - self.shift
+
+    def saved(self) -> dict:
+        """The host part of a checkpoint."""
+        return dict(step_count=np.int64(self.step_count), time=np.float64(self.time), origin=self.origin.copy(),
+                    origin_anchor=self.anchor.copy(), origin_shift=self.shift.copy(),
+                    bed_center=self.bed_center.copy(), bed_rel=self.bed_rel.copy(), lead=self.lead.copy())
+
+    def load(self, data: dict) -> None:
+        """The host part of a checkpoint back (clock, frame, bed; the poses and tires follow from the clock)."""
+        self.step_count = int(data["step_count"])
+        self.time = float(data["time"])
+        self.bed_center = np.array(data["bed_center"], dtype=np.float64)
+        if "origin_shift" in data:
+            self.anchor = np.array(data["origin_anchor"], dtype=np.float64)
+            self.bed_rel = np.array(data["bed_rel"], dtype=np.float64)
+            self.set_shift(data["origin_shift"])
+        else:  # saved before the origin had an anchor: this simulation's anchor, the saved origin
+            self.bed_rel = self.bed_center[:2] - self.anchor[:2]
+            self.set_shift(np.asarray(data["origin"], dtype=np.float64)[:2] - self.anchor[:2])
+        self.lead = np.array(data["lead"], dtype=np.float64)
+
+
+class StepInput(NamedTuple):
+    """What one step's kernels get from the host: the step's number and length, the bed centre (XY, local
+    frame), its move this step (anchor-relative), its leading direction, the origin's shift (XY, m), the rays
+    (float64, World.ray layout, kernels' frame) and, if the origin moved before this step, by how much (XY).
+    (A named tuple: made every step, it costs a fraction of a frozen dataclass.)"""
+
+    step: int
+    dt: float
+    centre: np.ndarray
+    move: np.ndarray
+    lead: np.ndarray
+    shift: np.ndarray
+    rays: np.ndarray
+    origin_moved: np.ndarray | None
+
+
+class HostSide:
+    """The host work of each step for one scene (module docstring): ``advance`` takes a HostState through one
+    step and returns the kernels' StepInput. ``lookahead``: steps computed at once (0: step by step)."""
+
+    def __init__(self, scene, fleet, follow: int, n_tires: int, lookahead: int = LOOKAHEAD):
+        self.fleet, self.follow, self.n_tires = fleet, int(follow), int(n_tires)
+        self.floating = scene.sim.origin == "floating"
+        self.ground_z = float(scene.world.ground_z)
+        self.dt = float(scene.sim.dt)
+        self.reach = reach(scene)
+        self.lookahead = lookahead
+        self.ahead = Lookahead(fleet, self.follow, self.n_tires > 0, self.reach)
+        self.no_rays = np.zeros((1, RAY_FIELDS))
+
+    def start(self, st: HostState) -> None:
+        """Time 0: the vehicles' poses, the bed under the followed vehicle, facing its heading, and the origin.
+        Floating: the anchor is where the followed path is computed from (its first waypoint: the bed's
+        start), the shift the bed's offset from it rounded to ORIGIN_SNAP (0 for waypoints); "world": both 0."""
+        st.step_count, st.time = 0, 0.0
+        st.anchor = np.zeros(3)
+        if self.floating:
+            st.anchor[:2] = self.fleet.reference_point(self.follow)
+        self.fleet.anchor = st.anchor[:2].copy()
+        st.poses = self.fleet.poses(0.0)
+        c = st.poses[self.follow]
+        st.bed_center = np.array([c.position[0], c.position[1], self.ground_z])
+        st.bed_rel = c.rel[:2].copy()  # bed centre - anchor, never from world coordinates
+        st.set_shift(snapped(st.bed_rel) if self.floating else np.zeros(2))
+        st.lead = np.array([math.cos(c.heading), math.sin(c.heading)])
+        st.tires_prev = self.fleet.rear_tires(st.poses, relative=True)
+
+    def resume(self, st: HostState) -> None:
+        """After the clock was set (restore, coasting): the poses and tires at that time."""
+        self.fleet.anchor = st.anchor[:2].copy()
+        st.poses = self.fleet.poses(st.time)
+        st.tires_prev = self.fleet.rear_tires(st.poses, relative=True)
+
+    def advance(self, st: HostState, dt: float) -> StepInput:
+        """Steps 1 to 4 of the module docstring for ``st``; the rays are the splashing tires' (or a dummy row)."""
+        st.step_count += 1
+        st.time += dt
+        # the step's poses, tires and rays: from the lookahead's batch (the same bits), or computed here
+        ahead = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead) if self.lookahead and dt == self.dt \
+            else None
+        poses = self.fleet.poses(st.time) if ahead is None else ahead.poses
+        move = self._follow(st, poses[self.follow])
+        moved = self._keep_origin_near(st)
+        if ahead is None:
+            tires_now = self.fleet.rear_tires(poses, relative=True)
+            rays = self.ray_data(st, st.tires_prev, tires_now, dt) if self.n_tires else self.no_rays
+        else:
+            tires_now = ahead.tires
+            rays = self.local_rays(st, ahead.rows, ahead.far) if self.n_tires else self.no_rays
+        st.tires_prev = tires_now
+        st.poses = poses
+        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved)
+
+    def _follow(self, st: HostState, pose) -> np.ndarray:
+        """Move the bed under the followed vehicle (``pose``) and turn its leading edge to the vehicle's travel
+        (kept while the vehicle stands); return the bed's move (XY), anchor-relative: the same bits wherever
+        the scene is."""
+        c, rel = pose.position, pose.rel[:2]
+        move = rel - st.bed_rel
+        st.bed_center = np.array([c[0], c[1], st.bed_center[2]])
+        st.bed_rel = rel.copy()
+        lead = pose.velocity[:2]
+        if np.hypot(*lead) > 1e-9:
+            st.lead = lead / np.hypot(*lead)
+        return move
+
+    def _keep_origin_near(self, st: HostState):
+        """With ``origin = "floating"``: once the bed centre is farther than ORIGIN_RANGE from the origin, move
+        the shift to the snapped point nearest it; return the (exact, whole multiples of ORIGIN_SNAP) move of
+        the local frame, or None."""
+        rel = st.bed_rel
+        if self.floating and np.max(np.abs(rel - st.shift)) > ORIGIN_RANGE:
+            new = snapped(rel)
+            moved = new - st.shift
+            st.set_shift(new)
+            return moved
+        return None
+
+    def ray_data(self, st: HostState, prev, cur, dt: float = 0.0) -> np.ndarray:
+        """The rays of every splashing rear tire, float64 (T, RAY_FIELDS) in the World.ray layout, in the
+        kernels' frame; ``prev`` and ``cur`` are relative to the anchor (``Fleet.rear_tires(relative=True)``)."""
+        if self.n_tires == 0:
+            return np.zeros((1, RAY_FIELDS))
+        return self.local_rays(st, *ray_rows(prev, cur, dt, st.bed_rel, self.reach))
+
+    def local_rays(self, st: HostState, rows, far) -> np.ndarray:
+        """Ray rows relative to the anchor (``ray_rows``) in the kernels' frame now; the tires far from the bed
+        parked high above it."""
+        if rows is None:
+            return np.zeros((1, RAY_FIELDS))
+        lc = st.local_centre()
+        park = np.array([lc[0], lc[1], st.bed_center[2] - st.origin[2] + 1000.0])
+        return local_rays(rows, far, st.shift, park)
+
+
+def reach(scene) -> float:
+    """How far from the bed centre (XY, m) a tire can touch a rock; tires farther away are parked."""
+    return scene.bed.radius + 2.0 * float(scene.bed.rock_radius[1]) + 2.0
+
+
+def ray_rows(prev: RearTires, cur: RearTires, dt: float, bed_rel: np.ndarray, reach_m: float):
+    """The rays of the rear tires ``prev`` -> ``cur`` (rows of any number of tires and steps, relative to the
+    anchor) in the World.ray layout, float64 (N, RAY_FIELDS), still relative to the anchor, and which tires
+    are far from the bed (``bed_rel``: its centre relative to the anchor, (2,) or one per row): (rows, far)."""
+    n = len(cur.spin)
+    rows = np.zeros((n, RAY_FIELDS))
+    # a tire that moved much farther than its speed allows (a path that jumps, e.g. a looping arc) did
+    # not sweep the ground in between: its previous ray is taken to be the current one
+    moved = np.linalg.norm(cur.center - prev.center, axis=1)
+    speed = np.maximum(np.linalg.norm(cur.velocity, axis=1), np.linalg.norm(prev.velocity, axis=1))
+    jumped = moved > 2.0 * speed * dt + 0.05
+    rows[:, 0:3] = np.where(jumped[:, None], cur.center, prev.center)
+    rows[:, 3:6] = np.where(jumped[:, None], cur.bottom, prev.bottom)
+    rows[:, 6:9] = cur.center
+    rows[:, 9:12] = cur.bottom
+    rows[:, 12:15] = cur.velocity
+    rows[:, 15:17] = cur.forward
+    rows[:, 17] = cur.spin
+    rows[:, HALF_W:] = patch.tread_columns(prev, cur, ~jumped, np.zeros(3))
+    # tires far from the bed cannot touch a rock: their rays are parked (local_rays)
+    bed_rel = np.asarray(bed_rel, np.float64)
+    far = np.hypot(cur.center[:, 0] - bed_rel[..., 0], cur.center[:, 1] - bed_rel[..., 1]) > reach_m
+    rows[:, ACTIVE] = ~far
+    return rows, far
+
+
+def local_rays(rows: np.ndarray, far: np.ndarray, shift: np.ndarray, park: np.ndarray) -> np.ndarray:
+    """Rows of ``ray_rows`` in the kernels' frame (origin = anchor + ``shift``, XY): positions minus the
+    shift; the far tires' rays parked, degenerate, at ``park`` (local frame, high above the bed)."""
+    o = np.zeros(RAY_FIELDS)  # x - (+0.0) is x, bit for bit: the other columns are unchanged
+    o[0:12] = np.tile([shift[0], shift[1], 0.0], 4)
+    o[HULL:] = np.tile(shift[:2], (RAY_FIELDS - HULL) // 2)
+    data = rows - o
+    if far.any():
+        data[far, 0:12] = np.tile(park, 4)
+        data[far, HULL:] = np.tile(park[:2], (RAY_FIELDS - HULL) // 2)
+        data[far, 17] = 0.0
+    return data
+
+
+@dataclass(frozen=True)
+class Ahead:
+    """One step served: the vehicles' poses, the rear tires (relative to the anchor) and, with splashing
+    tires, their ray rows and far flags (``ray_rows``; None without)."""
+
+    poses: Sequence[VehiclePose]
+    tires: RearTires
+    rows: np.ndarray | None
+    far: np.ndarray | None
+
+
+class _Batch:
+    def __init__(self, times, dt, table, tires, rows, far, prev):
+        self.times, self.dt, self.table, self.tires, self.rows, self.far = times, dt, table, tires, rows, far
+        self.next = 0
+        self.prev = prev  # the tires the next step's rays start from
+
+
+class Lookahead:
+    """The next steps' host work of a fleet, computed at once and served one step at a time (module
+    docstring). ``follow``: the vehicle the bed follows; ``rays``: compute ray rows (splashing tires);
+    ``reach_m``: farther from the bed centre, a tire is parked."""
+
+    def __init__(self, fleet, follow: int, rays: bool, reach_m: float):
+        self.fleet, self.follow, self.rays, self.reach_m = fleet, follow, rays, reach_m
+        self.batches = 0  # batches computed so far
+        self._size = 1 << 30  # steps of the next batch (at most the lookahead asked for)
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget the batch (restore(), anything that changes the clock or the tires other than a step)."""
+        self._batch = None
+
+    def take(self, time: float, tires_prev: RearTires, dt: float, limit: int) -> Ahead:
+        """The step being taken: the clock already advanced by ``dt`` to ``time``, ``tires_prev`` the tires of
+        the step before; a new batch holds at most ``limit`` steps."""
+        b = self._batch
+        if (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != time
+                or b.prev is not tires_prev):
+            if b is not None:  # a batch used up: the next twice as long; left early: as long as was used
+                self._size = 2 * len(b.times) if b.next >= len(b.times) else b.next + 1
+            b = self._batch = self._compute(time, tires_prev, dt, max(1, min(self._size, int(limit))))
+        k = b.next
+        tires = RearTires(*(a[k] for a in tire_fields(b.tires)))
+        b.next, b.prev = k + 1, tires
+        rows = None if b.rows is None else b.rows[k]
+        return Ahead(TablePoses(self.fleet, b.table, k), tires, rows, None if b.far is None else b.far[k])
+
+    def _compute(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
+        times = [time]
+        for _ in range(steps - 1):
+            times.append(times[-1] + dt)
+        table = self.fleet.pose_table(times)
+        cur = self.fleet.rear_tires_table(table)
+        k, n = len(times), len(cur.spin[0])
+        rows = far = None
+        if self.rays:
+            start = tire_fields(tires_prev)
+            prev = RearTires(*(np.concatenate([p[None], c[:-1]]).reshape(k * n, *c.shape[2:])
+                               for p, c in zip(start, tire_fields(cur))))
+            flat = RearTires(*(c.reshape(k * n, *c.shape[2:]) for c in tire_fields(cur)))
+            bed = np.repeat(np.column_stack([table.rx[:, self.follow], table.ry[:, self.follow]]), n, axis=0)
+            rows, far = ray_rows(prev, flat, dt, bed, self.reach_m)
+            rows, far = rows.reshape(k, n, RAY_FIELDS), far.reshape(k, n)
+        self.batches += 1
+        return _Batch(times, dt, table, cur, rows, far, tires_prev)

@@ -1,0 +1,241 @@
+"""The stepping modes (``[sim] stepping``), each a stepper behind one interface: what a step, coasting, loading
+rocks, moving the origin and the runtime guard do to the World's fields.
+
+* :class:`FullStepper` ("full", the reference): every rock every step. A step is the fused rock pass
+  (engine/kernels.py ``rock_pass``: flight -> recycle -> count for the hash) and, with splashing tires, the hash
+  build and the tire pass in one launch (``hash_and_tires``); every ``reorder_every`` steps the rocks are
+  re-sorted in memory by slot between the scatter and the tire pass (the next steps' scattered writes stay
+  local).
+* :class:`ActiveStepper` ("active", engine/active.py): resting rocks wait in ground tiles; a step is two
+  launches over the active list (``active_step``: tiles classified and gathered, the rock pass;
+  ``active_finish``: hash, tires, settling, compaction), the hash's slots in use fitted to the list.
+
+Both get the same host input (engine/host.py ``StepInput``) and give the same results; only where the rocks
+are in memory differs, which ``rock_arrays`` (id order) hides. Coasting (every vehicle that matters stopped
+for good) is one ``coast_pass`` launch in both.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import active, hashgrid, rocks, tires
+from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
+from .world import IPar, next_prime
+
+__all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for"]
+
+
+class Stepper:
+    """The interface (and what both modes share). ``world``: the fields; ``plan``: the Plan; ``switches``: what
+    each kernel reads of it (engine/kernels.py ``switches``); ``sizing``: the HashSizing; ``host``: the
+    simulation's HostState (engine/host.py; the frame the tiles are keyed by); ``table_auto``: the hash table
+    is sized "auto"; ``timer``: the timing hook (engine/timing.py), kept current by the Simulation."""
+
+    mode = ""
+
+    def __init__(self, world, plan, switches: dict, sizing, host, table_auto: bool, timer):
+        self.world, self.plan, self.switches, self.sizing, self.host = world, plan, switches, sizing, host
+        self.n_rocks = int(world.n)
+        self.table_auto = bool(table_auto)
+        self.timer = timer
+        p = plan
+        self.moves = bool(self.n_rocks and (p.flight or p.recycle or p.splash))  # a step runs kernels
+
+    # -------------------------------------------------------------------------------------------- rocks
+    def start(self) -> None:
+        """The initial rocks were just written into the rock arrays (every rock, id order)."""
+
+    def load(self, arrays: dict) -> None:
+        """Every rock from ``arrays`` (saved field -> id-ordered array, the id included): restore, set_rocks."""
+        rocks.write(self.world, arrays, self.n_rocks)
+
+    def rock_arrays(self) -> dict:
+        """Every rock's saved fields but the id, in id order, wherever the rock is."""
+        return rocks.in_id_order(self.n_rocks, rocks.read_listed(self.world, self.n_rocks))
+
+    @property
+    def active_count(self) -> int:
+        """Rocks in the World's rock arrays (the active list; every rock with full stepping)."""
+        return int(self.world.ipar[IPar.N_ROCKS])
+
+    def tile_shift(self) -> np.ndarray:
+        """The floating origin's shift in tiles of the store (whole numbers, float64; zeros without tiles)."""
+        return np.zeros(2)
+
+    def grid_origin(self, centre: np.ndarray) -> np.ndarray:
+        """The corner of the tire mask's tiles (XY, local frame; full stepping): the mask is centred on the bed."""
+        return centre - self.sizing.grid_half
+
+    def put_rays(self, rays: np.ndarray) -> None:
+        """The tires' rays (World.ray layout, kernels' frame) into the World, outside a step."""
+        if self.world.n_tires:
+            self.world.ray.from_numpy(rays.astype(self.world.np_real()))
+
+    # -------------------------------------------------------------------------------------------- steps
+    def step(self, s) -> int:
+        """One step's kernels for the host input ``s`` (engine/host.py StepInput); return the rocks launched."""
+        raise NotImplementedError
+
+    def coast(self, n: int, dt: float, centre: np.ndarray, lead: np.ndarray, step0: int) -> None:
+        """``n`` steps of a bed standing still with no tire launching, as one launch (engine/kernels.py)."""
+        with self.timer("coast"):
+            for s in range(0, n, 1 << 30):
+                coast_pass(self.world, self.switches["coast_pass"], min(n - s, 1 << 30), dt, centre, lead,
+                           step0 + s)
+
+    def shift_origin(self, d: np.ndarray) -> None:
+        """The local frame's origin moved by ``d`` (XY, whole multiples of ORIGIN_SNAP): every rock moves by -d."""
+        with self.timer("origin shift"):
+            shift_origin(self.world, d)
+
+    # -------------------------------------------------------------------------------------------- guard
+    def health(self, centre: np.ndarray, slack: float):
+        """The runtime guard's counts (engine/kernels.py ``health``): the World's ``health_out`` as NumPy."""
+        health(self.world, self.switches["health"], centre, slack)
+        return self.world.health_out.to_numpy()
+
+    def locate(self, i: int):
+        """Rock (id, local position, velocity) at index ``i`` of the guard's report."""
+        w = self.world
+        return int(w.rock_id[i]), w.pos[i].to_numpy(), w.vel[i].to_numpy()
+
+
+class FullStepper(Stepper):
+    """Every rock, every step (module docstring)."""
+
+    mode = "full"
+
+    def start(self) -> None:
+        """With splashing tires: sort the rocks in memory by slot once (scope "all"), and clear the counts."""
+        if not self.plan.splash:
+            return
+        w, p = self.world, self.plan
+        hashgrid.clear_counts(w)
+        if p.reorder_every:
+            g = self.grid_origin(self.host.local_centre())
+            hashgrid.count_all(w, p.center, float(g[0]), float(g[1]))
+            hashgrid.inclusive_scan(w)
+            hashgrid.scatter(w, p.center)
+            self.reorder()
+            hashgrid.clear_counts(w)
+
+    def reorder(self) -> None:
+        """Re-sort the rocks in memory by slot (after a scatter; entries is then the identity)."""
+        reorder_rocks(self.world)
+
+    def step(self, s) -> int:
+        if self.moves:
+            with self.timer("rock pass"):
+                frame = np.array([s.centre, s.move, s.lead, self.grid_origin(s.centre)])  # kernels.CENTRE..GRID
+                rock_pass(self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
+        return self._hash_and_tires(s.step) if self.plan.splash else 0
+
+    def _hash_and_tires(self, step: int) -> int:
+        """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs by
+        construction (engine/setup.py), so the scatter cannot lose a rock."""
+        w, p, timer = self.world, self.plan, self.timer
+        if p.reorder_every and step % p.reorder_every == 0:
+            with timer("hash scan"):
+                hashgrid.inclusive_scan(w)
+            with timer("hash scatter"):
+                hashgrid.scatter(w, p.center)
+            with timer("reorder"):
+                self.reorder()
+            if not p.swept:
+                with timer("trace rays"):
+                    tires.trace_rays(w)
+            with timer("tire pass"):
+                launched = tires.tire_pass(w, self.switches["hash_and_tires"], step)
+            with timer("hash clear"):
+                hashgrid.clear_counts(w)
+            return launched
+        with timer("hash + tires"):
+            return hash_and_tires(w, self.switches["hash_and_tires"], step)
+
+
+class ActiveStepper(Stepper):
+    """Resting rocks in tiles, a step over the active list (module docstring, engine/active.py)."""
+
+    mode = "active"
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.check_all = True  # the next step tests every rim tile's rocks (rocks were just loaded)
+
+    def tile_shift(self) -> np.ndarray:
+        return self.host.shift / self.world.store_tile
+
+    def start(self) -> None:
+        self._settle_all()
+
+    def load(self, arrays: dict) -> None:
+        """Into the rock arrays, and from there the resting ones into the emptied tiles."""
+        self.world.ts_count.fill(0)
+        super().load(arrays)
+        self._settle_all()
+
+    def _settle_all(self) -> None:
+        """Every rock is in the active list (just loaded); the resting ones go to the tiles."""
+        w = self.world
+        w.ipar[IPar.N_ROCKS] = self.n_rocks
+        active.settle(w, self.tile_shift())
+        self.check_all = True
+        self._fit_table()
+
+    def _fit_table(self) -> None:
+        """With an "auto" table: the hash's slots in use follow the active list (a prime about 1.5 times its
+        length, at least 1024, at most the table allocated); a different table size changes which rocks share
+        a slot, never which ones a tire finds."""
+        if self.plan.splash and self.table_auto:
+            want = next_prime(max(1024, int(1.5 * self.active_count)))
+            self.world.ipar[IPar.TABLE] = min(want, self.world.table_size)
+
+    def rock_arrays(self) -> dict:
+        w = self.world
+        m = self.active_count
+        listed = rocks.read_listed(w, m)
+        if m == self.n_rocks:
+            return rocks.in_id_order(self.n_rocks, listed)
+        return rocks.in_id_order(self.n_rocks, listed, rocks.read_stored(w))
+
+    def step(self, s) -> int:
+        if not self.moves:
+            return 0
+        frame = active.frame_rows(s.centre, s.move, s.lead, self.grid_origin(s.centre), s.shift,
+                                  self.world.store_tile)
+        with self.timer("active step"):
+            active.active_step(self.world, self.switches["active_step"], s.rays, frame, s.dt, s.step,
+                               int(self.check_all))
+            launched = active.active_finish(self.world, self.switches["active_finish"], frame, s.step)
+        self.check_all = False
+        if s.step % 32 == 0:
+            self._fit_table()
+        return launched
+
+    def coast(self, n: int, dt: float, centre: np.ndarray, lead: np.ndarray, step0: int) -> None:
+        super().coast(n, dt, centre, lead, step0)
+        with self.timer("settle"):
+            active.settle(self.world, self.tile_shift())
+
+    def shift_origin(self, d: np.ndarray) -> None:
+        with self.timer("origin shift"):
+            shift_origin(self.world, d)
+            active.shift_store(self.world, d)
+
+    def health(self, centre: np.ndarray, slack: float):
+        health(self.world, self.switches["health"], centre, slack)
+        active.store_health(self.world, centre, slack, self.tile_shift())
+        return self.world.health_out.to_numpy()
+
+    def locate(self, i: int):
+        if i >= 0:
+            return super().locate(i)
+        j = -1 - i  # a rock in the tiles (engine/active.py: store_health)
+        w = self.world
+        return int(w.ts_rock_id[j]), w.ts_pos[j].to_numpy(), np.zeros(3)
+
+
+def stepper_for(plan):
+    """The stepper class of a plan's stepping mode."""
+    return ActiveStepper if plan.active else FullStepper
