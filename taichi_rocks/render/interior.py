@@ -12,6 +12,13 @@ stays of the body (the bonnet, the doors' tops, the wheels) is drawn as from out
 The dashboard's top stays below the line from the driver's eye over the bonnet's front edge, so it never
 hides what the bonnet does not: the road and the vehicle ahead stay in view (a pixel test checks that in a
 drawn frame). The pillars and the header are beams of rectangular section lying just inside the glass.
+
+Cost. The eye is fixed in the body frame, so what it can see of its own vehicle is decided once: GGUI 1.7.4
+draws both sides of every triangle (checked), so the faces turned away from the eye (closed pieces: hidden by
+their front faces) and the wheels (under the bonnet and the floor) are left out as well, and the rest is
+drawn nearest first, so that the depth test rejects what lies behind the dashboard and the bonnet before it
+is shaded: on lavapipe GGUI's cost grows with the pixels it shades, and from the driver's seat the vehicle's
+own surfaces cover a third of the image.
 """
 
 from __future__ import annotations
@@ -33,16 +40,21 @@ INSET = 0.006  # m: the frame stands this far inside the glass (no shared planes
 
 class Interior:
     """One vehicle's mesh with its windscreen frame appended (``mesh``: the body mesh's vertices, then the
-    frame's, owned by the body) and two sets of its triangles: ``outside`` (the body as always drawn) and
-    ``inside`` (the view from its cabin: the greenhouse left out, the frame in)."""
+    frame's, owned by the body) and two sets of its triangles (per triangle, bool): ``outside`` (the body as
+    always drawn) and ``inside`` (the view from its cabin: the greenhouse, the wheels and the faces turned away
+    from ``eye`` left out, the frame in), drawn nearest to the eye first."""
 
-    def __init__(self, mesh: VehicleMesh, outside: np.ndarray, inside: np.ndarray):
+    def __init__(self, mesh: VehicleMesh, outside: np.ndarray, inside: np.ndarray, eye):
         self.mesh, self.outside, self.inside = mesh, outside, inside
+        tri = mesh.verts[mesh.idx.reshape(-1, 3)]
+        near = np.linalg.norm(tri.mean(axis=1) - np.asarray(eye, np.float64), axis=1)
+        sel = np.flatnonzero(inside)
+        self.order = sel[np.argsort(near[sel], kind="stable")]
 
     def triangles(self, inside: bool) -> np.ndarray:
-        """The mesh's indices of the triangles drawn from inside or from outside, (3 T,)."""
+        """The mesh's indices of the triangles drawn from inside (nearest the eye first) or from outside, (3 T,)."""
         tri = self.mesh.idx.reshape(-1, 3)
-        return tri[self.inside if inside else self.outside].reshape(-1)
+        return tri[self.order if inside else np.flatnonzero(self.outside)].reshape(-1)
 
 
 def hidden_from_inside(mesh: VehicleMesh, cab) -> np.ndarray:
@@ -126,5 +138,9 @@ def interior_of(spec, mesh: VehicleMesh, ground_z: float = 0.0) -> Interior:
                       np.concatenate([mesh.wheel, np.full(len(fv), -1)]), mesh.centres, mesh.rear)
     frame = np.ones(len(fi) // 3, bool)
     outside = np.concatenate([np.ones(n_tri, bool), ~frame])
-    inside = np.concatenate([~hidden, frame])
-    return Interior(ext, outside, inside)
+    eye = np.array(cab.eye)
+    tri = ext.verts[ext.idx.reshape(-1, 3)]
+    facing = np.einsum("ij,ij->i", ext.norms[ext.idx[0::3]], tri.mean(axis=1) - eye) < 0.0
+    body = np.concatenate([mesh.triangle_owner() < 0, frame])
+    inside = np.concatenate([~hidden, frame]) & facing & body
+    return Interior(ext, outside, inside, eye)

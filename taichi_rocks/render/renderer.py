@@ -217,12 +217,14 @@ class Renderer:
 
     def _triangles(self, inside) -> np.ndarray:
         """The merged mesh's indices drawn from outside (``inside`` None) or from the cabin of vehicle
-        ``inside``."""
-        out, start = [], 0
+        ``inside`` (its own triangles first, nearest first: the depth test then rejects what they hide before
+        GGUI shades it)."""
+        out, start = [], np.cumsum([0] + self._v_sizes)
         for i, m in enumerate(self._meshes):
             tri = self._interiors[i].triangles(i == inside) if i in self._interiors else m.idx
-            out.append(np.asarray(tri, np.int64) + start)
-            start += len(m.verts)
+            out.append(np.asarray(tri, np.int64) + start[i])
+        if inside is not None:
+            out.insert(0, out.pop(inside))
         return np.concatenate(out)
 
     def _upload_layout(self, inside) -> None:
