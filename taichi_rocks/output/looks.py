@@ -11,9 +11,11 @@ same formula (tests/output hold them equal to render/looks.py's and render/rockl
 * Blender (4.5) reads neither per-instance primvars of a PointInstancer nor a mesh's displayColor without a
   material: each rock shape is therefore written in :data:`TINTS` tints (the centres of a k-means of the
   tint distribution, :func:`tint_palette`), a rock instancing the shape in the tint nearest to its own.
-* the vehicles: the body in the scene's colour; the tread blocks alternating between the renderer's two
-  rubbers, the wheel's sides in the area-weighted mean of the renderer's rim (rubber ring, spokes, openings,
-  cap); the ground in the mean of its two checker colours.
+* the vehicles: each part of the body (motion/bodies.py) with the faces the renderer draws, in its colours
+  (render/bodies.py: the scene's colour, glass, a truck's chassis, cargo box and bumpers; :func:`part_faces`);
+  the tread blocks alternating between the renderer's two rubbers, the wheel's sides in the area-weighted mean
+  of the renderer's rim (rubber ring, spokes, openings, cap); the ground in the mean of its two checker
+  colours.
 
 The renderer's colours are display values (GGUI writes colour x light to the frame as it is, with no
 transfer function); USD's displayColor is linear. The stage therefore holds :func:`linear` of them (the sRGB
@@ -28,7 +30,8 @@ import numpy as np
 from ..config.streams import LOOK_COLOUR
 
 __all__ = ["ROCK_GREY", "ROCK_BROWN", "ROCK_DARK", "TIRE_COLOR", "TREAD_COLOR", "WHEEL_SIDE_COLOR",
-           "GROUND_COLOR", "TINTS", "rock_tints", "tint_palette", "nearest_tint", "linear"]
+           "GROUND_COLOR", "GLASS_COLOR", "BUMPER_COLOR", "TINTS", "rock_tints", "tint_palette", "nearest_tint",
+           "linear", "part_faces"]
 
 ROCK_GREY = (0.60, 0.59, 0.57)  # render/rocklook.py _GREY, _BROWN, _DARK
 ROCK_BROWN = (0.62, 0.50, 0.37)
@@ -42,6 +45,9 @@ _RIM_DARK = (0.14, 0.14, 0.15)
 _RING, _RIM, _CAP = 1.0 - 0.66 ** 2, 0.66 ** 2 - 0.24 ** 2, 0.24 ** 2
 WHEEL_SIDE_COLOR = tuple(_RING * t + 0.5 * _RIM * (h + d) + _CAP * h for t, h, d in zip(TIRE_COLOR, _HUB, _RIM_DARK))
 GROUND_COLOR = tuple(0.5 * (a + b) for a, b in zip((0.56, 0.53, 0.44), (0.49, 0.46, 0.38)))  # GROUND_A, _B
+GLASS_COLOR = (0.24, 0.31, 0.40)  # render/looks.py
+BUMPER_COLOR = (0.13, 0.13, 0.14)
+_ALL = ("front", "back", "left", "right", "top", "bottom")  # motion/bodies.py FACES
 TINTS = 8  # tints per rock shape in the stage
 _GOLDEN, _SALT = 0x9E3779B9, 0x85EBCA6B  # render/rocklook.py's hash of (rock id, salt)
 _M32 = np.uint64(0xFFFFFFFF)
@@ -90,6 +96,31 @@ def linear(rgb) -> np.ndarray:
     """Display (sRGB-encoded) colours in [0, 1] to linear ones (IEC 61966-2-1), same shape."""
     c = np.clip(np.asarray(rgb, np.float64), 0.0, 1.0)
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def part_faces(kind: str, part: str, color) -> dict:
+    """The faces of body part ``part`` of a ``kind`` body that the renderer draws (render/bodies.py), each
+    face (motion/bodies.py FACES) -> (display colour, glass?); faces left out are not drawn. ``color``: the
+    vehicle's scene colour."""
+    col = np.clip(np.asarray(color, np.float64), 0.0, 1.0)
+    glass, roof = (np.array(GLASS_COLOR), True), (col * 0.95, False)
+    if part in ("front_bumper", "rear_bumper"):
+        return {f: (np.array(BUMPER_COLOR), False) for f in _ALL}
+    if part == "lower" or (kind, part) == ("truck", "cab"):
+        return {f: (col, False) for f in _ALL}
+    if part in ("cabin", "glazed"):
+        sides = ("front", "back", "left", "right") if part == "cabin" else ("front", "left", "right")
+        return {**{f: glass for f in sides}, "top": roof}
+    if part == "upper":
+        return {"back": glass, "left": roof, "right": roof, "top": roof}
+    if part == "chassis":
+        return {f: (np.array(TIRE_COLOR) * 2, False) for f in _ALL}
+    if part == "cab_glass":
+        return {"front": glass, "left": glass, "right": glass, "back": (col, False), "top": (col, False)}
+    if part == "cargo":
+        cargo = (np.clip(col * 1.08 + 0.04, 0.0, 1.0), False)
+        return {"front": cargo, "left": cargo, "right": cargo, "top": cargo, "back": (col * 0.8, False)}
+    raise KeyError(f"no colours for part {part!r} of a {kind} body")
 
 
 def nearest_tint(tints, palette) -> np.ndarray:

@@ -5,12 +5,14 @@ code f is frame f, t = f / fps). Prims::
 
     /World                          Xform, the default prim
       Looks/DisplayColor            Material: a UsdPreviewSurface whose diffuse colour is the displayColor primvar
+      Looks/Glass                   Material: the same, with opacity GLASS_OPACITY (the windows)
       Ground/Plane                  Mesh: a rectangle around every vehicle's path (its Xform: double translate)
       Bed                           Xform, xformOp:translate double, time-sampled: the floating origin
         Rocks                       PointInstancer, positions float32 relative to Bed
           Prototypes/rock_<k>_<j>   Mesh: low-poly rocks of mean radius 1, shape k in tint j (only instanced)
       Vehicles/<name>               Xform: translate (double, world) and rotateZ (heading, deg), time-sampled
-        Body                        Mesh: a box
+        Body                        Mesh: the body's parts (motion/bodies.py) with the faces the renderer draws
+        Glass                       Mesh: their windows (bound to Looks/Glass: a camera in the cabin sees out)
         Wheel_<FL|FR|RL|RR>         Xform: translate, rotateY (spin, deg, time-sampled); its Tire: a cylinder
       Camera                        Camera: xformOp:transform (double), time-sampled; the scene's camera
                                     ([camera] and its shots; at a cut the shot before is held, as below)
@@ -53,8 +55,9 @@ import numpy as np
 
 from .formats import FileWriter
 from .instances import PROTOTYPES
-from .looks import GROUND_COLOR, TINTS, TIRE_COLOR, TREAD_COLOR, WHEEL_SIDE_COLOR, linear, tint_palette
-from .shapes import box_mesh, camera_matrix, cylinder_mesh, rock_prototype
+from ..motion.bodies import FACE_CORNERS, FACES, body_parts
+from .looks import GROUND_COLOR, TINTS, TIRE_COLOR, TREAD_COLOR, WHEEL_SIDE_COLOR, linear, part_faces, tint_palette
+from .shapes import camera_matrix, cylinder_mesh, rock_prototype
 
 try:
     from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
@@ -65,6 +68,8 @@ __all__ = ["UsdWriter", "STEP_HOLD", "USD_SUFFIXES", "ground_extent"]
 
 STEP_HOLD = 1e-4  # time codes before a step of the origin at which the old origin is held
 MATERIAL = "/World/Looks/DisplayColor"
+GLASS = "/World/Looks/Glass"
+GLASS_OPACITY = 0.35  # the windows: see-through, so that the driver's and bonnet shots look out of the cabin
 WHEELS = (("FL", 0.5, 0.5), ("FR", 0.5, -0.5), ("RL", -0.5, 0.5), ("RR", -0.5, -0.5))
 USD_SUFFIXES = (".usdc", ".usd")  # crate files: saving again appends, so a long export streams
 
@@ -78,12 +83,15 @@ def ground_extent(fleet, scene, frames: int, fps: float):
     return (lo + hi) / 2.0, (hi - lo) / 2.0 + margin
 
 
-def _material(stage):
-    """The one material of the stage: a UsdPreviewSurface whose diffuse colour reads the displayColor primvar."""
-    mat = UsdShade.Material.Define(stage, MATERIAL)
-    surface = UsdShade.Shader.Define(stage, f"{MATERIAL}/Surface")
+def _material(stage, path: str = MATERIAL, opacity=None):
+    """A material of the stage: a UsdPreviewSurface whose diffuse colour reads the displayColor primvar (and
+    ``opacity``, if given)."""
+    mat = UsdShade.Material.Define(stage, path)
+    surface = UsdShade.Shader.Define(stage, f"{path}/Surface")
     surface.CreateIdAttr("UsdPreviewSurface")
-    reader = UsdShade.Shader.Define(stage, f"{MATERIAL}/DisplayColor")
+    if opacity is not None:
+        surface.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(opacity))
+    reader = UsdShade.Shader.Define(stage, f"{path}/DisplayColor")
     reader.CreateIdAttr("UsdPrimvarReader_float3")
     reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("displayColor")
     reader.CreateInput("fallback", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(0.5, 0.5, 0.5))
@@ -107,7 +115,7 @@ def _face_normals(points, counts, indices) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate(out), np.float32)
 
 
-def _mesh(stage, path: str, mesh, color) -> UsdGeom.Mesh:
+def _mesh(stage, path: str, mesh, color, material: str = MATERIAL) -> UsdGeom.Mesh:
     """A mesh bound to the stage's material; ``color``: one rgb (constant) or one per face (uniform), display
     values (written linear: output/looks.py)."""
     points, counts, indices = mesh
@@ -125,7 +133,7 @@ def _mesh(stage, path: str, mesh, color) -> UsdGeom.Mesh:
     pv = UsdGeom.PrimvarsAPI(m).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
                                                UsdGeom.Tokens.uniform if per_face else UsdGeom.Tokens.constant)
     pv.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(color)))
-    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(UsdShade.Material.Get(stage, MATERIAL))
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(UsdShade.Material.Get(stage, material))
     return m
 
 
@@ -139,6 +147,26 @@ def _prim_names(names) -> list:
             candidate, k = f"{base}_{k}", k + 1
         out.append(candidate)
     return out
+
+
+def _body_meshes(spec) -> dict:
+    """The body of vehicle ``spec`` as two meshes, "Body" and "Glass": each part of motion/bodies.py with the
+    faces the renderer draws (output/looks.py part_faces), per face its colour; quads wound counter-clockwise
+    seen from outside their (convex) part."""
+    body = body_parts(spec)
+    out = {"Body": ([], []), "Glass": ([], [])}
+    for part in body.parts:
+        corners = part.corners()
+        centre = corners.mean(axis=0)
+        for face, (color, glass) in part_faces(body.kind, part.name, spec.color).items():
+            quad = corners[list(FACE_CORNERS[FACES.index(face)])]
+            n = np.cross(quad[1] - quad[0], quad[2] - quad[0]) + np.cross(quad[2] - quad[0], quad[3] - quad[0])
+            if n @ (quad.mean(axis=0) - centre) < 0:
+                quad = quad[::-1]
+            out["Glass" if glass else "Body"][0].append(quad)
+            out["Glass" if glass else "Body"][1].append(color)
+    return {name: ((np.concatenate(q).astype(np.float32), np.full(len(q), 4, np.int32),
+                    np.arange(4 * len(q), dtype=np.int32)), np.array(c)) for name, (q, c) in out.items() if q}
 
 
 def _tire_colors(faces: int) -> np.ndarray:
@@ -189,6 +217,7 @@ class UsdWriter(FileWriter):
         stage.SetDefaultPrim(world.GetPrim())
         self.layer.customLayerData = {k: v for k, v in info.items()}
         _material(stage)
+        _material(stage, GLASS, GLASS_OPACITY)
         self._ground(scene, *ground)
         bed = UsdGeom.Xform.Define(stage, "/World/Bed")
         self.origin_op = bed.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
@@ -233,8 +262,8 @@ class UsdWriter(FileWriter):
             ops = [xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble),
                    xf.AddRotateZOp(UsdGeom.XformOp.PrecisionDouble)]
             r, z0 = float(spec.tire_radius), 0.8 * float(spec.tire_radius)
-            body = box_mesh((0.0, 0.0, z0 + spec.height / 2), (spec.length, spec.width, spec.height))
-            _mesh(self.stage, f"{root}/Body", body, spec.color)
+            for name, (mesh, colors) in _body_meshes(spec).items():
+                _mesh(self.stage, f"{root}/{name}", mesh, colors, GLASS if name == "Glass" else MATERIAL)
             tire = cylinder_mesh(r, float(spec.tire_width))
             tire_colors = _tire_colors(len(tire[1]))
             for label, sx, sy in WHEELS:

@@ -517,9 +517,10 @@ def test_usd_colours_are_the_renderers(runs):
     assert UsdShade.Shader(reader.GetPrim()).GetIdAttr().Get() == "UsdPrimvarReader_float3"
     assert UsdShade.Shader(reader.GetPrim()).GetInput("varname").Get() == "displayColor"
     meshes = [p for p in Usd.PrimRange(stage.GetPseudoRoot()) if p.IsA(UsdGeom.Mesh)]
-    assert len(meshes) == 2 + 4 + PROTOTYPES * TINTS  # the ground, the car's body and tires, the rocks' shapes
+    assert len(meshes) == 3 + 4 + PROTOTYPES * TINTS  # the ground, the car's body, glass and tires, the rocks
     for p in meshes:
-        assert UsdShade.MaterialBindingAPI(p).ComputeBoundMaterial()[0].GetPath() == MATERIAL, p.GetPath()
+        bound = UsdShade.MaterialBindingAPI(p).ComputeBoundMaterial()[0].GetPath()
+        assert bound == ("/World/Looks/Glass" if p.GetName() == "Glass" else MATERIAL), p.GetPath()
         assert UsdGeom.Mesh(p).GetDisplayColorPrimvar().HasValue(), p.GetPath()
 
     def color(path):
@@ -541,9 +542,55 @@ def test_usd_colours_are_the_renderers(runs):
         proto = np.asarray(pi.GetProtoIndicesAttr().Get(f))
         assert np.array_equal(proto % TINTS, nearest_tint(want, palette)) and proto.max() < PROTOTYPES * TINTS
     scene = load_scene(MINIMAL)
-    np.testing.assert_allclose(color("/World/Vehicles/car/Body"), [linear(scene.vehicles[0].color)], atol=1e-6)
+    body = color("/World/Vehicles/car/Body")
+    assert np.isclose(body, linear(scene.vehicles[0].color), atol=1e-6).all(axis=1).sum() >= 6  # its lower body
+    np.testing.assert_allclose(color("/World/Vehicles/car/Glass"), linear([looks.GLASS_COLOR] * 4), atol=1e-6)
+    assert UsdShade.MaterialBindingAPI(stage.GetPrimAtPath("/World/Vehicles/car/Glass")).ComputeBoundMaterial()[0] \
+        .GetPath() == "/World/Looks/Glass"
     tire = color("/World/Vehicles/car/Wheel_RL/Tire")
     tread = [looks.TREAD_COLOR if k % 2 else looks.TIRE_COLOR for k in range(len(tire) - 2)]
     np.testing.assert_allclose(tire[:-2], linear(tread), atol=1e-6)
     np.testing.assert_allclose(color("/World/Ground/Plane"),
                                [linear((np.array(looks.GROUND_A) + looks.GROUND_B) / 2)], atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["car", "van", "truck"])
+def test_usd_bodies_are_the_renderers(kind):
+    """A vehicle's USD body is its parts (motion/bodies.py) with the faces the renderer draws in its colours:
+    every face of the stage's Body and Glass meshes is a face of render/bodies.py's mesh, corner for corner,
+    in the same colour (the lower body, which the renderer cuts round the wheels, in the scene's colour), and
+    wound to face outwards; the glass faces are the renderer's glass."""
+    from scenes_util import scene
+
+    from taichi_rocks.output.usd import _body_meshes
+    from taichi_rocks.render.bodies import vehicle_mesh
+    from taichi_rocks.render.looks import GLASS_COLOR
+
+    spec = scene(vehicles=[{"name": "v", "kind": kind, "length": 6.0, "width": 2.2, "height": 2.2, "wheelbase": 3.6,
+                            "track": 1.9, "tire_radius": 0.4, "color": [0.2, 0.5, 0.8]}]).vehicles[0]
+    m = vehicle_mesh(spec)
+    body = m.wheel < 0
+    quads = m.verts[body].reshape(-1, 4, 3)
+    cols = m.cols[body].reshape(-1, 4, 3)[:, 0]
+    norms = m.norms[body].reshape(-1, 4, 3)[:, 0]
+    keys = {tuple(sorted(map(tuple, np.round(q, 9)))): (c, n) for q, c, n in zip(quads, cols, norms)}
+    meshes = _body_meshes(spec)
+    assert set(meshes) == {"Body", "Glass"}
+    matched = 0
+    for name, ((points, counts, idx), colors) in meshes.items():
+        assert (counts == 4).all() and len(colors) == len(counts)
+        for f, face in enumerate(points[idx].reshape(-1, 4, 3).astype(np.float64)):
+            n = np.cross(face[1] - face[0], face[2] - face[0])  # the winding's normal (counter-clockwise)
+            key = tuple(sorted(map(tuple, np.round(face, 5))))
+            near = [k for k in keys if np.allclose(np.array(k), np.array(key), atol=1e-5)]
+            if near:
+                color, normal = keys[near[0]]
+                np.testing.assert_allclose(colors[f], color, atol=1e-12)
+                assert n @ normal > 0  # outwards, as the renderer's face
+                matched += 1
+            else:  # the lower body's faces: the renderer's are cut round the wheel wells
+                np.testing.assert_allclose(colors[f], spec.color, atol=1e-12)
+            if name == "Glass":
+                np.testing.assert_allclose(colors[f], GLASS_COLOR, atol=1e-12)
+    faces = sum(len(c) for _, c in meshes.values())
+    assert matched == faces - (4 if kind != "truck" else 0)  # all but the lower body's sides, top and bottom
