@@ -63,8 +63,7 @@ READS = {
     "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders"),  # also tires.tire_pass
     "health": ("recycle", "ground"),
     "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
-                    "ground"),
-    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders"),
+                    "ground", "throw", "fenders"),
 }
 
 
