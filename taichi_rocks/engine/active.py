@@ -54,7 +54,7 @@ from .kernels import rock_step
 from .patch import footprint_box
 from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RESTING, TILES, IPar, Par
 
-__all__ = ["StoreSizing", "store_sizing", "active_step", "settle", "shift_store", "store_health"]
+__all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health"]
 
 ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many rocks per tile
 NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
@@ -173,31 +173,30 @@ def tire_box(w: ti.template(), plan: ti.template(), t, reach):
 
 
 @ti.func
-def band_span(w: ti.template(), c, kr, outer, inner, eps, side, a: ti.template()):
-    """The tiles (first, last index along the other axis) of line ``kr`` (a row of tiles for ``a`` = 1, a column
-    for ``a`` = 0) that the band between the circles |q - c| = inner and outer crosses on one ``side``."""
+def band_span(w: ti.template(), c, kr, outer, inner, eps, side, a):
+    """The tiles (first, last index along the line) of line ``kr`` (a row of tiles for ``a`` = 1, a column for
+    ``a`` = 0) that the band between the circles |q - c| = inner and outer crosses on one ``side``."""
     s = w.store_tile
+    across = c[1] if a == 1 else c[0]
+    along = c[0] if a == 1 else c[1]
     lo = ti.cast(kr, w.real) * s - eps
     hi = lo + s + 2.0 * eps
-    d_min = ti.max(ti.max(lo - c[a], c[a] - hi), 0.0)
-    d_max = ti.max(ti.abs(lo - c[a]), ti.abs(hi - c[a]))
+    d_min = ti.max(ti.max(lo - across, across - hi), 0.0)
+    d_max = ti.max(ti.abs(lo - across), ti.abs(hi - across))
     x_out = ti.sqrt(ti.max(outer * outer - d_min * d_min, 0.0))
     x_in = ti.sqrt(ti.max(inner * inner - d_max * d_max, 0.0))
     sg = 1.0 - 2.0 * side
-    ka = ti.cast(ti.floor((c[1 - a] + sg * x_in) / s), ti.i32)
-    kb = ti.cast(ti.floor((c[1 - a] + sg * x_out) / s), ti.i32)
+    ka = ti.cast(ti.floor((along + sg * x_in) / s), ti.i32)
+    kb = ti.cast(ti.floor((along + sg * x_out) / s), ti.i32)
     return ti.min(ka, kb), ti.max(ka, kb)
 
 
 @ti.func
-def band_width(w: ti.template(), c, k0, lines, outer, inner, eps, a: ti.template()):
-    """The most tiles one line of ``band_span`` holds, over ``lines`` lines from ``k0``, plus one (a serial loop:
-    a few hundred lines)."""
-    most = 0
-    for q in range(2 * lines):
-        lo, hi = band_span(w, c, k0 + q // 2, outer, inner, eps, q % 2, a)
-        most = ti.max(most, hi - lo + 2)
-    return most
+def band_radii(w: ti.template(), c, d):
+    """The band's circles (outer, inner) and the rounding margin."""
+    radius = w.par[Par.BED_RADIUS]
+    eps = rounding_margin(w, c)
+    return radius + d.norm() + eps, ti.max(radius - eps, 0.0), eps
 
 
 @ti.func
@@ -207,46 +206,48 @@ def rim_plan(w: ti.template(), c, d, check_all):
     |q - c| = R crosses, widened by the move (a tile whose rocks were inside the old disk and are not all
     inside the new one lies in it); none for a bed that did not move. The band is walked by rows of tiles
     where the circle is steep (|y - c_y| <= 3/4 of its radius) and by columns elsewhere, each line as wide as
-    the widest line of its kind: a few tiles, not the width of the band's top row. A tile in no walked row
-    has |y - c_y| > 3/4 r_out everywhere, so its band points have |x - c_x| < 3/4 r_out: its column is
-    walked. Returns (every, rows, row width, columns, column width, first row, first column)."""
+    the widest line of its kind (a serial loop over the lines: a few hundred), a few tiles, not the width of
+    the band's top row. A tile in no walked row has |y - c_y| > 3/4 r_out everywhere, so its band points have
+    |x - c_x| < 3/4 r_out: its column is walked. Returns (every, lines per kind, widths (rows, columns), first
+    row, first column)."""
     s = w.store_tile
-    radius = w.par[Par.BED_RADIUS]
-    eps = rounding_margin(w, c)
-    dist = d.norm()
-    outer = radius + dist + eps
-    inner = ti.max(radius - eps, 0.0)
-    every, rows, cols, wr, wc = 0, 0, 0, 0, 0
+    outer, inner, eps = band_radii(w, c, d)
+    every, lines = 0, 0
+    width = ti.Vector([0, 0])
     reach = 0.75 * outer
-    ky0 = ti.cast(ti.floor((c[1] - reach) / s), ti.i32)
-    kx0 = ti.cast(ti.floor((c[0] - reach) / s), ti.i32)
+    k0 = ti.Vector([ti.cast(ti.floor((c[1] - reach) / s), ti.i32), ti.cast(ti.floor((c[0] - reach) / s), ti.i32)])
     if ti.static(w.recycles_rocks):
-        if check_all != 0 or dist > 4.0 * s:
+        if check_all != 0 or d.norm() > 4.0 * s:
             every = w.store_grid * w.store_grid
-        elif dist > 0.0:
-            rows = ti.cast(ti.floor((c[1] + reach) / s), ti.i32) - ky0 + 1
-            cols = ti.cast(ti.floor((c[0] + reach) / s), ti.i32) - kx0 + 1
-            wr = band_width(w, c, ky0, rows, outer, inner, eps, 1)
-            wc = band_width(w, c, kx0, cols, outer, inner, eps, 0)
-    return every, rows, wr, cols, wc, ky0, kx0
+        elif d.norm() > 0.0:
+            lines = ti.cast(ti.floor((c[1] + reach) / s), ti.i32) - k0[0] + 1  # as many columns: a square
+            for q in range(4 * lines):  # (kind, line, side): kind 0 rows, 1 columns
+                kind = q // (2 * lines)
+                lo, hi = band_span(w, c, k0[kind] + (q // 2) % lines, outer, inner, eps, q % 2, 1 - kind)
+                width[kind] = ti.max(width[kind], hi - lo + 2)
+    return every, lines, width, k0
 
 
 @ti.func
-def classify_band(w: ti.template(), q, c, d, shift_tiles, check_all, k0, width, a: ti.template()):
-    """Item q of a band's lines (line, side, tile along it): classify that tile if the band holds it."""
-    radius = w.par[Par.BED_RADIUS]
-    eps = rounding_margin(w, c)
-    outer = radius + d.norm() + eps
-    inner = ti.max(radius - eps, 0.0)
-    kr = k0 + q // (2 * width)
-    lo, hi = band_span(w, c, kr, outer, inner, eps, (q // width) % 2, a)
-    kx = lo + q % width
-    if kx <= hi:
-        key = ti.Vector([kx, kr]) if ti.static(a == 1) else ti.Vector([kr, kx])
+def band_slot(w: ti.template(), q, c, d, shift_tiles, lines, width, k0):
+    """The slot of item q of the band's lines (kind, line, side, tile along it), or -1: none there, or the
+    slot holds another tile."""
+    outer, inner, eps = band_radii(w, c, d)
+    rows = lines * 2 * width[0]
+    kind = 0 if q < rows else 1
+    r = q if q < rows else q - rows
+    wk = width[kind]
+    kr = k0[kind] + r // (2 * wk)
+    lo, hi = band_span(w, c, kr, outer, inner, eps, (r // wk) % 2, 1 - kind)
+    ka = lo + r % wk
+    sl = -1
+    if ka <= hi:
+        key = ti.Vector([ka, kr]) if kind == 0 else ti.Vector([kr, ka])
         key += shift_tiles
         sl = slot_of(w, key)
-        if same_key(w.ts_key[sl], key):
-            classify_slot(w, sl, c, c - 0.5 * d, d, shift_tiles, radius, eps, check_all)
+        if not same_key(w.ts_key[sl], key):
+            sl = -1
+    return sl
 
 
 @ti.func
@@ -293,27 +294,26 @@ def classify(w: ti.template(), plan: ti.template(), c, d, shift_tiles, check_all
     flat loop over all their items (Taichi runs only top-level loops in parallel, each a task with its own
     start-up; and on Vulkan (Taichi 1.7.4) an atomic on one address inside an inner loop whose trip count
     differs between threads loses iterations, so no loop here has a varying inner loop around an atomic)."""
-    every, rows, wr, cols, wc, ky0, kx0 = rim_plan(w, c, d, check_all)
+    every, lines, width, k0 = rim_plan(w, c, d, check_all)
     span_x, span_y = 0, 0
     if ti.static(plan.splash):
         span_x, span_y = tire_boxes(w, plan, c, shift_tiles)
-    n_rows = rows * 2 * wr
-    n_cols = cols * 2 * wc
+    n_band = lines * 2 * (width[0] + width[1])
     n_tire = 0
     if ti.static(plan.splash):
         n_tire = w.n_tires * span_x * span_y
-    for q in range(every + n_rows + n_cols + n_tire):
-        if q < every:
-            radius = w.par[Par.BED_RADIUS]
-            eps = rounding_margin(w, c)
-            classify_slot(w, q, c, c - 0.5 * d, d, shift_tiles, radius, eps, check_all)
-        elif q < every + n_rows:
-            classify_band(w, q - every, c, d, shift_tiles, check_all, ky0, wr, 1)
-        elif q < every + n_rows + n_cols:
-            classify_band(w, q - every - n_rows, c, d, shift_tiles, check_all, kx0, wc, 0)
+    radius = w.par[Par.BED_RADIUS]
+    eps = rounding_margin(w, c)
+    for q in range(every + n_band + n_tire):
+        if q < every + n_band:
+            sl = q
+            if q >= every:  # (not a conditional expression: Taichi evaluates both of its sides)
+                sl = band_slot(w, q - every, c, d, shift_tiles, lines, width, k0)
+            if sl >= 0:
+                classify_slot(w, sl, c, c - 0.5 * d, d, shift_tiles, radius, eps, check_all)
         else:
             if ti.static(plan.splash):
-                classify_tire_tile(w, q - every - n_rows - n_cols, span_x, span_y)
+                classify_tire_tile(w, q - every - n_band, span_x, span_y)
 
 
 @ti.func
@@ -488,11 +488,12 @@ def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
 
 
 @ti.kernel
-def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, check_all: ti.i32) -> ti.i32:
-    """One step of active stepping (module docstring), its inputs row ``k`` of the batch on the device
-    (engine/stepdata.py): tiles classified and gathered, the rock pass over the active list, the hash and the
-    tire pass, settling and compaction; returns the rocks launched. ``check_all``: test every rim tile's rocks
-    against the new disk whatever the move (the first step after rocks were loaded)."""
+def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, check_all: ti.i32):
+    """Steps 1 to 3 of active stepping (module docstring), its inputs row ``k`` of the batch on the device
+    (engine/stepdata.py): tiles classified and gathered, the rock pass over the active list. ``check_all``:
+    test every rim tile's rocks against the new disk whatever the move (the first step after rocks were
+    loaded). Two kernels, not one: Taichi 1.7.4 compiles the two in about two thirds of the time it takes for
+    them fused (measured by ``bench --only activity``: compile times), for one more launch of three scalars."""
     stepdata.take_rays(w, plan, k)
     c = stepdata.frame_row(w, k, CENTRE)
     m = stepdata.frame_row(w, k, MOVE)
@@ -504,7 +505,12 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     close_tiles(w)
     for i in range(w.ipar[IPar.N_ROCKS]):
         rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: the last point is unused
-    return finish(w, plan, st, step)
+
+
+@ti.kernel
+def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32) -> ti.i32:
+    """Steps 4 to 6 (finish) of step row ``k``; returns the rocks launched."""
+    return finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
 
 
 @ti.kernel

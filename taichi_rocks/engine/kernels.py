@@ -63,7 +63,8 @@ READS = {
     "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders"),  # also tires.tire_pass
     "health": ("recycle", "ground"),
     "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
-                    "ground", "throw", "fenders"),
+                    "ground"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders"),
 }
 
 

@@ -206,8 +206,8 @@ class ActiveStepper(Stepper):
             return 0
         row = self._upload(s)
         with self.timer("active step"):
-            launched = active.active_step(self.world, self.switches["active_step"], row, s.step,
-                                          int(self.check_all))
+            active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
+            launched = active.active_finish(self.world, self.switches["active_finish"], row, s.step)
         self.check_all = False
         if s.step % 32 == 0:
             self._fit_table()
