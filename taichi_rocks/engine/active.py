@@ -59,6 +59,16 @@ __all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settl
 ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many rocks per tile
 NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
 
+# What each offloaded task of the step's two kernels does, in launch order (Taichi's kernel profiler names
+# tasks by index; engine/probes.py hands these to the benchmark): serial tasks run on one thread, the others
+# are parallel loops.
+TASKS = {"active_step": ("rays in, rim plan, tire boxes (serial)", "classify rim band and tire tiles",
+                         "(serial: bounds)", "gather rocks from marked tiles", "close marked tiles",
+                         "(serial: bounds)", "rock pass: flight, recycle, hash count"),
+         "active_finish": ("counters, hash scan (serial)", "hash scatter", "tire pass (serial)",
+                           "settle, count survivors, clear hash", "(serial: bounds)", "compaction: holes and movers",
+                           "(serial: bounds)", "compaction: copy", "(serial: list length)")}
+
 # World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
 # rocks above it (compaction), the slots marked this step (mark())
 SURVIVORS, HOLES, MOVERS, MARKED = 0, 1, 2, 3

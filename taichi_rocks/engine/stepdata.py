@@ -9,6 +9,9 @@ kernels' frame) and ``step_frame[k, r]`` (2-vectors, float64; rows CENTRE, MOVE,
 engine/world.py). A step's kernel copies its rays into ``World.ray`` (one serial task: ``n_tires`` rows) and
 reads its frame row.
 
+``launch_empty``, ``launch_ints`` and ``launch_arrays`` do nothing: engine/probes.py ``launch_costs`` times
+what launching with a step's arguments costs in Python.
+
 Other per-step inputs (the vehicle bodies' poses for stones hitting them): one more field over (k, ...) in
 ``field_specs`` beside these, one more array built by :func:`batch_arrays` from the batch, one more argument
 of :func:`load_batch`, read by the step's kernel at row ``k`` like ``step_frame``.
@@ -17,7 +20,7 @@ of :func:`load_batch`, read by the step's kernel at row ``k`` like ``step_frame`
 import numpy as np
 import taichi as ti
 
-from .world import BATCH_ROWS, FRAME_ROWS, RAY_FIELDS
+from .world import BATCH_ROWS, FRAME_ROWS, RAY_FIELDS, IPar
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -63,3 +66,20 @@ def take_rays(w: ti.template(), plan: ti.template(), k):
 def frame_row(w: ti.template(), k, r: ti.template()):
     """Row ``r`` of step ``k``'s frame in the World's precision (a 2-vector)."""
     return ti.cast(w.step_frame[k, r], w.real)
+
+
+# ------------------------------------------------------------------------------------------------ launch probe
+@ti.kernel
+def launch_empty():
+    pass
+
+
+@ti.kernel
+def launch_ints(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, check_all: ti.i32):
+    w.ipar[IPar.N_ROCKS] += 0 * (k + step + check_all)
+
+
+@ti.kernel
+def launch_arrays(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
+                  frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32, check_all: ti.i32):
+    w.ipar[IPar.N_ROCKS] += 0 * (step + check_all)

@@ -9,6 +9,7 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
+import warnings
 import weakref
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -276,7 +277,9 @@ def acquire(owner, n: int, real, **layout) -> World:
     key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
     for w in _POOL.get(key, ()):
         if w.owner is None or w.owner() is None:
-            _zero_fields(w)
+            with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
+                warnings.simplefilter("ignore", SyntaxWarning)
+                _zero_fields(w)
             w.owner = weakref.ref(owner)
             return w
     w = World(n, real, **layout)
