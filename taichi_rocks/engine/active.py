@@ -70,8 +70,9 @@ TASKS = {"active_step": ("rays in, rim plan, tire boxes (serial)", "classify rim
                            "(serial: bounds)", "compaction: copy", "(serial: list length)")}
 
 # World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
-# rocks above it (compaction), the slots marked this step (mark())
-SURVIVORS, HOLES, MOVERS, MARKED = 0, 1, 2, 3
+# rocks above it (compaction), the slots marked this step (mark()), the band's widest row and column and the
+# largest tire box in tiles (rim_plan, tire_boxes)
+SURVIVORS, HOLES, MOVERS, MARKED, WIDTH_ROWS, WIDTH_COLS, SPAN_X, SPAN_Y = range(8)
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -223,7 +224,9 @@ def rim_plan(w: ti.template(), c, d, check_all):
     s = w.store_tile
     outer, inner, eps = band_radii(w, c, d)
     every, lines = 0, 0
-    width = ti.Vector([0, 0])
+    cnt = ti.static(w.a_counts)  # the widths are found in a loop: kept in a field, not a local (Taichi 1.7.4's
+    cnt[WIDTH_ROWS] = 0  # SPIR-V code generator loses a local changed in a loop and read by a later task)
+    cnt[WIDTH_COLS] = 0
     reach = 0.75 * outer
     k0 = ti.Vector([ti.cast(ti.floor((c[1] - reach) / s), ti.i32), ti.cast(ti.floor((c[0] - reach) / s), ti.i32)])
     if ti.static(w.recycles_rocks):
@@ -233,9 +236,10 @@ def rim_plan(w: ti.template(), c, d, check_all):
             lines = ti.cast(ti.floor((c[1] + reach) / s), ti.i32) - k0[0] + 1  # as many columns: a square
             for q in range(4 * lines):  # (kind, line, side): kind 0 rows, 1 columns
                 kind = q // (2 * lines)
-                lo, hi = band_span(w, c, k0[kind] + (q // 2) % lines, outer, inner, eps, q % 2, 1 - kind)
-                width[kind] = ti.max(width[kind], hi - lo + 2)
-    return every, lines, width, k0
+                first = k0[0] if kind == 0 else k0[1]  # (no dynamic index into a local vector: SPIR-V)
+                lo, hi = band_span(w, c, first + (q // 2) % lines, outer, inner, eps, q % 2, 1 - kind)
+                cnt[WIDTH_ROWS + kind] = ti.max(cnt[WIDTH_ROWS + kind], hi - lo + 2)
+    return every, lines, ti.Vector([cnt[WIDTH_ROWS], cnt[WIDTH_COLS]]), k0
 
 
 @ti.func
@@ -246,8 +250,8 @@ def band_slot(w: ti.template(), q, c, d, shift_tiles, lines, width, k0):
     rows = lines * 2 * width[0]
     kind = 0 if q < rows else 1
     r = q if q < rows else q - rows
-    wk = width[kind]
-    kr = k0[kind] + r // (2 * wk)
+    wk = width[0] if kind == 0 else width[1]  # (no dynamic index into a local vector: Taichi 1.7.4's SPIR-V
+    kr = (k0[0] if kind == 0 else k0[1]) + r // (2 * wk)  # code generator fails on it)
     lo, hi = band_span(w, c, kr, outer, inner, eps, (r // wk) % 2, 1 - kind)
     ka = lo + r % wk
     sl = -1
@@ -263,8 +267,11 @@ def band_slot(w: ti.template(), q, c, d, shift_tiles, lines, width, k0):
 @ti.func
 def tire_boxes(w: ti.template(), plan: ti.template(), c, shift_tiles):
     """Step 1 for the tires, serially (a handful): every active tire's query box to ``w.tire_box`` and its tiles
-    (first and last key) to ``w.tire_keys``; returns the largest box's size in tiles (x, y)."""
-    span_x, span_y = 0, 0
+    (first and last key) to ``w.tire_keys``; returns the largest box's size in tiles (x, y) (kept in
+    ``w.a_counts``: see rim_plan)."""
+    cnt = ti.static(w.a_counts)
+    cnt[SPAN_X] = 0
+    cnt[SPAN_Y] = 0
     if ti.static(w.n_tires > 0):
         reach = w.par[Par.R_MAX] + rounding_margin(w, c)
         g = w.store_grid
@@ -277,9 +284,9 @@ def tire_boxes(w: ti.template(), plan: ti.template(), c, shift_tiles):
             k_hi = ti.min(tile_key(w, hi, shift_tiles), k_lo + g - 1)
             k = ti.Vector([k_lo[0], k_lo[1], k_hi[0], k_hi[1]]) if on else ti.Vector([0, 0, -1, -1])
             w.tire_keys[t] = k
-            span_x = ti.max(span_x, k[2] - k[0] + 1)
-            span_y = ti.max(span_y, k[3] - k[1] + 1)
-    return span_x, span_y
+            cnt[SPAN_X] = ti.max(cnt[SPAN_X], k[2] - k[0] + 1)
+            cnt[SPAN_Y] = ti.max(cnt[SPAN_Y], k[3] - k[1] + 1)
+    return cnt[SPAN_X], cnt[SPAN_Y]
 
 
 @ti.func

@@ -175,7 +175,7 @@ def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
     return out
 
 
-A_COUNTS = 4  # active stepping's counters (engine/active.py)
+A_COUNTS = 8  # active stepping's counters (engine/active.py)
 
 
 def tmp_name(f) -> str:
