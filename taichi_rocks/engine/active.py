@@ -224,8 +224,8 @@ def rim_plan(w: ti.template(), c, d, check_all):
     s = w.store_tile
     outer, inner, eps = band_radii(w, c, d)
     every, lines = 0, 0
-    cnt = ti.static(w.a_counts)  # the widths are found in a loop: kept in a field, not a local (Taichi 1.7.4's
-    cnt[WIDTH_ROWS] = 0  # SPIR-V code generator loses a local changed in a loop and read by a later task)
+    cnt = ti.static(w.a_counts)  # the widths, found in a serial loop, are read by the parallel one: in a field
+    cnt[WIDTH_ROWS] = 0
     cnt[WIDTH_COLS] = 0
     reach = 0.75 * outer
     k0 = ti.Vector([ti.cast(ti.floor((c[1] - reach) / s), ti.i32), ti.cast(ti.floor((c[0] - reach) / s), ti.i32)])
@@ -267,8 +267,8 @@ def band_slot(w: ti.template(), q, c, d, shift_tiles, lines, width, k0):
 @ti.func
 def tire_boxes(w: ti.template(), plan: ti.template(), c, shift_tiles):
     """Step 1 for the tires, serially (a handful): every active tire's query box to ``w.tire_box`` and its tiles
-    (first and last key) to ``w.tire_keys``; returns the largest box's size in tiles (x, y) (kept in
-    ``w.a_counts``: see rim_plan)."""
+    (first and last key) to ``w.tire_keys``; returns the largest box's size in tiles (x, y) (also kept in
+    ``w.a_counts``, as rim_plan's widths)."""
     cnt = ti.static(w.a_counts)
     cnt[SPAN_X] = 0
     cnt[SPAN_Y] = 0
