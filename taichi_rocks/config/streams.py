@@ -58,6 +58,10 @@ RECYCLE_TRIES = _stream("engine", 0, 64, "engine/bed.py: a recycled rock's row a
                                          "rejection: attempt k draws the row from 2k and its acceptance from 2k + 1")
 RECYCLE_CHORD = _stream("engine", 101, 1, "engine/bed.py: where on its chord the recycled rock lands")
 LAUNCH = _stream("engine", 201, 99, "engine/launch/: the launch model's draws (each model's STREAMS)")
+LAUNCH_SPIN = _stream("engine", 301, 3, "engine/tumble.py: the scatter of a launched stone's spin (direction z, "
+                                        "azimuth, radius in the unit ball)")
+INITIAL_ORIENTATION = _stream("engine", 311, 3, "engine/setup.py: a rock's orientation before the first step "
+                                                "(Shoemake's three uniforms)")
 
 # look: (rock id, salt)
 LOOK_COLOUR = _stream("look", 1, 3, "render/rocklook.py: a rock's colour (brown share, brightness, darkening)")
