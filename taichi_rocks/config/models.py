@@ -58,6 +58,8 @@ class Launch(_Table):
     release_angle: Range(ge=0, le=90) = _f((10.0, 35.0), "deg, [min, max] angle up the back of the tire, "
                                                          "0 <= min <= max <= 90")
     spread: Float = _f(8.0, "deg, lateral scatter half-angle, in [0, 90]", ge=0, le=90)
+    spin_spread: Float = _f(0.5, "scatter of a launched stone's spin about its rolling spin off the tread, as a "
+                                 "share of that spin (uniform in a ball), in [0, 2]", ge=0, le=2)
 
 
 class Effects(_Table):
@@ -69,6 +71,9 @@ class Effects(_Table):
     ground: Literal["none", "stop", "bounce"] = _f("bounce", "what flying rocks do when they reach the ground")
     fenders: Bool = _f(True, "fenders (and mud flaps) stop stones thrown into them (tread model)")
     impacts: Bool = _f(False, "flying stones hit the bodies of the other vehicles and are recorded ([impacts])")
+    tumble: Literal["auto", "always"] = _f("auto", "each rock's spin and orientation: auto tracks them for the "
+                                                   "commands that draw or export them (render, view, export), "
+                                                   "always also for simulate and the Python API")
 
 
 class Hash(_Table):

@@ -16,7 +16,7 @@ field (``reorder_rocks``) loop over the declaration (engine/rockfields.py, ``w.r
 
 import taichi as ti
 
-from . import hashgrid, tires
+from . import hashgrid, tires, tumble
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par, tmp_name
@@ -58,13 +58,13 @@ class Switches:
 
 # The Plan's switches each kernel reads.
 READS = {
-    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground"),
-    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground"),
-    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders"),  # also tires.tire_pass
+    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground", "spin"),
+    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground", "spin"),
+    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "spin"),  # also tires.tire_pass
     "health": ("recycle", "ground"),
     "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
-                    "ground"),
-    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders"),
+                    "ground", "spin"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin"),
 }
 
 
@@ -88,13 +88,26 @@ def take_rays(w: ti.template(), plan: ti.template(), rays: ti.template()):
 
 
 @ti.func
+def recycle(w: ti.template(), plan: ti.template(), i, c, m, d, step):
+    """Recycling to the leading edge (engine/bed.py); a tumbling rock recycled in motion arrives at rest, so it
+    stops spinning (its orientation stays)."""
+    if ti.static(plan.spin):
+        moving = w.phase[i] != RESTING
+        recycle_to_leading_edge(w, i, c, m, d, step)
+        if moving and w.phase[i] == RESTING:
+            tumble.rest(w, i)
+    else:
+        recycle_to_leading_edge(w, i, c, m, d, step)
+
+
+@ti.func
 def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template()):
     """Pass 1 for rock i: flight, recycling to the leading edge, counting for the hash; ``hash_flying``: count
     flying rocks too (they are never launched, tires.try_launch; active stepping leaves them out)."""
     if ti.static(plan.flight):
-        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
     if ti.static(plan.recycle):
-        recycle_to_leading_edge(w, i, c, m, d, step)
+        recycle(w, plan, i, c, m, d, step)
     if ti.static(plan.splash):
         if ti.static(hash_flying):
             hashgrid.count_rock(w, i, plan.center, g)
@@ -136,9 +149,9 @@ def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, cen
     for i in range(w.ipar[IPar.N_ROCKS]):
         for s in range(n):
             if ti.static(plan.flight):
-                fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+                fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
             if ti.static(plan.recycle):
-                recycle_to_leading_edge(w, i, c, m, d, step0 + s + 1)
+                recycle(w, plan, i, c, m, d, step0 + s + 1)
             if w.phase[i] == RESTING:
                 settled = True
                 if ti.static(plan.recycle):

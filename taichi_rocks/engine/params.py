@@ -139,6 +139,8 @@ TABLE = (
     Param("MARGIN", derive=lambda s: s.sizing.margin, what="m: a tire query's reach beyond its ray (XY)"),
     Param("PATCH_TOL", derive=_patch_tolerance, what="m: how far above the tire's bottom a run-over rock's "
                                                      "bottom may be"),
+    Param("SPIN_SPREAD", "launch.spin_spread", runtime=True, what="a launched stone's spin scatter, a share of "
+                                                                  "its rolling spin (engine/tumble.py)"),
 )
 
 # World.ipar (int32).

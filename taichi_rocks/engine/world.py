@@ -192,8 +192,9 @@ def _distinct_kinds(rocks) -> list:
 
 
 def default_rock_fields(hashed: bool, stored: bool) -> tuple:
-    """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed."""
-    return present(SimpleNamespace(splash=hashed), "active" if stored else "full")
+    """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed,
+    no "spin" ones."""
+    return present(SimpleNamespace(splash=hashed, spin=False), "active" if stored else "full")
 
 
 @ti.data_oriented
