@@ -73,41 +73,63 @@ def test_design_hash_comparison_is_reported_not_judged():
     assert len(t) == 1 and t[0]["met"] is None and t[0]["value"] == pytest.approx(3.0)
 
 
-def _activity(step_1m=1.0, floor_1m=2.0, step_10m=2.0, b_1m=1.0, b_10m=2.0, realtime=1.0):
+def _activity(step_1m=0.5, floor_1m=2.0, step_100k=0.25, full_100k=1.0, step_10m=0.75, b_1m=1.0, b_10m=1.5,
+              realtime=2.0):
+    """Canned activity results: series (a) at 100k (active and full), 1M (with the floor) and 10M; series (b)
+    at 1M and 10M; the balanced preset. The defaults sit exactly at every limit (exact in binary)."""
     def point(ms, floor=None):
-        return {"active": {"step_ms": ms, "floor_ms": floor, "in_air": 1000}}
+        return {"step_ms": ms, "floor_ms": floor, "in_air": 1000}
 
-    return {"series": {"a": [{"n": 1_000_000, **point(step_1m, floor_1m)}, {"n": 10_000_000, **point(step_10m)}],
-                       "b": [{"n": 1_000_000, **point(b_1m)}, {"n": 10_000_000, **point(b_10m)}]},
+    return {"series": {"a": [{"n": 100_000, "active": point(step_100k), "full": point(full_100k)},
+                             {"n": 1_000_000, "active": point(step_1m, floor_1m)},
+                             {"n": 10_000_000, "active": point(step_10m)}],
+                       "b": [{"n": 1_000_000, "active": point(b_1m)}, {"n": 10_000_000, "active": point(b_10m)}]},
             "sweep": [{"group": "balanced", "sim_s_per_wall_s": realtime, "step_ms": 1.0, "dt": 0.002,
                        "integrator": "heun", "detection": "swept"}]}
 
 
-@pytest.mark.parametrize("prefix, key, met, missed", [
-    ("active step <= 0.5x", "step_1m", 1.0, 1.01),  # floor 2 ms: limit 0.5, inclusive
-    ("step(10,000,000) <= 2x step(1,000,000), series (a)", "step_10m", 2.0, 2.01),
-    ("step(10,000,000) <= 2x step(1,000,000), series (b)", "b_10m", 2.0, 2.01),
-    ("real time with the balanced preset", "realtime", 1.0, 0.99),  # at least 1
-])
-def test_each_activity_target_flips_at_its_limit(prefix, key, met, missed):
-    cfg = _cfg()
+ACTIVITY_TARGETS = [  # (prefix, key, met, missed, limit): the targets of a step whose cost is the work
+    ("step at 1,000,000 rocks, 20 rear tires <= 0.5x", "step_1m", 1.0, 1.01, 0.5),  # floor 2 ms
+    ("step at 100,000 rocks", "step_100k", 0.5, 0.51, 0.25),  # against the floor of 1M, 2 ms
+    ("step(10,000,000) <= 1.5x step(1,000,000), series (a)", "step_10m", 0.75, 0.76, 1.5),  # step(1M) 0.5 ms
+    ("step(10,000,000) <= 1.5x step(1,000,000), series (b)", "b_10m", 1.5, 1.51, 1.5),
+    ("1,000,000 rocks with the balanced preset >= 2x real time", "realtime", 2.0, 1.99, 2.0),
+]
 
-    def one(value):
-        rows = [t for t in activity.activity_targets(_activity(**{key: value}), cfg) if t["target"].startswith(prefix)]
-        assert len(rows) == 1
-        return rows[0]
 
-    a, b = one(met), one(missed)
-    assert a["met"] is True and a["detail"].startswith("PASS")
-    assert b["met"] is False and b["detail"].startswith("MISS")
+def _activity_row(act, prefix):
+    rows = [t for t in activity.activity_targets(act, _cfg()) if t["target"].startswith(prefix)]
+    assert len(rows) == 1, [t["target"] for t in activity.activity_targets(act, _cfg())]
+    return rows[0]
+
+
+@pytest.mark.parametrize("prefix, key, met, missed, limit", ACTIVITY_TARGETS)
+def test_each_activity_target_flips_at_its_limit(prefix, key, met, missed, limit):
+    a, b = _activity_row(_activity(**{key: met}), prefix), _activity_row(_activity(**{key: missed}), prefix)
+    assert a["met"] is True and a["detail"].startswith("PASS"), a
+    assert b["met"] is False and b["detail"].startswith("MISS"), b
+    assert a["limit"] == pytest.approx(limit) and b["limit"] == pytest.approx(limit)
+
+
+def test_activity_values_are_the_stated_ratios_and_limits_inclusive():
+    rows = activity.activity_targets(_activity(), _cfg())
+    assert len(rows) == len(ACTIVITY_TARGETS)
+    assert [(t["value"], t["met"]) for t in rows] == [(0.25, True), (0.125, True), (2.0, True), (1.5, True),
+                                                       (1.5, True)]
+
+
+def test_small_bed_must_also_beat_full_stepping():
+    """Under 0.25x the floor is not enough: at or above full stepping's time the 100k target is missed."""
+    row = _activity_row(_activity(step_100k=0.25, full_100k=0.25), "step at 100,000 rocks")
+    assert row["met"] is False and "not below full stepping" in row["detail"], row
+    assert _activity_row(_activity(step_100k=0.25, full_100k=0.2501), "step at 100,000 rocks")["met"] is True
 
 
 def test_activity_target_without_a_measurement_is_no_verdict():
     act = _activity()
-    act["series"]["a"][0]["active"] = {"error": "killed"}
+    act["series"]["a"][1]["active"] = {"error": "killed"}  # the 1M point: its floor is gone too
     act["sweep"] = []
-    rows = activity.activity_targets(act, _cfg())
-    assert [t["met"] for t in rows] == [None, None, True, None]
+    assert [t["met"] for t in activity.activity_targets(act, _cfg())] == [None, None, None, None, True]
 
 
 def test_hash_verdict_fails_on_a_difference_an_error_or_nothing_compared():
