@@ -22,12 +22,16 @@ def _positive_finite(x) -> bool:
 
 def test_the_jobs_of_each_mode():
     """10M points only in the full run; full stepping above 1M only there; series (b) keeps the density;
-    the reference point is shared by both series (measured once)."""
+    the reference point is shared by both series (measured once); the activity sweep, then one process of
+    profiled points (one per profiled N, on the fixed bed)."""
     for mode in ("tiny", "quick", "full"):
         cfg = make_config(quick=mode == "quick", tiny=mode == "tiny")
         jobs = activity.plan_jobs(cfg)
-        sweep, singles = jobs[-1], [j[0] for j in jobs[:-1]]
-        assert all(len(j) == 1 for j in jobs[:-1]) and all(p["memory"] and p["floor"] for p in singles)
+        sweep, profile, singles = jobs[-2], jobs[-1], [j[0] for j in jobs[:-2]]
+        assert all(len(j) == 1 for j in jobs[:-2]) and all(p["memory"] and p["floor"] for p in singles)
+        assert [p["n"] for p in profile] == list(cfg.act_profile_n) and profile
+        assert all(p["profile"] and p["group"] == "profile" and p["radius"] == cfg.act_radius for p in profile)
+        assert not any(p["profile"] for p in singles + sweep)
         labels = [p["label"] for p in singles]
         assert len(labels) == len(set(labels))
         assert (max(p["n"] for p in singles) == 10_000_000) == (mode == "full")
@@ -40,8 +44,8 @@ def test_the_jobs_of_each_mode():
         assert {p["group"] for p in sweep} == {"tires", "speed", "parked", "balanced"}
         assert all(p["n"] == cfg.act_fixed_n for p in sweep)
     full = activity.plan_jobs(make_config())
-    assert {p["t_rear"] for p in full[-1]} == {2, 6, 20, 40}
-    assert {p["speed"] for p in full[-1]} == {0.0, 10.0, 25.0, 40.0}
+    assert {p["t_rear"] for p in full[-2]} == {2, 6, 20, 40}
+    assert {p["speed"] for p in full[-2]} == {0.0, 10.0, 25.0, 40.0}
 
 
 def test_field_bytes_count_every_field():
