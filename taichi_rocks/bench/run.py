@@ -19,7 +19,7 @@ from typing import Optional
 
 from ..engine.runtime import init_taichi
 from ..output.atomic import new_folders
-from .config import Config, make_config
+from .config import DRAGS, INTEGRATORS, Config, make_config
 from .detection import REFERENCE, lanes
 from .flight import flight_cost, integrator_sweep
 from .hashing import hash_settings_study
@@ -43,7 +43,7 @@ OUTPUTS = ("report.md", "results.json") + tuple(PNG.values())
 def count_tasks(cfg: Config) -> int:
     """Progress-bar steps of a run of this configuration."""
     n_grid = len(cfg.grid_n) * len(cfg.grid_t)
-    acc = (2 if cfg.acc_f64 else 1) * 9
+    acc = (2 if cfg.acc_f64 else 1) * len(DRAGS) * len(INTEGRATORS)  # the accuracy study: drag x integrator
     return (4 + acc + 2 + len(cfg.integ_cost) + n_grid * 5 + len(cfg.hash_settings) - 1 + 6 + 6
             + (3 if cfg.validate_presets else 0) + 3 + count_jobs(cfg))
 
