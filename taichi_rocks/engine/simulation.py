@@ -221,7 +221,8 @@ class Simulation:
         h.last_launches = 0
 
     def _step(self, dt=None) -> None:
-        s = self._host_side.advance(self._host, self.dt if dt is None else float(dt))
+        with self._timer("vehicles + rays"):
+            s = self._host_side.advance(self._host, self.dt if dt is None else float(dt))
         if s.origin_moved is not None and self.n_rocks:
             self._stepper.shift_origin(s.origin_moved)
         launched = self._stepper.step(s)

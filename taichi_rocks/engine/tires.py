@@ -68,7 +68,9 @@ def trace_rays(w: ti.template()):
 
 @ti.func
 def trace_all(w: ti.template()):
-    """DDA cells of every ray of every substep (ray index = tire * substeps + s)."""
+    """DDA cells of every ray of every substep (ray index = tire * substeps + s): serial, a handful of rays
+    (a parallel task's start-up would cost more than they do)."""
+    ti.loop_config(serialize=True)
     for t, s in ti.ndrange(w.n_tires, w.substeps):
         f = ti.cast(s + 1, w.real) / w.substeps
         a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f

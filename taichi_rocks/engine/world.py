@@ -9,6 +9,7 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
+import warnings
 import weakref
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -35,6 +36,14 @@ A0, B0, A1, B1, VEL, FWD, SPIN, ACTIVE = 0, 3, 6, 9, 12, 15, 17, 18
 HALF_W, HALF_L, TIRE_R, FENDER, FLAP, HULL = 19, 20, 21, 22, 23, 24
 HULL_VERTICES = 8
 RAY_FIELDS = HULL + 2 * HULL_VERTICES
+
+# The per-step inputs of active stepping on the device, a lookahead batch of up to BATCH_ROWS steps at a time
+# (engine/stepdata.py): ``step_rays[k, t, :]`` (float64, the layout above, kernels' frame) and
+# ``step_frame[k, r]`` (2-vectors, float64), rows CENTRE, MOVE, LEAD, GRID, TILES (the origin's shift in tiles)
+# and CLOCK (dt, 0).
+BATCH_ROWS = 64
+CENTRE, MOVE, LEAD, GRID, TILES, CLOCK = range(6)
+FRAME_ROWS = 6
 
 
 def next_prime(n: int) -> int:
@@ -88,7 +97,7 @@ class _Trees:
 
     def place(self, spec, real):
         """The field of a :class:`FieldSpec` (``real``: the World's Taichi precision)."""
-        dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64}[spec.dtype]
+        dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64, "f64": ti.f64}[spec.dtype]
         f = ti.field(dtype) if spec.n == 1 else ti.Vector.field(spec.n, dtype)
         return self._place(f, dtype, spec.shape)
 
@@ -100,7 +109,7 @@ class _Trees:
 @dataclass(frozen=True)
 class FieldSpec:
     """One Taichi field of a World: ``n`` components (1: a scalar field) of ``dtype`` ("real": the World's
-    precision, "i32", "i64") over ``shape``."""
+    precision, "i32", "i64", "f64") over ``shape``."""
 
     name: str
     dtype: str
@@ -158,8 +167,15 @@ def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
         out += [FieldSpec("ts_tires", "i32", 1, (slots,)),  # which tires marked a slot (bit t mod 32)
                 FieldSpec("tire_box", "real", 4, (n_tires,)),  # each tire's query box (lo, hi) this step
                 FieldSpec("tire_keys", "i32", 4, (n_tires,))]  # and its tiles (first and last key)
-    out.append(FieldSpec("a_counts", "i32", 1, (6,)))
+    out.append(FieldSpec("a_counts", "i32", 1, (A_COUNTS,)))
+    # the step inputs of a lookahead batch (engine/stepdata.py); more per-step inputs go beside these
+    out.append(FieldSpec("step_frame", "f64", 2, (BATCH_ROWS, FRAME_ROWS)))
+    if n_tires > 0:
+        out.append(FieldSpec("step_rays", "f64", 1, (BATCH_ROWS, n_tires, RAY_FIELDS)))
     return out
+
+
+A_COUNTS = 8  # active stepping's counters (engine/active.py)
 
 
 def tmp_name(f) -> str:
@@ -262,7 +278,9 @@ def acquire(owner, n: int, real, **layout) -> World:
     key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
     for w in _POOL.get(key, ()):
         if w.owner is None or w.owner() is None:
-            _zero_fields(w)
+            with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
+                warnings.simplefilter("ignore", SyntaxWarning)
+                _zero_fields(w)
             w.owner = weakref.ref(owner)
             return w
     w = World(n, real, **layout)
