@@ -290,11 +290,12 @@ def _draw_rock(buf, bucket, meshes, p, r, quat, ph, rid, cam, fr, size, light, s
                         _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
                                     (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
                                     rid, ph, cam, light)
-            if not splatted and ph == FLYING:
-                pr = r * fr.px_per_rad / ti.max(z, fr.near)
-                if pr >= MESH_PX:
-                    put(meshes, buf.mesh_count, p, r, pr, quat, _rock_color(rid, ph), rid)
-                    splatted = True
+            if ti.static(meshes.on):  # the simulation tumbles its rocks (engine/drawing.py has_orientations)
+                if not splatted and ph == FLYING:
+                    pr = r * fr.px_per_rad / ti.max(z, fr.near)
+                    if pr >= MESH_PX:
+                        put(meshes, buf.mesh_count, p, r, pr, quat, _rock_color(rid, ph), rid)
+                        splatted = True
             if not splatted:
                 keep = True
                 draw_r = r

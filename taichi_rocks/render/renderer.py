@@ -122,11 +122,11 @@ class Renderer:
         self._ggui_camera.z_near(NEAR)
         self._ggui_camera.z_far(max(1000.0, 3.0 * self.draw_distance))
         # rocks: compact buckets (power-of-two capacities), allocated when first needed; flying ones of a few
-        # pixels and more as oriented rock meshes (:mod:`.tumbling`)
+        # pixels and more as oriented rock meshes (:mod:`.tumbling`) if the simulation tumbles them
         self.n_rocks = int(sim.n_rocks)
         self._buckets = {}
         self._mesh_buckets = {}
-        self._protos = Prototypes()
+        self._protos = Prototypes() if drawing.has_orientations(sim.world) else None
         self._drawn = None
         self.last_meshes = 0
         w, h = self.resolution
@@ -285,6 +285,12 @@ class Renderer:
         return self._buckets[cap]
 
     def _mesh_bucket(self, need: int) -> MeshBucket:
+        """A bucket for ``need`` rock meshes per level; without orientations (nothing to turn them by) a
+        one-rock bucket that the rock pass compiles out: flying rocks stay particles."""
+        if not drawing.has_orientations(self.sim.world):
+            if 0 not in self._mesh_buckets:
+                self._mesh_buckets[0] = MeshBucket(1, on=False)
+            return self._mesh_buckets[0]
         cap = MIN_MESHES
         while cap < need:
             cap *= 2
@@ -346,6 +352,8 @@ class Renderer:
             if self.rocks == "splat" or self.shadows:  # splats in the buffers already: clear them first
                 K.clear_buffers(self._buf)
         if any(n_meshes):
+            if self._protos is None:
+                self._protos = Prototypes()
             expand(meshes, self._protos, *n_meshes, *meshes.vbo)
         self.last_count, self.last_meshes = count, max(n_meshes)
         self.tiles_in_view = int(self._visible.count[None]) if drawing.has_tiles(self.sim.world) else 0

@@ -31,8 +31,8 @@ from .rocklook import _unit
 __all__ = ["MESH_PX", "FINE_PX", "PROTOTYPES", "VERTICES", "LODS", "MeshBucket", "Prototypes", "prototype_of",
            "rotate", "expand"]
 
-import os; MESH_PX = float(os.environ.get("TR_MESH_PX", 1.5))  # flying rocks at least this many pixels in radius are meshes, smaller ones particles
-FINE_PX = float(os.environ.get("TR_FINE_PX", 5.0))  # from this many pixels on, the 80-triangle prototype; below it the 20-triangle one
+MESH_PX = 1.5  # flying rocks at least this many pixels in radius are meshes, smaller ones particles
+FINE_PX = 5.0  # from this many pixels on, the 80-triangle prototype; below it the 20-triangle one
 PROTOTYPES = 8  # rock shapes the renderer draws (variants 0 .. 7 of rock_prototype)
 FINE, COARSE = 0, 1  # the levels of detail
 VERTICES = (240, 60)  # per rock and level: 80 or 20 triangles, 3 points each (flat shading)
@@ -61,10 +61,12 @@ class MeshBucket:
     """At most ``cap`` rocks per level of detail drawn as meshes: their centres, radii, orientations, colours and
     prototypes (level l's at l cap .. l cap + count[l] - 1), and per level the vertex buffer of their triangles,
     ``vbo[l]``: VERTICES[l] points per rock in the layout GGUI draws from (:data:`VBO_STRIDE` float32: position,
-    normal, texture coordinates, colour RGBA), host memory that GGUI reads without a copy of its own."""
+    normal, texture coordinates, colour RGBA), host memory that GGUI reads without a copy of its own.
+    ``on=False``: a placeholder for a simulation without orientations (the rock pass compiles the meshes out)."""
 
-    def __init__(self, cap: int):
+    def __init__(self, cap: int, on: bool = True):
         self.cap = int(cap)  # read at compile time
+        self.on = bool(on)  # read at compile time: False, a placeholder the rock pass never writes
         n = LODS * cap
         self.pos = ti.Vector.field(3, ti.f32, n)
         self.rad = ti.field(ti.f32, n)
