@@ -65,7 +65,8 @@ DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this m
 ROCK_MODES = ("splat", "particles")
 WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
 MIN_BUCKET = 4096
-MIN_MESHES = 512  # rocks drawn as meshes: the smallest bucket (VERTICES points each)
+MIN_MESHES = 1024  # rocks drawn as meshes per level of detail: the first bucket (the default scene's flying rocks
+# in view of a few pixels are ~300-550 at 720p)
 MAX_CARS = 32  # vehicles casting a shadow
 CONTACT_PX = 3.0  # resting rocks at least this many pixels in radius darken the ground beside them (smaller
 # ones are many, and their contact shadows hardly show)
@@ -126,6 +127,7 @@ class Renderer:
         self.n_rocks = int(sim.n_rocks)
         self._buckets = {}
         self._mesh_buckets = {}
+        self._mesh_cap = MIN_MESHES
         self._protos = Prototypes() if drawing.has_orientations(sim.world) else None
         self._drawn = None
         self.last_meshes = 0
@@ -291,10 +293,10 @@ class Renderer:
             if 0 not in self._mesh_buckets:
                 self._mesh_buckets[0] = MeshBucket(1, on=False)
             return self._mesh_buckets[0]
-        cap = MIN_MESHES
+        cap = self._mesh_cap  # only ever grows: each capacity compiles the rock pass anew (seconds)
         while cap < need:
             cap *= 2
-        cap = min(cap, max(self.n_rocks, 1))
+        self._mesh_cap = cap = min(cap, max(self.n_rocks, 1))
         if cap not in self._mesh_buckets:
             self._mesh_buckets[cap] = MeshBucket(cap)
         return self._mesh_buckets[cap]
@@ -339,7 +341,7 @@ class Renderer:
         shade = self._shade(sun)
         tiles = ti.Vector([float(x) for x in self.sim.tile_shift()])
         need = max(int(self.last_count * 1.25), 1)
-        need_meshes = max(int(self.last_meshes * 1.25), 1)
+        need_meshes = max(self.last_meshes, 1)
         while True:
             bucket, meshes = self._bucket(need), self._mesh_bucket(need_meshes)
             K.rocks_pass(self.sim.world, self._buf, bucket, meshes, cam, self._frustum(), size, light, shade,
