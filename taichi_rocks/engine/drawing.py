@@ -10,9 +10,9 @@ Taichi functions over the rocks wherever they are, so that nothing outside engin
 
 A rock is (centre, radius) in the kernels' local frame as f32, its phase (engine/rockfields.py codes) and its
 id; a listed rock also has an orientation (:func:`listed_orientation`: the engine's with tumbling, the identity
-without; :func:`has_orientations`). Flying rocks are always listed. The tiles' boxes need the floating origin's shift in tiles, ``Simulation.tile_shift()`` (zeros without
-tiles), as an f32 2-vector. :func:`slot_total` (Python) is the number of slots to size a renderer's list of
-visible slots by (0 without tiles).
+without; :func:`has_orientations`). Flying rocks are always listed. The tiles' boxes need the floating origin's
+shift in tiles, ``Simulation.tile_shift()`` (zeros without tiles), as an f32 2-vector. :func:`slot_total`
+(Python) is the number of slots to size a renderer's list of visible slots by (0 without tiles).
 """
 
 import taichi as ti

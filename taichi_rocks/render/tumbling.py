@@ -19,6 +19,11 @@ Smaller rocks stay GGUI particles: below a couple of pixels a sphere and a stone
 small would fall between pixel centres. The flying rocks in view of the default scene are a few hundred at 720p
 (about 550, 460 of them from 1.5 pixels, 50 from 6): lavapipe's cost is in the triangles, hence the coarse
 level for the many small ones.
+
+Without orientations (a Simulation built without tumbling: config/plan.py ``spin_on``) there is nothing to turn
+the meshes by: the rock pass compiles them out (a :class:`MeshBucket` with ``on=False``) and every flying rock
+is a particle, as before. A stone that lands goes from its mesh to the splat of the resting rocks
+(render/rocklook.py ``rock_shape``: an outline of the same size, not the same silhouette).
 """
 
 import numpy as np
