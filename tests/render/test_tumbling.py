@@ -3,7 +3,8 @@ its prototype (motion/rockshapes.py, chosen by its id) scaled by its radius and 
 quaternion (NumPy reference, on the engine's own flying rocks and on adversarial orientations), at the level of
 detail its projected size asks for; the mesh is drawn where the rock projects; without tumbling the meshes are
 compiled out; and only the commands that draw or export orientations (render, view, export) ask the engine
-for them: ``simulate``'s Plan has no spin and its world no spin or orientation fields."""
+for them: ``simulate``'s Plan has no spin and its world no spin or orientation fields. The coarse level of
+detail (motion/rockshapes.py) keeps the fine rock's volume, against closed forms."""
 
 import numpy as np
 import pytest
@@ -209,3 +210,26 @@ def test_only_render_view_and_export_ask_for_orientations(monkeypatch, scenes_di
     assert not any(f.name in ("spin", "orient") for f in plain.world.rocks)
     assert not hasattr(plain.world, "spin") and not hasattr(plain.world, "orient")
     assert not drawing.has_orientations(plain.world)
+
+
+def test_the_coarse_prototype_is_the_fine_one_on_the_icosahedron_at_the_same_volume():
+    """The level of detail for small rocks: the fine rock's first 12 points (the icosahedron's), scaled to its
+    volume, faces outward; ``volume`` against closed forms (a unit cube's 12 triangles, a turned-in one)."""
+    from taichi_rocks.motion.rockshapes import rock_prototype, volume
+
+    cube = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6],
+                      [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    assert volume(cube * 2.0 + 5.0, faces) == pytest.approx(8.0)
+    assert volume(cube, faces[:, ::-1]) == pytest.approx(-1.0)
+    for k in range(tumbling.PROTOTYPES):
+        fp, _, fi = rock_prototype(k)
+        cp, counts, ci = rock_prototype(k, coarse=True)
+        assert len(cp) == 12 and len(counts) == 20 and np.all(counts == 3)
+        v_fine, v_coarse = volume(fp, fi.reshape(-1, 3)), volume(cp, ci.reshape(-1, 3))
+        assert v_coarse == pytest.approx(v_fine, rel=1e-5) and v_fine > 0
+        s = np.linalg.norm(cp, axis=1) / np.linalg.norm(fp[:12], axis=1)
+        assert np.allclose(s, s[0], rtol=1e-5) and s[0] > 1.0  # the same points, pushed out to hold the volume
+        tri = cp.astype(np.float64)[ci.reshape(-1, 3)]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        assert np.all(np.einsum("ij,ij->i", n, tri.mean(axis=1)) > 0)  # every face outward
