@@ -9,9 +9,10 @@ Taichi functions over the rocks wherever they are, so that nothing outside engin
   :func:`slot_rock` its k-th rock.
 
 A rock is (centre, radius) in the kernels' local frame as f32, its phase (engine/rockfields.py codes) and its
-id. The tiles' boxes need the floating origin's shift in tiles, ``Simulation.tile_shift()`` (zeros without
-tiles), as an f32 2-vector. :func:`slot_total` (Python) is the number of slots to size a renderer's list of
-visible slots by (0 without tiles).
+id; a listed rock also has an orientation (:func:`listed_orientation`: the engine's with tumbling, the identity
+without; :func:`has_orientations`). Flying rocks are always listed. The tiles' boxes need the floating origin's
+shift in tiles, ``Simulation.tile_shift()`` (zeros without tiles), as an f32 2-vector. :func:`slot_total`
+(Python) is the number of slots to size a renderer's list of visible slots by (0 without tiles).
 """
 
 import taichi as ti
@@ -19,13 +20,18 @@ import taichi as ti
 from .rockfields import RESTING
 from .world import IPar, Par
 
-__all__ = ["has_tiles", "slot_total", "listed_count", "listed_rock", "slot_count", "slot_capacity", "slot_rocks",
-           "slot_bounds", "slot_rock"]
+__all__ = ["has_tiles", "has_orientations", "slot_total", "listed_count", "listed_rock", "listed_orientation",
+           "slot_count", "slot_capacity", "slot_rocks", "slot_bounds", "slot_rock"]
 
 
 def has_tiles(w) -> bool:
     """Whether resting rocks wait in tiles (active stepping); a compile-time value (``ti.static``)."""
     return bool(w.stored)
+
+
+def has_orientations(w) -> bool:
+    """Whether the rocks have orientations (the simulation tumbles them: engine/tumble.py); compile-time."""
+    return any(f.name == "orient" for f in w.rocks)
 
 
 def slot_total(w) -> int:
@@ -43,6 +49,16 @@ def listed_count(w: ti.template()):
 def listed_rock(w: ti.template(), i):
     """Listed rock i: local centre and radius (f32), phase, id."""
     return ti.cast(w.pos[i], ti.f32), ti.cast(w.radius[i], ti.f32), w.phase[i], w.rock_id[i]
+
+
+@ti.func
+def listed_orientation(w: ti.template(), i):
+    """Listed rock i's orientation, a unit quaternion (x, y, z, w; f32) from its own frame to the world's: the
+    engine's with tumbling, else the identity."""
+    q = ti.Vector([0.0, 0.0, 0.0, 1.0])
+    if ti.static(has_orientations(w)):
+        q = ti.cast(w.orient[i], ti.f32)
+    return q
 
 
 @ti.func

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rock_prototype", "flat_triangles"]
+__all__ = ["rock_prototype", "flat_triangles", "volume"]
 
 _GOLDEN = (1.0 + 5.0 ** 0.5) / 2.0
 _ICOSAHEDRON_FACES = np.array([
@@ -43,9 +43,11 @@ def _icosphere() -> tuple[np.ndarray, np.ndarray]:
     return np.array(pts), np.array(faces)
 
 
-def rock_prototype(variant: int):
+def rock_prototype(variant: int, coarse: bool = False):
     """An irregular rock of mean radius ~1 (a bumpy, slightly flattened icosphere), the same for the same
-    ``variant``: scaled by a rock's radius it stands for the simulation's sphere."""
+    ``variant``: scaled by a rock's radius it stands for the simulation's sphere. ``coarse``: the same rock on
+    the icosahedron's 12 points and 20 faces (the first 12 points of the subdivided one), scaled to the same
+    volume: a level of detail for rocks a few pixels across."""
     pts, faces = _icosphere()
     rng = np.random.default_rng(9173 + int(variant))
     dirs = rng.normal(size=(4, 3))
@@ -54,13 +56,24 @@ def rock_prototype(variant: int):
     r = 1.0 + bumps + rng.uniform(-0.06, 0.06, len(pts))
     p = pts * r[:, None] * np.array([1.0, rng.uniform(0.8, 1.0), rng.uniform(0.6, 0.85)])
     p /= np.mean(np.linalg.norm(p, axis=1))
+    if coarse:
+        fine = volume(p, faces)
+        p, faces = p[:12], _ICOSAHEDRON_FACES
+        p = p * (fine / volume(p, faces)) ** (1.0 / 3.0)
     return (p.astype(np.float32), np.full(len(faces), 3, np.int32), faces.reshape(-1).astype(np.int32))
 
 
-def flat_triangles(variant: int):
-    """Prototype ``variant`` as separate triangles for flat shading: (points (3F, 3), normals (3F, 3)) float32,
-    three points per face in its order and each face's outward unit normal on its three points."""
-    pts, counts, idx = rock_prototype(variant)
+def volume(points, faces) -> float:
+    """The volume a closed mesh of outward triangles encloses (the divergence theorem: sum of a . (b x c) / 6)."""
+    a, b, c = (np.asarray(points, np.float64)[faces[:, k]] for k in range(3))
+    return float(np.sum(np.einsum("ij,ij->i", a, np.cross(b, c))) / 6.0)
+
+
+def flat_triangles(variant: int, coarse: bool = False):
+    """Prototype ``variant`` (:func:`rock_prototype`) as separate triangles for flat shading: (points (3F, 3),
+    normals (3F, 3)) float32, three points per face in its order and each face's outward unit normal on its
+    three points."""
+    pts, counts, idx = rock_prototype(variant, coarse)
     tri = pts[idx.reshape(-1, 3)].astype(np.float64)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.linalg.norm(n, axis=1, keepdims=True)

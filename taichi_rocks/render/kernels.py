@@ -7,9 +7,10 @@ and splats the resting/sliding ones (:func:`_splat_sphere`: shaded spheres, dept
 pixel to the ground plane: a checker of ``render.ground_tile`` metre tiles anchored to *world* coordinates
 (it scrolls as the vehicles drive; box-filtered, so no moire at the horizon), soft contact shadows under the
 vehicles, the shadows of the vehicles and the rocks (:mod:`.shadows`; splatted by the rock pass), the
-splatted rocks, haze. Everything GGUI draws (the second layer: vehicles, flying rocks,
-overlays) lies above the ground plane, so drawing the ground and what lies on it *behind* the 3D scene is
-exact (up to a rock touching a tire's contact patch). :func:`to_u8` merges the two.
+splatted rocks, haze. Everything GGUI draws (the second layer: vehicles, flying rocks as
+oriented rock meshes, render/tumbling.py, or particles when small, overlays) lies above the ground plane, so
+drawing the ground and what lies on it *behind* the 3D scene is exact (up to a rock touching a tire's contact
+patch). :func:`to_u8` merges the two.
 
 Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)). Kernel arguments are grouped in the structs
 below (local f32 coordinates, the simulation's Z up); the buffers live in a :class:`Buffers`.
@@ -25,6 +26,7 @@ from .rocklook import _rock_color, _unit, rock_color, rock_shape
 from .shadows import SHADE_ONE, Shade, smooth01 as _smooth01, splat_shadow as _splat_shadow, \
     take_shade as _take_shade, vehicle_shadows as _vehicle_shadows
 from .tiles import Visible, tile_in_view
+from .tumbling import MESH_PX, put
 
 __all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "CameraBasis", "Frustum", "Sizing", "Light", "Ground",
            "Palette", "Shade", "Buffers", "Bucket", "Visible", "rock_color", "rocks_pass", "clear_buffers", "paint_ground",
@@ -59,12 +61,14 @@ Palette = ti.types.struct(ground_a=_vec3, ground_b=_vec3, light=_vec3, sky=_vec3
 class Buffers:
     """The fields of the background layer, ``width`` x ``height``: the image (``sky``), the software buffers of
     the splatted rocks (1 x 1 placeholders unless ``splat``), the rows they touch, the vehicles' shadows, and
-    two counters (rocks compacted for GGUI, pixels GGUI drew)."""
+    three counters (rocks compacted for GGUI particles and for meshes, pixels GGUI drew)."""
 
     def __init__(self, width: int, height: int, splat: bool, max_cars: int, shadows: bool = False):
         self.splat = bool(splat)  # read at compile time
         self.shadows = bool(shadows)  # read at compile time
         self.count = ti.field(ti.i32, shape=())
+        self.mesh_count = ti.field(ti.i32, shape=2)  # flying rocks compacted for meshes, per level of detail
+        # (render/tumbling.py)
         self.sky = ti.Vector.field(4, ti.u8)
         ti.root.dense(ti.j, height).dense(ti.i, width).place(self.sky)  # rows contiguous: written row by row
         bw, bh = (width, height) if splat else (1, 1)
@@ -255,9 +259,10 @@ def _compact(bucket, count, p, draw_r, col):
 
 
 @ti.func
-def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
-    """One rock of the rock pass (:func:`rocks_pass`): local centre ``p`` and radius ``r`` (f32), phase ``ph``,
-    id ``rid``; its shadows, then culled to the view and splatted or compacted."""
+def _draw_rock(buf, bucket, meshes, p, r, quat, ph, rid, cam, fr, size, light, sh):
+    """One rock of the rock pass (:func:`rocks_pass`): local centre ``p`` and radius ``r`` (f32), orientation
+    ``quat``, phase ``ph``, id ``rid``; its shadows, then culled to the view and splatted or compacted (a flying
+    rock of at least MESH_PX pixels into ``meshes``, render/tumbling.py)."""
     W = ti.cast(buf.zbuf.shape[0], ti.f32)
     H = ti.cast(buf.zbuf.shape[1], ti.f32)
     d = p - cam.eye
@@ -285,6 +290,12 @@ def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
                         _splat_rock(buf, (x / (zz * fr.tan_x) + 1.0) * 0.5 * W,
                                     (y / (zz * fr.tan_y) + 1.0) * 0.5 * H, r * fr.px_per_rad / zz, zz, r,
                                     rid, ph, cam, light)
+            if ti.static(meshes.on):  # the simulation tumbles its rocks (engine/drawing.py has_orientations)
+                if not splatted and ph == FLYING:
+                    pr = r * fr.px_per_rad / ti.max(z, fr.near)
+                    if pr >= MESH_PX:
+                        put(meshes, buf.mesh_count, p, r, pr, quat, _rock_color(rid, ph), rid)
+                        splatted = True
             if not splatted:
                 keep = True
                 draw_r = r
@@ -301,13 +312,16 @@ def _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh):
 
 
 @ti.kernel
-def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), cam: CameraBasis, fr: Frustum,
-               size: Sizing, light: Light, sh: Shade, vis: ti.template(), tiles: _vec2):
+def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), meshes: ti.template(),
+               cam: CameraBasis, fr: Frustum, size: Sizing, light: Light, sh: Shade, vis: ti.template(),
+               tiles: _vec2):
     """Cull the rocks of ``world`` to the view frustum and the draw distance, as the engine offers them
     (engine/drawing.py): the listed rocks (every rock, or with active stepping the active list), then, if the
     resting rocks wait in tiles, the tiles in view (:mod:`.tiles`: the slots whose tile may be in view are
     listed in ``vis``; ``tiles`` is the floating origin's shift in tiles, ``Simulation.tile_shift()``). Then
 
+    * flying rocks of at least MESH_PX pixels are compacted into ``meshes`` (atomic counter
+      ``buf.mesh_count``; render/tumbling.py draws them as oriented rock meshes), smaller ones as below;
     * ``buf.splat``: resting and sliding rocks are drawn into the software buffers (:func:`_splat_rock`),
       flying rocks are compacted into ``bucket`` for GGUI;
     * otherwise every visible rock is compacted into ``bucket`` (atomic counter ``buf.count``; the first
@@ -322,6 +336,8 @@ def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), 
     same image whether they are in the active list or the tiles.
     """
     buf.count[None] = 0
+    buf.mesh_count[0] = 0
+    buf.mesh_count[1] = 0
     if ti.static(buf.splat):
         buf.rows[0] = buf.zbuf.shape[1]
         buf.rows[1] = -1
@@ -330,7 +346,8 @@ def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), 
         buf.rows[3] = -1
     for i in range(drawing.listed_count(world)):
         p, r, ph, rid = drawing.listed_rock(world, i)
-        _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh)
+        _draw_rock(buf, bucket, meshes, p, r, drawing.listed_orientation(world, i), ph, rid, cam, fr, size, light,
+                   sh)
     if ti.static(drawing.has_tiles(world)):
         vis.count[None] = 0
         for t in range(drawing.slot_count(world)):
@@ -341,8 +358,9 @@ def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), 
         for v, k in ti.ndrange(vis.count[None], drawing.slot_capacity(world)):
             t = vis.slots[v]
             if k < drawing.slot_rocks(world, t):
-                p, r, ph, rid = drawing.slot_rock(world, t, k)
-                _draw_rock(buf, bucket, p, r, ph, rid, cam, fr, size, light, sh)
+                p, r, ph, rid = drawing.slot_rock(world, t, k)  # at rest: never a mesh, no orientation read
+                _draw_rock(buf, bucket, meshes, p, r, ti.Vector([0.0, 0.0, 0.0, 1.0]), ph, rid, cam, fr, size,
+                           light, sh)
 
 
 @ti.kernel

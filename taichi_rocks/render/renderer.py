@@ -44,6 +44,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
+from taichi.ui.utils import get_field_info
 
 from ..config.resolution import check_resolution
 from ..engine import drawing
@@ -54,6 +55,7 @@ from .bodies import scene_meshes
 from .interior import interior_of
 from .meshes import merge, pose_mesh
 from .overlays import Overlays
+from .tumbling import MeshBucket, Prototypes, expand
 from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
 
@@ -63,6 +65,8 @@ DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this m
 ROCK_MODES = ("splat", "particles")
 WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
 MIN_BUCKET = 4096
+MIN_MESHES = 1024  # rocks drawn as meshes per level of detail: the first bucket (the default scene's flying rocks
+# in view of a few pixels are ~300-550 at 720p)
 MAX_CARS = 32  # vehicles casting a shadow
 CONTACT_PX = 3.0  # resting rocks at least this many pixels in radius darken the ground beside them (smaller
 # ones are many, and their contact shadows hardly show)
@@ -118,10 +122,15 @@ class Renderer:
         self._ggui_camera.fov(self.fov)
         self._ggui_camera.z_near(NEAR)
         self._ggui_camera.z_far(max(1000.0, 3.0 * self.draw_distance))
-        # rocks: compact buckets (power-of-two capacities), allocated when first needed
+        # rocks: compact buckets (power-of-two capacities), allocated when first needed; flying ones of a few
+        # pixels and more as oriented rock meshes (:mod:`.tumbling`) if the simulation tumbles them
         self.n_rocks = int(sim.n_rocks)
         self._buckets = {}
+        self._mesh_buckets = {}
+        self._mesh_cap = MIN_MESHES
+        self._protos = Prototypes() if drawing.has_orientations(sim.world) else None
         self._drawn = None
+        self.last_meshes = 0
         w, h = self.resolution
         # background image, splat buffers, shadows
         self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows)
@@ -214,6 +223,7 @@ class Renderer:
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
         self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
         self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
+        self._identity = np.eye(4, dtype=np.float32)[None]  # the same, as GGUI's wrapper hands it over
 
     def _triangles(self, inside) -> np.ndarray:
         """The merged mesh's indices drawn from outside (``inside`` None) or from the cabin of vehicle
@@ -276,6 +286,21 @@ class Renderer:
             self._buckets[cap] = K.Bucket(cap)
         return self._buckets[cap]
 
+    def _mesh_bucket(self, need: int) -> MeshBucket:
+        """A bucket for ``need`` rock meshes per level; without orientations (nothing to turn them by) a
+        one-rock bucket that the rock pass compiles out: flying rocks stay particles."""
+        if not drawing.has_orientations(self.sim.world):
+            if 0 not in self._mesh_buckets:
+                self._mesh_buckets[0] = MeshBucket(1, on=False)
+            return self._mesh_buckets[0]
+        cap = self._mesh_cap  # only ever grows: each capacity compiles the rock pass anew (seconds)
+        while cap < need:
+            cap *= 2
+        self._mesh_cap = cap = min(cap, max(self.n_rocks, 1))
+        if cap not in self._mesh_buckets:
+            self._mesh_buckets[cap] = MeshBucket(cap)
+        return self._mesh_buckets[cap]
+
     def _frustum(self):
         return K.Frustum(tan_x=self.tan_x, tan_y=self.tan_y, sec_x=math.sqrt(1 + self.tan_x ** 2),
                          sec_y=math.sqrt(1 + self.tan_y ** 2), near=NEAR, far=self.draw_distance,
@@ -316,20 +341,26 @@ class Renderer:
         shade = self._shade(sun)
         tiles = ti.Vector([float(x) for x in self.sim.tile_shift()])
         need = max(int(self.last_count * 1.25), 1)
+        need_meshes = max(self.last_meshes, 1)
         while True:
-            bucket = self._bucket(need)
-            K.rocks_pass(self.sim.world, self._buf, bucket, cam, self._frustum(), size, light, shade,
+            bucket, meshes = self._bucket(need), self._mesh_bucket(need_meshes)
+            K.rocks_pass(self.sim.world, self._buf, bucket, meshes, cam, self._frustum(), size, light, shade,
                          self._visible, tiles)
             count = int(self._buf.count[None])
-            if count <= bucket.cap:
+            n_meshes = tuple(int(c) for c in self._buf.mesh_count.to_numpy())  # per level of detail
+            if count <= bucket.cap and max(n_meshes) <= meshes.cap:
                 break
-            need = count
+            need, need_meshes = max(count, need), max(max(n_meshes), need_meshes)
             if self.rocks == "splat" or self.shadows:  # splats in the buffers already: clear them first
                 K.clear_buffers(self._buf)
-        self.last_count = count
+        if any(n_meshes):
+            if self._protos is None:
+                self._protos = Prototypes()
+            expand(meshes, self._protos, *n_meshes, *meshes.vbo)
+        self.last_count, self.last_meshes = count, max(n_meshes)
         self.tiles_in_view = int(self._visible.count[None]) if drawing.has_tiles(self.sim.world) else 0
-        self._drawn = (bucket, count)
-        return count
+        self._drawn = (bucket, count, meshes, n_meshes)
+        return count + sum(n_meshes)
 
     def render_frame(self, view: View = None):
         """Draw the simulation's current state; return the upright image, (H, W, 3) uint8 (None in a shown
@@ -405,13 +436,25 @@ class Renderer:
         scene.ambient_light(AMBIENT)
         scene.point_light(tuple(float(x) for x in eye + 2000.0 * sd), SUN_COLOR)
         self._draw_vehicles(scene, origin, poses)
-        if self._drawn is not None and self._drawn[1] > 0:
-            bucket, count = self._drawn
-            scene.particles(bucket.pos, 0.03, per_vertex_color=bucket.col, per_vertex_radius=bucket.rad,
-                            index_count=count)
+        if self._drawn is not None:
+            bucket, count, meshes, n_meshes = self._drawn
+            if count > 0:
+                scene.particles(bucket.pos, 0.03, per_vertex_color=bucket.col, per_vertex_radius=bucket.rad,
+                                index_count=count)
+            self._draw_rock_meshes(scene, meshes, n_meshes)
         self._overlays.draw(scene, self.sim, origin, self.ground_z)
         win.canvas.scene(scene)
         return win
+
+    def _draw_rock_meshes(self, scene, meshes, counts) -> None:
+        """The flying rocks' meshes (:mod:`.tumbling`), a mesh per level of detail, their vertices transformed in
+        a kernel and already in GGUI's layout: handed to GGUI's own scene as the wrapper's ``mesh_instance``
+        would (one identity instance; see the module docstring), minus its repacking of the whole field."""
+        for lod, n in enumerate(counts):
+            if n > 0:
+                vbo = meshes.vertices(lod, n)
+                scene.scene.mesh_instance(get_field_info(vbo), True, get_field_info(None), (0.5, 0.5, 0.5), False,
+                                          get_field_info(self._identity), 1, 0, len(vbo), 0, len(vbo), 0, False)
 
     def _vehicle_lost(self, eye, fwd, right, up) -> bool:
         """True if a vehicle in full view (in front of the camera, its screen box at least 3 x 3 pixels and
