@@ -18,8 +18,8 @@ Marks (:func:`mark_segments`): a chip or a crack on a windscreen stays as line s
 its damage class and sized by how far its measure (normal energy 1/2 m u_n^2 or normal momentum m u_n, as
 [impacts] damage_by) lies above the class's threshold (s in [0, 1], log scale):
 
-  chip   a bullseye with a star: a ring of radius 0.35 R and 5-7 arms of 0.6-1.0 R, R = CHIP_R (6 -> 15 mm);
-  crack  the chip's star at the point, and a line crack through it, L = CRACK_L (12 -> 40 cm) end to end, as
+  chip   a bullseye with a star: a ring of radius 0.35 R and 5-7 arms of 0.6-1.0 R, R = CHIP_R (8 -> 20 mm);
+  crack  the chip's star at the point, and a line crack through it, L = CRACK_L (20 -> 60 cm) end to end, as
          two jagged arms (bent at CRACK_STEPS points by up to CRACK_JITTER rad) with 2-4 branches of 0.2-0.4 of
          an arm at 25-50 degrees off it.
 
@@ -47,13 +47,14 @@ __all__ = ["Hits", "to_body_frame", "body_to_local", "flash_geometry", "mark_seg
 WINDSCREEN = LABELS.index("windscreen")
 MARK, CHIP, CRACK = (DAMAGE_CLASSES.index(c) for c in ("mark", "chip", "crack"))
 FLASH_S = 0.13  # s a flash lasts (4 frames at 30 frames/s)
-FLASH_M = 0.03  # m: the flash core's radius, at its largest
-FLASH_PX = 7.0  # pixels: the core's radius at least, at its largest
-RAY_M = 0.12  # m: a spark's length, fully spread
-RAY_PX = 28.0  # pixels: a spark's length at least, fully spread
+FLASH_M = 0.012  # m: the flash core's radius, at its largest
+FLASH_PX = 5.0  # pixels: the core's radius at least, at its largest
+RAY_M = 0.09  # m: a spark's length, fully spread
+RAY_PX = 24.0  # pixels: a spark's length at least, fully spread
 RAYS = 8
-CHIP_R = (0.006, 0.015)  # m: the chip's radius, at s = 0 and s = 1
-CRACK_L = (0.12, 0.40)  # m: the crack's length end to end, at s = 0 and s = 1
+HOT = 2.5  # the core's colour at its brightest (white-hot once GGUI's shading and the 8-bit image clip it)
+CHIP_R = (0.008, 0.02)  # m: the chip's radius, at s = 0 and s = 1
+CRACK_L = (0.20, 0.60)  # m: the crack's length end to end, at s = 0 and s = 1
 CRACK_STEPS = 6  # bends per arm of a crack
 CRACK_JITTER = 0.35  # rad: at most this much turn at a bend
 GLASS_GAP = 0.002  # m between a mark and the glass, on the camera's side
@@ -303,8 +304,8 @@ def flash_geometry(events, ages, positions, headings, eye, px_per_rad: float):
     glow = 1.0 - u  # fades out
     core = np.maximum(FLASH_M, FLASH_PX * per_m) * (1.0 - 0.6 * u)
     centres = p + 0.5 * core[:, None] * nrm  # a little off the surface, so the body does not hide it
-    hot = np.array([1.0, 0.97, 0.80])
-    cols = hot[None] * (0.45 + 0.55 * glow[:, None])
+    hot = np.array([HOT, HOT, 0.85 * HOT])  # GGUI shades particles (colour x light): over 1 saturates to white
+    cols = hot[None] * (0.35 + 0.65 * glow[:, None])
     # sparks: RAYS directions in the surface's plane, spreading with age
     t1 = np.cross(nrm, np.array([0.0, 0.0, 1.0]))
     flat = np.linalg.norm(t1, axis=1) < 1e-6
@@ -318,7 +319,7 @@ def flash_geometry(events, ages, positions, headings, eye, px_per_rad: float):
     a = centres[:, None] + (0.3 * reach)[:, None, None] * d
     b = centres[:, None] + reach[:, None, None] * d
     segs = np.stack([a, b], axis=2).reshape(-1, 2, 3)
-    spark = np.array([1.0, 0.78, 0.35])
+    spark = np.array([1.0, 0.85, 0.45])
     seg_cols = np.repeat(spark[None] * (0.4 + 0.6 * glow[:, None]), RAYS, axis=0)
     return (centres.astype(np.float32), core.astype(np.float32), cols.astype(np.float32),
             segs.astype(np.float32), seg_cols.astype(np.float32))

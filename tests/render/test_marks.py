@@ -153,7 +153,7 @@ def test_body_frame_and_pose_transforms():
 
 
 def test_a_flash_rides_with_the_vehicle_and_keeps_its_size_in_pixels():
-    from taichi_rocks.render.marks import FLASH_M, FLASH_PX, FLASH_S, RAYS, flash_geometry
+    from taichi_rocks.render.marks import FLASH_M, FLASH_PX, FLASH_S, HOT, RAYS, flash_geometry
 
     ev = _events(2, point=[(2.0, 0.0, 1.0), (2.0, 0.0, 1.0)], rock=[1, 2])
     pos = np.array([(0.0, 0.0, 0.0), (100.0, 0.0, 0.0)])
@@ -164,6 +164,6 @@ def test_a_flash_rides_with_the_vehicle_and_keeps_its_size_in_pixels():
     assert r[0] == pytest.approx(FLASH_M)  # near: its size in metres
     assert r[1] == pytest.approx(FLASH_PX * np.linalg.norm(c[1] - (0, 0, 1)) / 1000.0, rel=0.02)  # far: in pixels
     assert seg.shape == (2 * RAYS, 2, 3) and seg_col.shape == (2 * RAYS, 3)
-    assert np.all(col <= 1.0) and np.all(col > 0.4)
+    assert np.all(col <= HOT) and np.all(col > 0.4)
     _, r_old, col_old, _, _ = flash_geometry(ev[:1], [0.9 * FLASH_S], pos[:1], [0.0], (0.0, 0.0, 1.0), 1000.0)
     assert r_old[0] < r[0] and np.all(col_old[0] < col[0])  # it fades and shrinks
