@@ -62,8 +62,9 @@ ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many 
 NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
 
 # Rows of active_step's ``frame`` (2-vectors, float64): those of kernels.rock_pass, then the tile shift
-# (shift / s: whole numbers).
+# (shift / s: whole numbers), then with impacts the impacts pass's rows (engine/impact_pass.py).
 CENTRE, MOVE, LEAD, GRID, TILES = 0, 1, 2, 3, 4
+BODIES = 5
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -413,7 +414,7 @@ def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dt
         classify_tires(w, plan, c, st)
     gather(w, c)
     for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: the last point is unused
+        rock_step(w, plan, i, h, c, m, d, c, step, False, frame, BODIES)  # no tire mask: g is unused
 
 
 @ti.kernel

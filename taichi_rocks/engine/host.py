@@ -10,7 +10,9 @@ One step of length dt on the host:
   3. floating origin: once the bed centre is farther than ORIGIN_RANGE from the origin, the shift moves to the
      snapped point nearest it (the kernels then move every rock by the difference, ``StepInput.origin_moved``);
   4. the rear tires now and their rays from the previous step's tires (``ray_rows``), in the kernels' frame
-     (``local_rays``), tires far from the bed parked high above it.
+     (``local_rays``), tires far from the bed parked high above it;
+  5. with impacts, the poses of the vehicles stones hit at the step's start and end, in the kernels' frame
+     after this step's origin move (engine/impact_pass.py ``pose_rows``).
 
 Coordinates: kernels work in a local frame, world = origin + local. With ``origin = "floating"`` the origin is
 anchor + shift: the anchor is the point the followed path is computed from (its first waypoint, where the bed
@@ -44,6 +46,7 @@ import numpy as np
 
 from . import patch
 from ..motion.vehicles import RearTires, TablePoses, VehiclePose, tire_fields
+from .impact_pass import pose_rows
 from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS
 
 __all__ = ["ORIGIN_SNAP", "ORIGIN_RANGE", "LOOKAHEAD", "HostState", "HostSide", "StepInput", "Lookahead",
@@ -114,7 +117,8 @@ class HostState:
 class StepInput(NamedTuple):
     """What one step's kernels get from the host: the step's number and length, the bed centre (XY, local
     frame), its move this step (anchor-relative), its leading direction, the origin's shift (XY, m), the rays
-    (float64, World.ray layout, kernels' frame) and, if the origin moved before this step, by how much (XY).
+    (float64, World.ray layout, kernels' frame), if the origin moved before this step, by how much (XY), and
+    with impacts the poses of the vehicles hit (engine/impact_pass.py ``pose_rows``; None without).
     (A named tuple: made every step, it costs a fraction of a frozen dataclass.)"""
 
     step: int
@@ -125,14 +129,16 @@ class StepInput(NamedTuple):
     shift: np.ndarray
     rays: np.ndarray
     origin_moved: np.ndarray | None
+    bodies: np.ndarray | None = None
 
 
 class HostSide:
     """The host work of each step for one scene (module docstring): ``advance`` takes a HostState through one
     step and returns the kernels' StepInput. ``lookahead``: steps computed at once (0: step by step)."""
 
-    def __init__(self, scene, fleet, follow: int, n_tires: int, lookahead: int = LOOKAHEAD):
+    def __init__(self, scene, fleet, follow: int, n_tires: int, lookahead: int = LOOKAHEAD, targets=()):
         self.fleet, self.follow, self.n_tires = fleet, int(follow), int(n_tires)
+        self.targets = tuple(targets)  # with impacts: the vehicles stones hit (their poses go to the kernels)
         self.floating = scene.sim.origin == "floating"
         self.ground_z = float(scene.world.ground_z)
         self.dt = float(scene.sim.dt)
@@ -181,8 +187,9 @@ class HostSide:
             tires_now = ahead.tires
             rays = self.local_rays(st, ahead.rows, ahead.far) if self.n_tires else self.no_rays
         st.tires_prev = tires_now
+        bodies = pose_rows(st.poses, poses, self.targets, st.shift) if self.targets else None
         st.poses = poses
-        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved)
+        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved, bodies)
 
     def _follow(self, st: HostState, pose) -> np.ndarray:
         """Move the bed under the followed vehicle (``pose``) and turn its leading edge to the vehicle's travel

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import active, hashgrid, rocks, tires
+from .impact_pass import time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
 from .world import IPar, next_prime
 
@@ -66,6 +67,14 @@ class Stepper:
     def grid_origin(self, centre: np.ndarray) -> np.ndarray:
         """The corner of the tire mask's tiles (XY, local frame; full stepping): the mask is centred on the bed."""
         return centre - self.sizing.grid_half
+
+    def with_bodies(self, frame: np.ndarray, s) -> np.ndarray:
+        """The step's frame rows and, with impacts, the impacts pass's rows after them: the step's start time
+        relative to the event buffer's reference time, the poses of the vehicles hit (engine/impact_pass.py)."""
+        if s.bodies is None:
+            return frame
+        t0 = self.host.time - s.dt - self.world.events.t_ref
+        return np.concatenate([frame, time_row(t0), s.bodies])
 
     def put_rays(self, rays: np.ndarray) -> None:
         """The tires' rays (World.ray layout, kernels' frame) into the World, outside a step."""
@@ -128,6 +137,7 @@ class FullStepper(Stepper):
         if self.moves:
             with self.timer("rock pass"):
                 frame = np.array([s.centre, s.move, s.lead, self.grid_origin(s.centre)])  # kernels.CENTRE..GRID
+                frame = self.with_bodies(frame, s)
                 rock_pass(self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
         return self._hash_and_tires(s.step) if self.plan.splash else 0
 
@@ -202,8 +212,8 @@ class ActiveStepper(Stepper):
     def step(self, s) -> int:
         if not self.moves:
             return 0
-        frame = active.frame_rows(s.centre, s.move, s.lead, self.grid_origin(s.centre), s.shift,
-                                  self.world.store_tile)
+        frame = self.with_bodies(active.frame_rows(s.centre, s.move, s.lead, self.grid_origin(s.centre), s.shift,
+                                                   self.world.store_tile), s)
         with self.timer("active step"):
             active.active_step(self.world, self.switches["active_step"], s.rays, frame, s.dt, s.step,
                                int(self.check_all))
