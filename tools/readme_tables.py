@@ -1,6 +1,8 @@
 """The README's measured tables, generated from the benchmark results committed under docs/results/:
 
     docs/results/bench.json    ``taichi-rocks bench`` (its results.json): speed and activity targets, presets
+    docs/results/activity.json ``taichi-rocks bench --only activity`` (its activity.json): when present, the
+                               activity blocks (targets, notes, where a step's time goes) come from it
     docs/results/launch.json   ``taichi-rocks bench --only launch`` (its launch_study.json): what the tread throws
 
     python tools/readme_tables.py            # rewrite the marked blocks of README.md from those files
@@ -8,7 +10,7 @@
 
 Each generated block of README.md sits between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->``; the
 text outside the blocks is left alone, and nothing inside them is written by hand. To show a new run: copy
-its results.json (and launch_study.json) over the files above, run this script, commit the three together.
+its results.json (activity.json, launch_study.json) over the files above, run this script, commit them together.
 tests/test_readme_tables.py checks that the README's blocks are what this script makes of the committed files.
 """
 
@@ -31,7 +33,8 @@ LAUNCH_CASES = ("V10 dry gravel", "V20 dry gravel", "V30 dry gravel", "V20 wet g
 INTEGRATOR = {"symplectic_euler": "symplectic Euler", "heun": "Heun", "rk4": "RK4"}
 SPEED_TARGETS = ("full step <= 1.0x Warp", "full step <= 3x streaming floor", ">= 100x faster than NumPy",
                  "bed-only scene", "linear in N")
-ACTIVITY_TARGETS = ("active step <= 0.5x", "step(", "real time with the balanced preset")
+ACTIVITY_TARGETS = ("step at ", "step(", "1,000,000 rocks with the balanced preset", "active step <= 0.5x",
+                    "real time with the balanced preset")
 
 
 def _met(m) -> str:
@@ -57,7 +60,10 @@ def _num(x, digits=3) -> str:
 
 
 def run_line(res: dict) -> str:
-    """Where and when a run was made, and how busy the machine was."""
+    """Where and when a run was made, and how busy the machine was (a full benchmark's results.json, or the
+    activity study's activity.json)."""
+    if "config" not in res:  # bench --only activity
+        res = dict(res, config={"mode": f"--only activity, {res['mode']}"}, elapsed_s=res["activity"]["elapsed_s"])
     m = res["machine"]
     la0, la1 = res.get("load_average_start"), res.get("load_average_end")
     load, busy = "", ""
@@ -181,7 +187,7 @@ def _default_recall(bench: dict) -> float:
 
 
 def activity_targets(launch: dict, bench: dict) -> list:
-    rows = [run_line(bench), "", "| target | measured | verdict |", "|---|---|---|"]
+    rows = [run_line(bench.get("activity_run", bench)), "", "| target | measured | verdict |", "|---|---|---|"]
     for t in _targets(bench, ACTIVITY_TARGETS):
         how, _, detail = t["detail"].partition(": ")
         verdict = "met" if t["met"] else ("**missed**" if t["met"] is False else "-")
@@ -213,21 +219,62 @@ def activity_notes(launch: dict, bench: dict) -> list:
     if tires:
         out.append(f"- Against the rear tires at N = {act['reference_n']:,}: " + "; ".join(
             f"{p['step_ms']:.2f} ms with {p['t_rear']}" for p in tires) + ".")
+    probe = next((r["active"]["launch_us"] for r in act["series"]["a"] if (r.get("active") or {}).get("launch_us")),
+                 None)
+    if probe:
+        out.append(f"- A launch's Python side: {_num(probe['empty'])} us with no arguments, {_num(probe['step'])} us "
+                   f"with a step's (the World, its switches, three integers; {_num(probe['step, same arguments'])} us "
+                   f"with the same ones every launch), {_num(probe['arrays'])} us with the arrays of rays and frame a "
+                   "step passed before its inputs were on the device.")
     ov = bench["speed"].get("overheads", {})
-    if ov:
+    if ov and not probe:
         out.append(f"- Fixed costs: an empty kernel launch {_num(ov.get('empty_kernel_ms'))} ms, the rock pass over "
                    f"zero rocks with every part off {_num(ov.get('rock_pass_zero_rocks_ms'))} ms, the vehicles' "
                    f"poses and rays on the host {_num(ov.get('vehicle_poses_and_rays_ms'))} ms a step.")
     return out
 
 
+def activity_breakdown(launch: dict, bench: dict) -> list:
+    """Where a step's time goes (the activity study's profiled points): per N the step, the host side, the
+    tasks on the device, launches and tasks per step; then the costliest tasks of each N."""
+    act = bench["activity"]
+    prof = [p for p in act.get("profile", ()) if "error" not in p]
+    if not prof:
+        return ["(not measured in this run)"]
+    series = {r["n"]: r.get("active") or {} for r in act["series"]["a"]}
+    rows = ["| N | rocks in the air | step ms | host side ms | tasks on the device ms | Python of the launches ms | "
+            "the rest ms | launches per step | parallel tasks per step | serial tasks per step |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
+    for p in prof:
+        a = series.get(p["n"], {})
+        step, lu = a.get("step_ms"), (a.get("launch_us") or {}).get("step")
+        py = lu * p["launches_per_step"] * 1e-3 if lu else None
+        rest = step - p["host_ms"] - p["device_ms"] - py if step and py else None
+        rows.append(f"| {p['n']:,} | {p['in_air']:,} | {_num(step)} | {_num(p['host_ms'])} | {_num(p['device_ms'])} | "
+                    f"{_num(py)} | {_num(rest)} | {p['launches_per_step']:.0f} | {p['parallel_tasks_per_step']:.0f} | "
+                    f"{p['tasks_per_step'] - p['parallel_tasks_per_step']:.0f} |")
+    rows.append("")
+    for p in prof:
+        top = sorted(p["tasks"], key=lambda t: -t["median_ms"])[:5]
+        rows.append(f"- Costliest tasks at N = {p['n']:,} (median ms): " + "; ".join(
+            f"{t['what']} {t['median_ms']:.3f}" for t in top) + ".")
+    return rows
+
+
 BLOCKS = {"launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
           "speed-notes": speed_notes, "presets": presets, "activity-targets": activity_targets,
-          "activity-notes": activity_notes}
+          "activity-notes": activity_notes, "activity-breakdown": activity_breakdown}
 
 
 def load(results: Path = RESULTS) -> tuple:
-    return (json.loads((results / "launch.json").read_text()), json.loads((results / "bench.json").read_text()))
+    """(launch, bench): with an activity.json, bench's activity section and activity targets are its."""
+    launch = json.loads((results / "launch.json").read_text())
+    bench = json.loads((results / "bench.json").read_text())
+    if (results / "activity.json").exists():
+        act = json.loads((results / "activity.json").read_text())
+        speed = [t for t in bench["targets"] if t["target"].startswith(SPEED_TARGETS)]
+        bench = dict(bench, activity=act["activity"], targets=speed + act["targets"], activity_run=act)
+    return launch, bench
 
 
 def blocks(launch: dict, bench: dict) -> dict:

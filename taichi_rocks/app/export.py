@@ -40,7 +40,7 @@ def export_scene(scene, out=None, fmt: str = "usd", frames=None, fps=None, arch:
     out = Path(out) if out is not None else default_out(scene, fmt)
     writer.check_target(out, overwrite)
     frames, fps = frame_count(scene, frames, fps)
-    sim = Simulation(scene, arch=arch, seed=seed)
+    sim = Simulation(scene, arch=arch, seed=seed, tumble=True)  # the instances' orientations are the engine's
     with tqdm(total=frames, unit="frame", desc=f"export {scene.name}", file=sys.stderr,
               disable=None if progress is None else not progress) as bar:
         return export_run(sim, out, frames, fps, fmt=fmt, only=only or "all", crop=crop, progress=bar)
@@ -48,9 +48,12 @@ def export_scene(scene, out=None, fmt: str = "usd", frames=None, fps=None, arch:
 
 def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = "all", crop=None,
                progress=None, guard: bool = True) -> dict:
-    """Simulate ``frames`` frames of ``sim`` and write them to ``out`` as ``fmt`` (see the module docstring).
+    """Simulate ``frames`` frames of ``sim`` (built with ``tumble=True``: the instances' orientations and
+    angular velocities are its rocks') and write them to ``out`` as ``fmt`` (see the module docstring).
     Returns a summary: path, frames, bytes, rocks per frame (all, mean, max)."""
     check_selection(only, crop)
+    if sim.n_rocks and not sim.plan.spin:
+        raise ValueError("export needs the rocks' orientations: build the Simulation with tumble=True")
     cls = writer_class(fmt)
     out = Path(out)
     run = ExportRun(scene=sim.scene, fps=float(fps), frames=int(frames), dt=float(sim.dt), only=only, crop=crop,

@@ -8,7 +8,8 @@ engine/tuning.py ``set_runtime``; a switch is applied one frame after its "recom
 a new Simulation restored from a checkpoint (``rebuilder``).
 
 Keys (GGUI 1.7.4 reports letters, arrows, space, Tab and Escape, not digits or punctuation): space play/pause,
-Right/Left one frame forward/back, Up/Down speed x2 / x1/2 (x1/4 .. x4), c next camera preset, f free camera
+Right/Left one frame forward/back, Up/Down speed x2 / x1/2 (x1/4 .. x4), c next camera (the scene's shots, if
+it has [[camera.shot]] tables, then the presets; the shots play on the first), f free camera
 (W/A/S/D/E/Q, right mouse button to look), h hide/show the panel, p screenshot, Escape quit.
 
 Automation: ``TAICHI_ROCKS_VIEW_STATUS=PATH`` writes a JSON status (:meth:`Viewer.status`) atomically after
@@ -40,7 +41,7 @@ from ..output.atomic import new_folders, write_atomically
 from ..output.video import frame_name, png_bytes
 from ..render.freecam import FreeCamera
 from ..render.panel import draw_panel
-from ..render.renderer import Renderer
+from ..render.renderer import SHOTS, Renderer
 from ..render.window import ShownWindow, trim_heap
 from .timeline import Timeline
 
@@ -93,6 +94,7 @@ class Viewer:
         self.free_on = False
         self.shown_view = None  # the camera of the last frame shown (render/camera.py View, local)
         self.camera_name = self.renderer.view_name
+        self.cameras = ((SHOTS,) if scene.camera.shots else ()) + VIEWS  # what c and the panel's buttons pick
         self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
         self.switches = {k: scene_value(scene, k) for k in SWITCH_KEYS}
         self.switch_choices = SWITCH_KEYS
@@ -192,8 +194,8 @@ class Viewer:
             elif k in (ti.ui.UP, ti.ui.DOWN):
                 tl.faster(k == ti.ui.UP)
             elif k == "c":
-                i = VIEWS.index(self.camera_name) + 1 if self.camera_name in VIEWS else 0
-                self.set_camera(VIEWS[i % len(VIEWS)])
+                i = self.cameras.index(self.camera_name) + 1 if self.camera_name in self.cameras else 0
+                self.set_camera(self.cameras[i % len(self.cameras)])
             elif k == "f":
                 self.set_camera(self.renderer.view_name if self.free_on else "free")
             elif k == "h":
@@ -206,7 +208,8 @@ class Viewer:
         self.timeline.seek(frame, self.sim, r.rig, r.view)
 
     def set_camera(self, name: str) -> None:
-        """A preset of motion/camera.py VIEWS, or "free" (starting where the camera is now)."""
+        """A preset of motion/camera.py VIEWS, the scene's own camera with its shots (``SHOTS``), or "free"
+        (starting where the camera is now)."""
         if name == "free":
             if not self.free_on:
                 self.free.start(self.renderer.view(), self.sim.origin)

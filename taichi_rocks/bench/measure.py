@@ -24,7 +24,8 @@ from ..engine.world import FLYING
 
 # the engine's names of its fused passes, as the report has always called them
 _PASS_LABELS = {"rock pass": "rock pass (fused)", "hash + tires": "hash scan+scatter+tires (fused)",
-                "active step": "active step (one launch: tiles, rock pass, hash, tires, settle)"}
+                "active step": "active step (two launches: tiles, rock pass | hash, tires, settle)",
+                "vehicles + rays": "vehicles + rays (host)"}
 
 
 def stats(seconds) -> dict:

@@ -335,6 +335,48 @@ def _activity_memory(act: dict) -> list:
     return L + [""]
 
 
+def activity_breakdown(act: dict) -> list:
+    """Where a step's time goes at each profiled N (activity.py run_profile, with the series (a) point of that
+    N: its step time and launch probe, without the profiler): the table, the launch probe, the tasks."""
+    prof = [p for p in act.get("profile", ()) if "error" not in p]
+    if not prof:
+        return [f"- profile {p['label']}: error: {p['error']}" for p in act.get("profile", ())]
+    series = {r["n"]: r.get("active") for r in act["series"]["a"]}
+    L = ["| N | rocks in the air | active list | step ms | host side ms | tasks on the device ms | launches "
+         "per step | tasks per step (parallel) | Python per launch us | the rest ms | step ms, profiler on |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    probe = None
+    for p in prof:
+        a = series.get(p["n"])
+        a = a if a and "error" not in a else None
+        step = a["step_ms"] if a else None
+        lu = (a or {}).get("launch_us")
+        probe = lu or probe
+        rest = step - p["host_ms"] - p["device_ms"] - lu["step"] * p["launches_per_step"] * 1e-3 if lu and step \
+            else None
+        L.append(f"| {p['n']:,} | {p['in_air']:,} | {p['active_count']:,} | {_fmt(step)} | {_fmt(p['host_ms'])} | "
+                 f"{_fmt(p['device_ms'])} | {p['launches_per_step']:.2f} | {p['tasks_per_step']:.1f} "
+                 f"({p['parallel_tasks_per_step']:.1f}) | {_fmt(lu['step'] if lu else None)} | {_fmt(rest)} | "
+                 f"{_fmt(p['step_ms'])} |")
+    L.append("")
+    if probe:
+        L.append(f"A launch's Python side (kernels doing nothing): {probe['empty']:.1f} us with no arguments, "
+                 f"{probe['step']:.1f} us with a step's (the World, its switches, three integers), "
+                 f"{probe['step, same arguments']:.1f} us with the same integers every launch, {probe['arrays']:.1f} "
+                 "us with the arguments before the step's inputs were on the device (rays and frame arrays, a "
+                 "float, two integers).\n")
+    for p in prof:
+        L.append(f"Tasks of a step at N = {p['n']:,} (the kernel profiler's medians over {p['steps']} steps; serial "
+                 "tasks run on one thread, the others are parallel loops):\n")
+        L.append("| kernel | task | does | kind | median ms | min ms |")
+        L.append("|---|---|---|---|---|---|")
+        for t in p["tasks"]:
+            L.append(f"| {t['kernel']} | {t['task']} | {t['what']} | {t['kind']} | {t['median_ms']:.4f} | "
+                     f"{t['min_ms']:.4f} |")
+        L.append("")
+    return L
+
+
 def _activity(res: dict, plots: list) -> list:
     act = res.get("activity")
     if not act:
@@ -352,7 +394,18 @@ def _activity(res: dict, plots: list) -> list:
              "(ti.sync() around it), interleaved with two passes of the streaming floor of the same N; medians of "
              "the rounds. Rocks in the air: phase != resting after the rounds; active list: its length then "
              f"(all N with full stepping). Section time {act['elapsed_s']:.0f} s.\n")
-    return L + _activity_n_table(act) + _activity_sweep_table(act) + _activity_memory(act)
+    L += _activity_n_table(act) + _activity_sweep_table(act) + _activity_memory(act)
+    if act.get("profile"):
+        L.append("### Where a step's time goes\n")
+        L.append("Each profiled N in a process of its own with Taichi's kernel profiler on (series (a), active "
+                 "stepping): step = steps timed as a block (the best of the rounds); host side = the engine's timing "
+                 "hook around the host work of a step (vehicles, bed, origin, rays); tasks on the device = the sum of "
+                 "the profiler's task times per step (a parallel task's time includes waking the thread pool); "
+                 "step ms and Python per launch (the launch probe: a kernel doing nothing, a step's arguments) "
+                 "come from the series (a) point of that N, without the profiler; the rest = step - host - tasks - "
+                 "launches x Python per launch (the step's other Python, the batch upload).\n")
+        L += activity_breakdown(act)
+    return L
 
 
 def _tail(res: dict, plots: list) -> list:

@@ -56,6 +56,9 @@ def _messages(err: dict) -> list[tuple[tuple, str]]:
         return []   # pydantic adds this after an item failed; the item's own error says what is wrong
     if loc == ("vehicle",) and kind in ("missing", "too_short", "tuple_type"):
         return [(loc, "at least one [[vehicle]] table is required" + (got if kind == "tuple_type" else ""))]
+    if loc == ("camera", "shot") and kind == "tuple_type":
+        written = "[camera.shot], a single table" if isinstance(value, dict) else _show(value)
+        return [(loc, f"expected a list of [[camera.shot]] tables (double brackets), got {written}")]
     if kind == "extra_forbidden":
         parent = next((x for x in reversed(loc[:-1]) if x in _TABLES), None)
         model = _TABLES.get(parent, Scene)

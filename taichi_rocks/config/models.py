@@ -53,6 +53,8 @@ class Launch(_Table):
     release_angle: Range(ge=0, le=90) = _f((10.0, 35.0), "deg, [min, max] angle up the back of the tire, "
                                                          "0 <= min <= max <= 90")
     spread: Float = _f(8.0, "deg, lateral scatter half-angle, in [0, 90]", ge=0, le=90)
+    spin_spread: Float = _f(0.5, "scatter of a launched stone's spin about its rolling spin off the tread, as a "
+                                 "share of that spin (uniform in a ball), in [0, 2]", ge=0, le=2)
 
 
 class Effects(_Table):
@@ -64,6 +66,9 @@ class Effects(_Table):
     ground: Literal["none", "stop", "bounce"] = _f("bounce", "what flying rocks do when they reach the ground")
     fenders: Bool = _f(True, "fenders (and mud flaps) stop stones thrown into them (tread model)")
     impacts: Bool = _f(False, "flying stones hit the bodies of the other vehicles and are recorded ([impacts])")
+    tumble: Literal["auto", "always"] = _f("auto", "each rock's spin and orientation: auto tracks them for the "
+                                                   "commands that draw or export them (render, view, export), "
+                                                   "always also for simulate and the Python API")
 
 
 class Hash(_Table):
@@ -187,26 +192,53 @@ class Vehicle(_Table):
         return value
 
 
-CAMERA_VIEWS = ("chase", "side", "low", "orbit")
+CAMERA_VIEWS = ("chase", "side", "low", "orbit", "driver", "bonnet")
+_VIEW_WORDS = ("chase: behind and above the followed vehicle; driver (its driver's eye behind the windscreen), "
+               "bonnet (a camera on its bonnet): ride with follow; side (beside the target, at its rear tires), "
+               "low (low, behind and to the left of its rear tires), orbit (circling it): ride with the target")
+
+
+class Shot(_Table):
+    """One shot of the camera ([[camera.shot]]): from ``at`` until the next shot, the camera is this view (a cut:
+    the camera does not glide from the shot before)."""
+    at: Float = _f(..., "s, >= 0, when the shot starts; each shot's at is larger than the one before", ge=0)
+    view: Literal[CAMERA_VIEWS] = _f(..., _VIEW_WORDS)
+    follow: Optional[Name] = _f(None, "vehicle the chase, driver and bonnet views ride with; default: "
+                                      "camera.follow")
+    target: Optional[Name] = _f(None, "vehicle the camera looks at (side, low, orbit: and rides with); default: "
+                                      "camera.target, else follow")
+    offset: Optional[Vec3] = _f(None, "m, the eye in the frame of the vehicle the camera rides with (x forward, "
+                                      "y left, z up); default: the view's")
+    aim: Optional[Vec3] = _f(None, "m, the point looked at, in the target's frame (chase, driver, bonnet: in the "
+                                   "frame of the vehicle ridden with); default: the view's")
 
 
 class CameraSettings(_Table):
-    """The camera of rendered videos: a view preset, the vehicles it rides with and looks at."""
+    """The camera of rendered videos: a view preset, the vehicles it rides with and looks at, and the shots."""
     model_config = ConfigDict(title="Camera")  # the [camera] table; its rig: motion/camera.py CameraRig
-    view: Literal[CAMERA_VIEWS] = _f("chase", "chase: behind and above the followed vehicle; side (beside the "
-                                              "target, at its rear tires), low (low, behind and to the left of "
-                                              "its rear tires), orbit (circling it): ride with the target")
-    follow: Optional[Name] = _follow("vehicle the chase camera rides with; default: bed.follow")
+    view: Literal[CAMERA_VIEWS] = _f("chase", _VIEW_WORDS + "; before the first shot")
+    follow: Optional[Name] = _follow("vehicle the chase, driver and bonnet views ride with; default: bed.follow")
     target: Optional[Name] = _f(None, "vehicle the camera looks at (side, low, orbit: and rides with); "
                                       "default: follow")
     offset: Optional[Vec3] = _f(None, "m, the eye in the frame of the vehicle the camera rides with (x forward, "
                                       "y left, z up); default: the view's")
-    aim: Optional[Vec3] = _f(None, "m, the point looked at, in the target's frame; default: the view's "
-                                   "(chase: look_ahead metres ahead)")
+    aim: Optional[Vec3] = _f(None, "m, the point looked at, in the target's frame (chase, driver, bonnet: in the "
+                                   "frame of the vehicle ridden with); default: the view's (chase: look_ahead "
+                                   "metres ahead)")
     look_ahead: Float = _f(6.0, "m ahead of the vehicle the chase camera looks at")
     orbit_period: Float = _f(20.0, "s, one turn of the orbit view", gt=0)
     fov: Float = _f(50.0, "deg, field of view, in (0, 180)", gt=0, lt=180)
     smoothing: Float = _f(0.3, "s, time constant of the camera's follow", ge=0)
+    shots: tuple[Shot, ...] = Field((), alias="shot", description="cuts within one video ([[camera.shot]] tables, "
+                                                                  "in increasing at); before the first, the view "
+                                                                  "above")
+
+    @model_validator(mode="after")
+    def _shots_in_order(self) -> CameraSettings:
+        _raise_problems([(("shot", i, "at"), f"must be > the previous shot's at ({self.shots[i - 1].at:g}), "
+                                             f"got {self.shots[i].at:g}")
+                         for i in range(1, len(self.shots)) if not self.shots[i].at > self.shots[i - 1].at])
+        return self
 
 
 class SunAngles(_Table):
@@ -265,6 +297,13 @@ class Scene(_Table):
         """The file the scene came from, or "<scene>"."""
         return self._source
 
+    @model_validator(mode="after")
+    def _shots_in_the_scene(self) -> Scene:
+        _raise_problems([(("camera", "shot", i, "at"), f"must be < duration ({self.duration:g}): a shot that starts "
+                                                       f"after the end is never seen, got {shot.at:g}")
+                         for i, shot in enumerate(self.camera.shots) if not shot.at < self.duration])
+        return self
+
     def vehicle_index(self, name: str) -> int:
         for i, v in enumerate(self.vehicles):
             if v.name == name:
@@ -278,6 +317,6 @@ class Scene(_Table):
 # tables by the key that holds them (or the path kind), to list the keys allowed where an unknown one is found
 _TABLES: dict[str, type[BaseModel]] = {
     "world": Environment, "bed": Bed, "launch": Launch, "effects": Effects, "impacts": Impacts, "sim": Sim, "hash": Hash,
-    "vehicle": Vehicle, "camera": CameraSettings, "render": Render, "sun": SunAngles, **PATH_KINDS}
+    "vehicle": Vehicle, "camera": CameraSettings, "shot": Shot, "render": Render, "sun": SunAngles, **PATH_KINDS}
 _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error locations
 

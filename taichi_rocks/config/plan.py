@@ -30,9 +30,11 @@ class Plan:
     active: bool = False  # activity-proportional stepping: resting rocks in ground tiles (engine/active.py)
     impacts: bool = False  # flying rocks against the vehicles' bodies (engine/impact_pass.py); see impacts_on
     targets: tuple = ()  # with impacts: the vehicles (scene indices) whose bodies stones hit
+    spin: bool = False  # each rock's angular velocity and orientation (engine/tumble.py); see spin_on
 
     @classmethod
-    def from_scene(cls, scene) -> "Plan":
+    def from_scene(cls, scene, tumble: bool = False) -> "Plan":
+        """The plan of ``scene``; ``tumble``: the caller draws or exports the rocks' orientations (spin_on)."""
         fx, sim = scene.effects, scene.sim
         n = scene.bed.rocks
         splash = bool(fx.splash and any(v.splash for v in scene.vehicles) and n > 0)
@@ -47,13 +49,16 @@ class Plan:
                                                                    and sim.stepping == "full") else 0),
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
                    cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0,
-                   impacts=impacts_on(scene, splash), targets=impact_targets(scene, splash))
+                   impacts=impacts_on(scene, splash), targets=impact_targets(scene, splash),
+                   spin=spin_on(scene, tumble))
 
     def passes(self) -> list[str]:
         out = []
         if self.flight:
             out.append(f"flight ({self.integrator}, gravity {'on' if self.gravity else 'off'}, "
                        f"drag {self.drag}, ground {self.ground})")
+        if self.spin:
+            out.append("tumble (spin and orientation)")
         if self.recycle:
             out.append("recycle")
         if self.splash:
@@ -82,6 +87,13 @@ def impact_targets(scene, splash: bool) -> tuple:
     if not impacts_on(scene, splash):
         return ()
     return tuple(i for i, v in enumerate(scene.vehicles) if v.hit)
+
+
+def spin_on(scene, tumble: bool) -> bool:
+    """Spin and orientation are tracked when the caller asks for them (``tumble``: render, view and export draw
+    or export them) or the scene does for every command (``[effects] tumble = "always"``), and there are rocks.
+    Otherwise they are neither allocated nor compiled: a headless simulate pays nothing for them."""
+    return bool((tumble or scene.effects.tumble == "always") and scene.bed.rocks > 0)
 
 
 def cell_size(scene) -> float:

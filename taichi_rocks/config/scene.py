@@ -20,7 +20,7 @@ from pydantic import ValidationError
 
 from .messages import _key_path, _line, _messages, _unknown
 from .models import (CAMERA_VIEWS, PATH_KINDS, Bed, CameraSettings, CirclePath, Effects, Environment, Hash, Launch,
-                     Render, Scene, Sim, SunAngles, Vehicle, WaypointPath)
+                     Render, Scene, Shot, Sim, SunAngles, Vehicle, WaypointPath)
 from .presets import PRESETS
 from .summary import summarise
 from .tomltext import TomlTextError, loads as toml_loads
@@ -28,7 +28,7 @@ from .values import _is_list, _show
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
            "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
-           "Sim", "WaypointPath", "CirclePath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings",
+           "Sim", "WaypointPath", "CirclePath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings", "Shot",
            "SunAngles", "Render", "PRESETS"]
 
 
@@ -72,11 +72,25 @@ def _name_problems(data: dict) -> list[tuple[tuple, str]]:
         elif isinstance(name, str):
             seen[name] = i
     if names and all(isinstance(n, str) for n in names):
-        for table, key in (("bed", "follow"), ("camera", "follow"), ("camera", "target")):
-            follow = data[table].get(key) if isinstance(data.get(table), dict) else None
+        for loc, follow in _vehicle_keys(data):
             if isinstance(follow, str) and follow not in seen:
-                problems.append(((table, key), _unknown("vehicle", follow, list(seen))))
+                problems.append((loc, _unknown("vehicle", follow, list(seen))))
     return problems
+
+
+def _vehicle_keys(data: dict) -> list[tuple[tuple, object]]:
+    """(location, value) of every key the user wrote that names a vehicle: bed.follow, camera.follow and
+    camera.target, and each camera shot's follow and target."""
+    found = []
+    for table, key in (("bed", "follow"), ("camera", "follow"), ("camera", "target")):
+        if isinstance(data.get(table), dict) and key in data[table]:
+            found.append(((table, key), data[table][key]))
+    shots = data["camera"].get("shot") if isinstance(data.get("camera"), dict) else None
+    for i, shot in enumerate(shots if _is_list(shots) else ()):
+        for key in ("follow", "target"):
+            if isinstance(shot, dict) and key in shot:
+                found.append((("camera", "shot", i, key), shot[key]))
+    return found
 
 
 def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene") -> Scene:

@@ -6,7 +6,7 @@ family no two streams may share an id:
 
   engine  engine/randomness.py ``uniform01(seed, rock id, step, stream)``: the kernels' draws;
   look    render/rocklook.py ``_unit(rock id, salt)``: what a rock looks like (colour, outline, thinning);
-  export  output/shapes.py ``uniforms(ids, stream)``: the exported instances' orientations and prototypes.
+  export  output/shapes.py ``uniforms(ids, stream)``: the exported instances' prototypes.
 
 A stream of ``count`` ids takes ``first`` .. ``first + count - 1`` (draw k of it uses ``id(k)``). A new stream
 is one line below, on ids no other stream of its family takes (tests/config/test_keys.py checks). The launch
@@ -58,6 +58,10 @@ RECYCLE_TRIES = _stream("engine", 0, 64, "engine/bed.py: a recycled rock's row a
                                          "rejection: attempt k draws the row from 2k and its acceptance from 2k + 1")
 RECYCLE_CHORD = _stream("engine", 101, 1, "engine/bed.py: where on its chord the recycled rock lands")
 LAUNCH = _stream("engine", 201, 99, "engine/launch/: the launch model's draws (each model's STREAMS)")
+LAUNCH_SPIN = _stream("engine", 301, 3, "engine/tumble.py: the scatter of a launched stone's spin (direction z, "
+                                        "azimuth, radius in the unit ball)")
+INITIAL_ORIENTATION = _stream("engine", 311, 3, "engine/setup.py: a rock's orientation before the first step "
+                                                "(Shoemake's three uniforms)")
 
 # look: (rock id, salt)
 LOOK_COLOUR = _stream("look", 1, 3, "render/rocklook.py: a rock's colour (brown share, brightness, darkening)")
@@ -66,7 +70,4 @@ LOOK_SHAPE = _stream("look", 11, 7, "render/rocklook.py: a resting rock's outlin
                                     "facet tilt, A5, phase 5)")
 
 # export: (id, stream)
-EXPORT_ORIENTATION = _stream("export", 0, 3, "output/instances.py: a rock's orientation (Shoemake's three uniforms)")
-EXPORT_SPIN_AXIS = _stream("export", 4, 2, "output/instances.py: a moving rock's tumble axis (z, azimuth)")
-EXPORT_SPIN_RATE = _stream("export", 6, 1, "output/instances.py: a moving rock's tumble rate")
 EXPORT_PROTOTYPE = _stream("export", 7, 1, "output/instances.py: which rock prototype an instance draws")

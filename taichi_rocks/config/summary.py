@@ -16,10 +16,19 @@ def _speed(path) -> str:
     return f"{path.speed:g} m/s"
 
 
+def _view_words(view: str, follow, target) -> str:
+    if view == "chase":
+        return f"chase view, follows {follow!r}" + (f", looks at {target!r}" if target else "")
+    if view in ("driver", "bonnet"):
+        return f"{view} view of {follow!r}"
+    return f"{view} view of {target or follow!r}"
+
+
 def _camera_line(cam) -> str:
-    if cam.view == "chase":
-        return f"chase view, follows {cam.follow!r}" + (f", looks at {cam.target!r}" if cam.target else "")
-    return f"{cam.view} view of {cam.target or cam.follow!r}"
+    lines = [] if cam.shots and cam.shots[0].at == 0 else [_view_words(cam.view, cam.follow, cam.target)]
+    lines += [f"{_view_words(s.view, s.follow or cam.follow, s.target or cam.target)} from {s.at:g} s"
+              for s in cam.shots]
+    return "; ".join(lines)
 
 
 def summarise(scene, memory_bytes: Optional[int] = None) -> str:

@@ -46,25 +46,33 @@ its table (sized to the active list) and the tire pass over tires, as in "full" 
 import math
 from dataclasses import dataclass
 
-import numpy as np
 import taichi as ti
 
-from . import hashgrid, tires
+from . import hashgrid, stepdata, tires
 from .bed import outside_bed
-from .kernels import rock_step, take_rays
+from .kernels import rock_step
 from .patch import footprint_box
-from .world import A0, A1, ACTIVE, B0, B1, HALF_L, HALF_W, RESTING, IPar, Par
+from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RESTING, TILES, IPar, Par
 
-__all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health",
-           "CENTRE", "MOVE", "LEAD", "GRID", "TILES"]
+__all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health"]
 
 ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many rocks per tile
 NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
 
-# Rows of active_step's ``frame`` (2-vectors, float64): those of kernels.rock_pass, then the tile shift
-# (shift / s: whole numbers), then with impacts the impacts pass's rows (engine/impact_pass.py).
-CENTRE, MOVE, LEAD, GRID, TILES = 0, 1, 2, 3, 4
-BODIES = 5
+# What each offloaded task of the step's two kernels does, in launch order (Taichi's kernel profiler names
+# tasks by index; engine/probes.py hands these to the benchmark): serial tasks run on one thread, the others
+# are parallel loops.
+TASKS = {"active_step": ("rays in, rim plan, tire boxes (serial)", "classify rim band and tire tiles",
+                         "(serial: bounds)", "gather rocks from marked tiles", "close marked tiles",
+                         "(serial: bounds)", "rock pass: flight, recycle, hash count"),
+         "active_finish": ("counters, hash scan (serial)", "hash scatter", "tire pass (serial)",
+                           "settle, count survivors, clear hash", "(serial: bounds)", "compaction: holes and movers",
+                           "(serial: bounds)", "compaction: copy", "(serial: list length)")}
+
+# World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
+# rocks above it (compaction), the slots marked this step (mark()), the band's widest row and column and the
+# largest tire box in tiles (rim_plan, tire_boxes)
+SURVIVORS, HOLES, MOVERS, MARKED, WIDTH_ROWS, WIDTH_COLS, SPAN_X, SPAN_Y = range(8)
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -122,7 +130,7 @@ def rounding_margin(w: ti.template(), c):
 def mark(w: ti.template(), sl, code):
     """Raise slot sl's class to ``code``; the first mark of a step lists the slot for the gather."""
     if ti.atomic_max(w.ts_sel[sl], code) == NONE:
-        w.ts_list[ti.atomic_add(w.a_counts[3], 1)] = sl
+        w.ts_list[ti.atomic_add(w.a_counts[MARKED], 1)] = sl
 
 
 @ti.func
@@ -155,53 +163,6 @@ def classify_slot(w: ti.template(), sl, c, mid, d, shift_tiles, radius, eps, che
 
 
 @ti.func
-def classify_rim(w: ti.template(), c, d, shift_tiles, check_all):
-    """Step 1 for the bed: mark rim and gone tiles (module docstring). A bed that moved less than a few tiles
-    visits only the band of tiles the circle |q - c| = R crosses, widened by the move (a tile whose rocks were
-    inside the old disk and are not all inside the new one lies in it); a bigger move, or ``check_all``,
-    visits every slot. Both loops are flat and at the top level: Taichi runs only those in parallel, and on
-    Vulkan (Taichi 1.7.4) an atomic on one address inside an inner loop whose trip count differs between
-    threads loses iterations, so no loop here has a varying inner loop around an atomic."""
-    s = w.store_tile
-    radius = w.par[Par.BED_RADIUS]
-    eps = rounding_margin(w, c)
-    mid = c - 0.5 * d
-    dist = d.norm()
-    every = 0
-    rows = 0
-    outer = radius + dist + eps
-    ky0 = ti.cast(ti.floor((c[1] - outer) / s), ti.i32)
-    if ti.static(w.recycles_rocks):
-        if check_all != 0 or dist > 4.0 * s:
-            every = w.store_grid * w.store_grid
-        elif dist > 0.0:
-            rows = ti.cast(ti.floor((c[1] + outer) / s), ti.i32) - ky0 + 1
-    for t in range(every):
-        classify_slot(w, t, c, mid, d, shift_tiles, radius, eps, check_all)
-    # tiles a row side can hold: x_out - x_in is largest where x_in = 0, dy_min >= inner - s - 2 eps
-    inner = ti.max(radius - eps, 0.0)
-    low = ti.max(inner - s - 2.0 * eps, 0.0)
-    width = ti.cast(ti.sqrt(ti.max(outer * outer - low * low, 0.0)) / s, ti.i32) + 2
-    for r, side, u in ti.ndrange(rows, 2, width):
-        ky = ky0 + r
-        y_lo = ti.cast(ky, w.real) * s - eps
-        y_hi = y_lo + s + 2.0 * eps
-        dy_min = ti.max(ti.max(y_lo - c[1], c[1] - y_hi), 0.0)
-        dy_max = ti.max(ti.abs(y_lo - c[1]), ti.abs(y_hi - c[1]))
-        x_out = ti.sqrt(ti.max(outer * outer - dy_min * dy_min, 0.0))
-        x_in = ti.sqrt(ti.max(inner * inner - dy_max * dy_max, 0.0))
-        sg = 1.0 - 2.0 * side
-        ka = ti.cast(ti.floor((c[0] + sg * x_in) / s), ti.i32)
-        kb = ti.cast(ti.floor((c[0] + sg * x_out) / s), ti.i32)
-        kx = ti.min(ka, kb) + u
-        if kx <= ti.max(ka, kb):
-            key = ti.Vector([kx, ky]) + shift_tiles
-            sl = slot_of(w, key)
-            if same_key(w.ts_key[sl], key):
-                classify_slot(w, sl, c, mid, d, shift_tiles, radius, eps, check_all)
-
-
-@ti.func
 def tire_box(w: ti.template(), plan: ti.template(), t, reach):
     """XY box (lo, hi) of everything tire t can hit this step: its rays, the swept parallelogram's fourth
     corner, the tread's footprint; grown by ``reach``."""
@@ -223,35 +184,153 @@ def tire_box(w: ti.template(), plan: ti.template(), t, reach):
 
 
 @ti.func
-def classify_tires(w: ti.template(), plan: ti.template(), c, shift_tiles):
-    """Step 1 for the tires: mark the occupied tiles under every active tire's query box; the boxes go to
-    ``w.tire_box`` and each tile notes which tires (bit t mod 32 of ``w.ts_tires``) marked it. One flat loop
-    over (tire, tile of the largest box) (see classify_rim on inner loops)."""
+def band_span(w: ti.template(), c, kr, outer, inner, eps, side, a):
+    """The tiles (first, last index along the line) of line ``kr`` (a row of tiles for ``a`` = 1, a column for
+    ``a`` = 0) that the band between the circles |q - c| = inner and outer crosses on one ``side``."""
+    s = w.store_tile
+    across = c[1] if a == 1 else c[0]
+    along = c[0] if a == 1 else c[1]
+    lo = ti.cast(kr, w.real) * s - eps
+    hi = lo + s + 2.0 * eps
+    d_min = ti.max(ti.max(lo - across, across - hi), 0.0)
+    d_max = ti.max(ti.abs(lo - across), ti.abs(hi - across))
+    x_out = ti.sqrt(ti.max(outer * outer - d_min * d_min, 0.0))
+    x_in = ti.sqrt(ti.max(inner * inner - d_max * d_max, 0.0))
+    sg = 1.0 - 2.0 * side
+    ka = ti.cast(ti.floor((along + sg * x_in) / s), ti.i32)
+    kb = ti.cast(ti.floor((along + sg * x_out) / s), ti.i32)
+    return ti.min(ka, kb), ti.max(ka, kb)
+
+
+@ti.func
+def band_radii(w: ti.template(), c, d):
+    """The band's circles (outer, inner) and the rounding margin."""
+    radius = w.par[Par.BED_RADIUS]
+    eps = rounding_margin(w, c)
+    return radius + d.norm() + eps, ti.max(radius - eps, 0.0), eps
+
+
+@ti.func
+def rim_plan(w: ti.template(), c, d, check_all):
+    """Step 1's plan for the bed's rim (module docstring), as one flat index range: the slots to test when
+    every slot is (``check_all`` or a move of more than 4 tiles), else the band of tiles the circle
+    |q - c| = R crosses, widened by the move (a tile whose rocks were inside the old disk and are not all
+    inside the new one lies in it); none for a bed that did not move. The band is walked by rows of tiles
+    where the circle is steep (|y - c_y| <= 3/4 of its radius) and by columns elsewhere, each line as wide as
+    the widest line of its kind (a serial loop over the lines: a few hundred), a few tiles, not the width of
+    the band's top row. A tile in no walked row has |y - c_y| > 3/4 r_out everywhere, so its band points have
+    |x - c_x| < 3/4 r_out: its column is walked. Returns (every, lines per kind, widths (rows, columns), first
+    row, first column)."""
+    s = w.store_tile
+    outer, inner, eps = band_radii(w, c, d)
+    every, lines = 0, 0
+    cnt = ti.static(w.a_counts)  # the widths, found in a serial loop, are read by the parallel one: in a field
+    cnt[WIDTH_ROWS] = 0
+    cnt[WIDTH_COLS] = 0
+    reach = 0.75 * outer
+    k0 = ti.Vector([ti.cast(ti.floor((c[1] - reach) / s), ti.i32), ti.cast(ti.floor((c[0] - reach) / s), ti.i32)])
+    if ti.static(w.recycles_rocks):
+        if check_all != 0 or d.norm() > 4.0 * s:
+            every = w.store_grid * w.store_grid
+        elif d.norm() > 0.0:
+            lines = ti.cast(ti.floor((c[1] + reach) / s), ti.i32) - k0[0] + 1  # as many columns: a square
+            for q in range(4 * lines):  # (kind, line, side): kind 0 rows, 1 columns
+                kind = q // (2 * lines)
+                first = k0[0] if kind == 0 else k0[1]  # (no dynamic index into a local vector: SPIR-V)
+                lo, hi = band_span(w, c, first + (q // 2) % lines, outer, inner, eps, q % 2, 1 - kind)
+                cnt[WIDTH_ROWS + kind] = ti.max(cnt[WIDTH_ROWS + kind], hi - lo + 2)
+    return every, lines, ti.Vector([cnt[WIDTH_ROWS], cnt[WIDTH_COLS]]), k0
+
+
+@ti.func
+def band_slot(w: ti.template(), q, c, d, shift_tiles, lines, width, k0):
+    """The slot of item q of the band's lines (kind, line, side, tile along it), or -1: none there, or the
+    slot holds another tile."""
+    outer, inner, eps = band_radii(w, c, d)
+    rows = lines * 2 * width[0]
+    kind = 0 if q < rows else 1
+    r = q if q < rows else q - rows
+    wk = width[0] if kind == 0 else width[1]  # (no dynamic index into a local vector: Taichi 1.7.4's SPIR-V
+    kr = (k0[0] if kind == 0 else k0[1]) + r // (2 * wk)  # code generator fails on it)
+    lo, hi = band_span(w, c, kr, outer, inner, eps, (r // wk) % 2, 1 - kind)
+    ka = lo + r % wk
+    sl = -1
+    if ka <= hi:
+        key = ti.Vector([ka, kr]) if kind == 0 else ti.Vector([kr, ka])
+        key += shift_tiles
+        sl = slot_of(w, key)
+        if not same_key(w.ts_key[sl], key):
+            sl = -1
+    return sl
+
+
+@ti.func
+def tire_boxes(w: ti.template(), plan: ti.template(), c, shift_tiles):
+    """Step 1 for the tires, serially (a handful): every active tire's query box to ``w.tire_box`` and its tiles
+    (first and last key) to ``w.tire_keys``; returns the largest box's size in tiles (x, y) (also kept in
+    ``w.a_counts``, as rim_plan's widths)."""
+    cnt = ti.static(w.a_counts)
+    cnt[SPAN_X] = 0
+    cnt[SPAN_Y] = 0
     if ti.static(w.n_tires > 0):
         reach = w.par[Par.R_MAX] + rounding_margin(w, c)
         g = w.store_grid
+        ti.loop_config(serialize=True)
         for t in range(w.n_tires):
             lo, hi = tire_box(w, plan, t, reach)
             on = w.ray[t, ACTIVE] != 0.0
             w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
             k_lo = tile_key(w, lo, shift_tiles)
             k_hi = ti.min(tile_key(w, hi, shift_tiles), k_lo + g - 1)
-            w.tire_keys[t] = ti.Vector([k_lo[0], k_lo[1], k_hi[0], k_hi[1]]) if on else ti.Vector([0, 0, -1, -1])
-        span = ti.static(w.a_counts)
-        span[4] = 0
-        span[5] = 0
-        for t in range(w.n_tires):
-            k = w.tire_keys[t]
-            ti.atomic_max(span[4], k[2] - k[0] + 1)
-            ti.atomic_max(span[5], k[3] - k[1] + 1)
-        for t, a, b in ti.ndrange(w.n_tires, span[4], span[5]):
-            k = w.tire_keys[t]
-            if k[0] + a <= k[2] and k[1] + b <= k[3]:
-                key = ti.Vector([k[0] + a, k[1] + b])
-                sl = slot_of(w, key)
-                if w.ts_count[sl] > 0 and same_key(w.ts_key[sl], key):
-                    ti.atomic_or(w.ts_tires[sl], 1 << (t & 31))
-                    mark(w, sl, TIRE)
+            k = ti.Vector([k_lo[0], k_lo[1], k_hi[0], k_hi[1]]) if on else ti.Vector([0, 0, -1, -1])
+            w.tire_keys[t] = k
+            cnt[SPAN_X] = ti.max(cnt[SPAN_X], k[2] - k[0] + 1)
+            cnt[SPAN_Y] = ti.max(cnt[SPAN_Y], k[3] - k[1] + 1)
+    return cnt[SPAN_X], cnt[SPAN_Y]
+
+
+@ti.func
+def classify_tire_tile(w: ti.template(), q, span_x, span_y):
+    """Item q of (tire, tile of the largest box): mark the occupied tile under tire t's box, noting the tire
+    (bit t mod 32 of ``w.ts_tires``)."""
+    t = q // (span_x * span_y)
+    a = (q // span_y) % span_x
+    b = q % span_y
+    k = w.tire_keys[t]
+    if k[0] + a <= k[2] and k[1] + b <= k[3]:
+        key = ti.Vector([k[0] + a, k[1] + b])
+        sl = slot_of(w, key)
+        if w.ts_count[sl] > 0 and same_key(w.ts_key[sl], key):
+            ti.atomic_or(w.ts_tires[sl], 1 << (t & 31))
+            mark(w, sl, TIRE)
+
+
+@ti.func
+def classify(w: ti.template(), plan: ti.template(), c, d, shift_tiles, check_all):
+    """Step 1 in one parallel task: the rim's slots or band (rim_plan) and the tires' tiles (tire_boxes), one
+    flat loop over all their items (Taichi runs only top-level loops in parallel, each a task with its own
+    start-up; and on Vulkan (Taichi 1.7.4) an atomic on one address inside an inner loop whose trip count
+    differs between threads loses iterations, so no loop here has a varying inner loop around an atomic)."""
+    every, lines, width, k0 = rim_plan(w, c, d, check_all)
+    span_x, span_y = 0, 0
+    if ti.static(plan.splash):
+        span_x, span_y = tire_boxes(w, plan, c, shift_tiles)
+    n_band = lines * 2 * (width[0] + width[1])
+    n_tire = 0
+    if ti.static(plan.splash):
+        n_tire = w.n_tires * span_x * span_y
+    radius = w.par[Par.BED_RADIUS]
+    eps = rounding_margin(w, c)
+    for q in range(every + n_band + n_tire):
+        if q < every + n_band:
+            sl = q
+            if q >= every:  # (not a conditional expression: Taichi evaluates both of its sides)
+                sl = band_slot(w, q - every, c, d, shift_tiles, lines, width, k0)
+            if sl >= 0:
+                classify_slot(w, sl, c, c - 0.5 * d, d, shift_tiles, radius, eps, check_all)
+        else:
+            if ti.static(plan.splash):
+                classify_tire_tile(w, q - every - n_band, span_x, span_y)
 
 
 @ti.func
@@ -299,67 +378,77 @@ def to_store(w: ti.template(), i, j):
 
 @ti.func
 def gather(w: ti.template(), c):
-    """Step 2: move the marked tiles' rocks to the active list (module docstring): gone tiles in bulk, then one
-    flat loop over (marked tile, rock) for the others (see classify_rim on inner loops), then each tile's
-    remaining rocks compacted in place."""
+    """Step 2, one flat loop over (marked tile, rock): a gone tile's rocks all move to the active list, a rim or
+    tire tile's those that leave (see classify on inner loops); each rock that moves gets id -1 in its tile."""
     cap = w.store_capacity
     radius = w.par[Par.BED_RADIUS]
     ground = w.par[Par.GROUND_Z]
-    listed = w.a_counts[3]
-    for k in range(listed):
+    for k, j in ti.ndrange(w.a_counts[MARKED], cap):
         t = w.ts_list[k]
-        if w.ts_sel[t] == MOVE_ALL:
-            n = w.ts_count[t]
-            a0 = ti.atomic_add(w.ipar[IPar.N_ROCKS], n)
-            for j in range(n):
-                to_active(w, t * cap + j, a0 + j)
-    for k, j in ti.ndrange(listed, cap):
-        t = w.ts_list[k]
-        sel = w.ts_sel[t]
-        if sel != MOVE_ALL and j < w.ts_count[t]:
-            p = w.ts_pos[t * cap + j]
-            leave = outside_bed(p, c, radius, ground)
-            if ti.static(w.n_tires > 0):
-                if sel == TIRE and not leave:
-                    leave = under_a_tire(w, p, w.ts_tires[t])
+        if j < w.ts_count[t]:
+            sel = w.ts_sel[t]
+            leave = True
+            if sel != MOVE_ALL:
+                p = w.ts_pos[t * cap + j]
+                leave = outside_bed(p, c, radius, ground)
+                if ti.static(w.n_tires > 0):
+                    if sel == TIRE and not leave:
+                        leave = under_a_tire(w, p, w.ts_tires[t])
             if leave:
                 to_active(w, t * cap + j, ti.atomic_add(w.ipar[IPar.N_ROCKS], 1))
                 w.ts_rock_id[t * cap + j] = -1
-    for k in range(listed):
+
+
+@ti.func
+def close_tiles(w: ti.template()):
+    """After step 2: each marked tile's remaining rocks compacted in place, its marks cleared (a loop over the
+    marked tiles)."""
+    cap = w.store_capacity
+    for k in range(w.a_counts[MARKED]):
         t = w.ts_list[k]
         keep = 0
-        if w.ts_sel[t] != MOVE_ALL:
-            for j in range(w.ts_count[t]):
-                if w.ts_rock_id[t * cap + j] >= 0:
-                    if keep != j:
-                        store_copy(w, t * cap + j, t * cap + keep)
-                    keep += 1
+        for j in range(w.ts_count[t]):
+            if w.ts_rock_id[t * cap + j] >= 0:
+                if keep != j:
+                    store_copy(w, t * cap + j, t * cap + keep)
+                keep += 1
         w.ts_count[t] = keep
         w.ts_sel[t] = NONE
         if ti.static(w.n_tires > 0):
             w.ts_tires[t] = 0
-    w.a_counts[3] = 0
 
 
 @ti.func
-def settle_rocks(w: ti.template(), shift_tiles):
+def settle_rocks(w: ti.template(), shift_tiles, clear_hash: ti.template()):
     """Step 5: active rocks at rest join their tile (they are inside the bed: the rock pass recycled those
     outside); one whose tile is full (or, never in a bed, taken by another key) stays active. Settled rocks
-    get id -1 in the active list, for the compaction."""
+    get id -1 in the active list; those still listed are counted (SURVIVORS, for the compaction). With
+    ``clear_hash``, the same loop clears the hash's counts for the next step (no barrier is needed between
+    the two: both only follow the tire pass)."""
     cap = w.store_capacity
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        if w.phase[i] == RESTING:
-            key = tile_key(w, w.pos[i], shift_tiles)
-            sl = slot_of(w, key)
-            if w.ts_count[sl] == 0:
-                w.ts_key[sl] = key
-            if same_key(w.ts_key[sl], key):
-                k = ti.atomic_add(w.ts_count[sl], 1)
-                if k >= cap:  # full: undo (the count never drops below cap again, so slots stay distinct)
-                    ti.atomic_sub(w.ts_count[sl], 1)
-                else:
-                    to_store(w, i, sl * cap + k)
-                    w.rock_id[i] = -1
+    n = w.ipar[IPar.N_ROCKS]
+    total = n
+    if ti.static(clear_hash):
+        total = ti.max(n, hashgrid.table_n(w) + 1)
+    for i in range(total):
+        if i < n:
+            if w.phase[i] == RESTING:
+                key = tile_key(w, w.pos[i], shift_tiles)
+                sl = slot_of(w, key)
+                if w.ts_count[sl] == 0:
+                    w.ts_key[sl] = key
+                if same_key(w.ts_key[sl], key):
+                    k = ti.atomic_add(w.ts_count[sl], 1)
+                    if k >= cap:  # full: undo (the count never drops below cap again, so slots stay distinct)
+                        ti.atomic_sub(w.ts_count[sl], 1)
+                    else:
+                        to_store(w, i, sl * cap + k)
+                        w.rock_id[i] = -1
+            if w.rock_id[i] >= 0:
+                ti.atomic_add(w.a_counts[SURVIVORS], 1)
+        if ti.static(clear_hash):
+            if i <= hashgrid.table_n(w):
+                w.cell_start[i] = 0
 
 
 @ti.func
@@ -373,72 +462,83 @@ def active_copy(w: ti.template(), src, dst):
 
 @ti.func
 def compact(w: ti.template()):
-    """Step 6: the active rocks still listed (id >= 0) end up in 0 .. count - 1: those above the new count
-    fill the holes below it (atomic lists of both, paired by their order in the lists)."""
-    cnt = ti.static(w.a_counts)  # [0] survivors, [1] holes, [2] movers ([3]: marked slots, see mark(); [4, 5]:
-    # the largest tire box in tiles, see classify_tires)
-    for k in ti.static(range(3)):
-        cnt[k] = 0
+    """Step 6, after settle_rocks counted the survivors: the active rocks still listed (id >= 0) end up in
+    0 .. count - 1: those above the new count fill the holes below it (atomic lists of both, paired by their
+    order in the lists)."""
+    cnt = ti.static(w.a_counts)
     n = w.ipar[IPar.N_ROCKS]
-    for i in range(n):
-        if w.rock_id[i] >= 0:
-            ti.atomic_add(cnt[0], 1)
-    keep = cnt[0]
+    keep = cnt[SURVIVORS]
     for i in range(n):
         alive = w.rock_id[i] >= 0
         if i < keep and not alive:
-            w.a_hole[ti.atomic_add(cnt[1], 1)] = i
+            w.a_hole[ti.atomic_add(cnt[HOLES], 1)] = i
         elif i >= keep and alive:
-            w.a_mover[ti.atomic_add(cnt[2], 1)] = i
-    for k in range(cnt[1]):
+            w.a_mover[ti.atomic_add(cnt[MOVERS], 1)] = i
+    for k in range(cnt[HOLES]):
         active_copy(w, w.a_mover[k], w.a_hole[k])
     w.ipar[IPar.N_ROCKS] = keep
 
 
+@ti.func
+def reset_counts(w: ti.template()):
+    for k in ti.static((SURVIVORS, HOLES, MOVERS)):
+        w.a_counts[k] = 0
+
+
 # ------------------------------------------------------------------------------------------------ kernels
-@ti.kernel
-def active_step(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
-                frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32, check_all: ti.i32):
-    """Steps 1 to 3 of active stepping (module docstring): tiles classified and gathered, the rock pass over
-    the active list. ``check_all``: test every rim tile's rocks against the new disk whatever the move (the
-    first step after rocks were loaded). Two kernels, not one: Taichi 1.7.4 compiles the two halves in
-    about two thirds of the time it takes for them fused, and the second launch costs ~0.05 ms."""
-    take_rays(w, plan, rays)
-    h = ti.cast(dt, w.real)
-    c = ti.cast(frame[CENTRE], w.real)
-    m = ti.cast(frame[MOVE], w.real)
-    d = ti.cast(frame[LEAD], w.real)
-    st = ti.cast(frame[TILES], ti.i32)
-    classify_rim(w, c, m, st, check_all)
-    if ti.static(plan.splash):
-        classify_tires(w, plan, c, st)
-    gather(w, c)
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, c, step, False, frame, BODIES)  # no tire mask: g is unused
-
-
-@ti.kernel
-def active_finish(w: ti.template(), plan: ti.template(), frame: ti.types.ndarray(dtype=vec2, ndim=1),
-                  step: ti.i32) -> ti.i32:
+@ti.func
+def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
     """Steps 4 to 6: the hash build and the tire pass over the active list, settling, compaction; returns the
     rocks launched."""
     launched = 0
+    w.a_counts[MARKED] = 0
+    reset_counts(w)
     if ti.static(plan.splash):
         hashgrid.scan_counts(w)
         hashgrid.scatter_all(w, plan.center)
         if ti.static(not plan.swept):
             tires.trace_all(w)
         launched = tires.launch_all(w, plan, step)
-        hashgrid.clear_all(w)
-    settle_rocks(w, ti.cast(frame[TILES], ti.i32))
+    settle_rocks(w, shift_tiles, plan.splash)
     compact(w)
     return launched
 
 
 @ti.kernel
+def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, check_all: ti.i32):
+    """Steps 1 to 3 of active stepping (module docstring), its inputs row ``k`` of the batch on the device
+    (engine/stepdata.py): tiles classified and gathered, the rock pass over the active list. ``check_all``:
+    test every rim tile's rocks against the new disk whatever the move (the first step after rocks were
+    loaded). Two kernels, not one: Taichi 1.7.4 compiles the two in about two thirds of the time it takes for
+    them fused (measured by ``bench --only activity``: compile times), for one more launch of three scalars."""
+    stepdata.take_rays(w, plan, k)
+    c = stepdata.frame_row(w, k, CENTRE)
+    m = stepdata.frame_row(w, k, MOVE)
+    d = stepdata.frame_row(w, k, LEAD)
+    st = ti.cast(w.step_frame[k, TILES], ti.i32)
+    h = ti.cast(w.step_frame[k, CLOCK][0], w.real)
+    classify(w, plan, c, m, st, check_all)
+    gather(w, c)
+    close_tiles(w)
+    for i in range(w.ipar[IPar.N_ROCKS]):
+        # no tire mask: g is unused; with impacts the step's poses are in body_rows (ActiveStepper.step)
+        if ti.static(plan.impacts):
+            rock_step(w, plan, i, h, c, m, d, c, step, False, w.body_rows, 0)
+        else:
+            rock_step(w, plan, i, h, c, m, d, c, step, False, None, 0)
+
+
+@ti.kernel
+def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32) -> ti.i32:
+    """Steps 4 to 6 (finish) of step row ``k``; returns the rocks launched."""
+    return finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
+
+
+@ti.kernel
 def settle(w: ti.template(), tiles: vec2):
     """Steps 5 and 6 alone: after rocks were loaded into the active list, and after coasting."""
-    settle_rocks(w, ti.cast(tiles, ti.i32))
+    reset_counts(w)
+    settle_rocks(w, ti.cast(tiles, ti.i32), False)
     compact(w)
 
 
@@ -479,8 +579,3 @@ def store_health(w: ti.template(), centre: vec2, slack: ti.f64, tiles: vec2):
                 if not same_key(tile_key(w, p, st), w.ts_key[t]) or p[2] < w.par[Par.GROUND_Z] - ti.cast(slack, w.real):
                     out[2] += 1
                     ti.atomic_min(out[5], -1 - j)
-
-
-def frame_rows(centre, move, lead, grid, shift, tile: float) -> np.ndarray:
-    """active_step's ``frame`` (float64, one row each of CENTRE .. TILES)."""
-    return np.array([centre, move, lead, grid, np.asarray(shift, np.float64) / tile])

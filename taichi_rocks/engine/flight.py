@@ -12,10 +12,14 @@ reflected with restitution e, the tangential one loses a Coulomb impulse mu (1 +
 flies the remaining tau. With e = 1 this keeps the energy of the step exactly. "stop" zeroes the velocity.
 Rest: a rock touching the ground slower than rest_speed vertically slides (z pinned, friction deceleration
 mu g) and then rests; resting rocks are not integrated at all and cannot jitter or sink.
+Spin (the Plan's ``spin``, engine/tumble.py): constant in the air; the bounce's tangential impulse (the velocity
+change of the tangential part above, at the contact point -r z) and a slide's friction change it by
+5 (a x dv) / (2 r^2) (a solid sphere, I = 2/5 m r^2); none at rest. It does not act back on the translation.
 """
 
 import taichi as ti
 
+from . import tumble
 from .world import FLYING, RESTING, SLIDING, Par
 
 
@@ -59,10 +63,14 @@ def integrate(w: ti.template(), x, v, r, dt, integrator: ti.template(), gravity:
 
 
 @ti.func
-def ground_contact(w: ti.template(), i, x, v, r, dt, ground: ti.template(), gravity: ti.template()):
-    """Resolve penetration of the ground after a flight step; writes the rock's state."""
+def ground_contact(w: ti.template(), i, x, v, r, dt, ground: ti.template(), gravity: ti.template(),
+                   spin: ti.template()):
+    """Resolve penetration of the ground after a flight step; writes the rock's state (with ``spin``, its
+    rotation over the step too: engine/tumble.py)."""
     floor_z = w.par[Par.GROUND_Z] + r
     phase = FLYING
+    after = 0.0 * r  # spin: the time flown after a bounce's impulse, and the velocity change it gave
+    dv = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
     if ti.static(ground != "none"):
         if x[2] < floor_z:
             if ti.static(ground == "stop"):
@@ -92,6 +100,9 @@ def ground_contact(w: ti.template(), i, x, v, r, dt, ground: ti.template(), grav
                 loss = mu * (1.0 + e) * (-v_impact)
                 if vt_norm > 0.0:
                     vt *= ti.max(vt_norm - loss, 0.0) / vt_norm
+                if ti.static(spin):
+                    after = tau
+                    dv = ti.Vector([vt[0] - v[0], vt[1] - v[1], 0.0])
                 # the horizontal position keeps the integrator's value (friction acts at the contact)
                 x[2] = floor_z + v_out * tau - 0.5 * g * tau * tau
                 v = ti.Vector([vt[0], vt[1], v_out - g * tau])
@@ -102,10 +113,12 @@ def ground_contact(w: ti.template(), i, x, v, r, dt, ground: ti.template(), grav
     w.pos[i] = x
     w.vel[i] = v
     w.phase[i] = phase
+    if ti.static(spin):
+        tumble.through_contact(w, i, dt, after, dv, r, phase)
 
 
 @ti.func
-def slide(w: ti.template(), i, x, v, dt):
+def slide(w: ti.template(), i, x, v, dt, spin: ti.template()):
     """A rock on the ground with horizontal speed: Coulomb friction decelerates it, then it rests."""
     vt = ti.Vector([v[0], v[1]])
     speed = vt.norm()
@@ -122,16 +135,19 @@ def slide(w: ti.template(), i, x, v, dt):
     w.pos[i] = ti.Vector([x[0], x[1], w.par[Par.GROUND_Z] + w.radius[i]])
     w.vel[i] = ti.Vector([vt[0], vt[1], 0.0])
     w.phase[i] = phase
+    if ti.static(spin):
+        tumble.slide_spin(w, i, dt, ti.Vector([vt[0] - v[0], vt[1] - v[1], 0.0]), phase)
 
 
 @ti.func
 def fly(w: ti.template(), i, dt, integrator: ti.template(), gravity: ti.template(), drag: ti.template(),
-        ground: ti.template()):
-    """Advance rock i by dt unless it rests (resting rocks cost one read of the phase)."""
+        ground: ti.template(), spin: ti.template()):
+    """Advance rock i by dt unless it rests (resting rocks cost one read of the phase); ``spin``: its spin and
+    orientation too (engine/tumble.py)."""
     ph = w.phase[i]
     if ph == FLYING:
         r = w.radius[i]
         x, v = integrate(w, w.pos[i], w.vel[i], r, dt, integrator, gravity, drag)
-        ground_contact(w, i, x, v, r, dt, ground, gravity)
+        ground_contact(w, i, x, v, r, dt, ground, gravity, spin)
     elif ph == SLIDING:
-        slide(w, i, w.pos[i], w.vel[i], dt)
+        slide(w, i, w.pos[i], w.vel[i], dt, spin)

@@ -40,21 +40,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from . import patch
-from ..motion.vehicles import RearTires, TablePoses, VehiclePose, tire_fields
+from ..motion.vehicles import RearTires, TablePoses, tire_fields
 from .impact_pass import pose_rows
-from .world import ACTIVE, HALF_W, HULL, RAY_FIELDS
+from .world import ACTIVE, BATCH_ROWS, HALF_W, HULL, RAY_FIELDS
 
-__all__ = ["ORIGIN_SNAP", "ORIGIN_RANGE", "LOOKAHEAD", "HostState", "HostSide", "StepInput", "Lookahead",
+__all__ = ["ORIGIN_SNAP", "ORIGIN_RANGE", "LOOKAHEAD", "HostState", "HostSide", "StepInput", "Lookahead", "Frames",
            "ray_rows", "local_rays", "reach"]
 
 ORIGIN_SNAP = 64.0  # m: the origin moves from its anchor in whole multiples of this, so a shift is exact in f32
 ORIGIN_RANGE = 128.0  # m: the origin moves when the bed centre is farther than this from it
-LOOKAHEAD = 64  # at most this many steps have their host side computed at once
+LOOKAHEAD = BATCH_ROWS  # at most this many steps have their host side computed at once (the device's batch)
 
 
 def snapped(xy: np.ndarray) -> np.ndarray:
@@ -117,8 +117,10 @@ class HostState:
 class StepInput(NamedTuple):
     """What one step's kernels get from the host: the step's number and length, the bed centre (XY, local
     frame), its move this step (anchor-relative), its leading direction, the origin's shift (XY, m), the rays
-    (float64, World.ray layout, kernels' frame), if the origin moved before this step, by how much (XY), and
-    with impacts the poses of the vehicles hit (engine/impact_pass.py ``pose_rows``; None without).
+    (float64, World.ray layout, kernels' frame) and, if the origin moved before this step, by how much (XY);
+    ``frames``: the lookahead batch's Frames this step is row ``row`` of (None: computed alone), which active
+    stepping uploads once per batch (engine/stepdata.py); ``bodies``: with impacts the poses of the vehicles
+    hit at the step's start and end (engine/impact_pass.py ``pose_rows``; None without).
     (A named tuple: made every step, it costs a fraction of a frozen dataclass.)"""
 
     step: int
@@ -129,7 +131,30 @@ class StepInput(NamedTuple):
     shift: np.ndarray
     rays: np.ndarray
     origin_moved: np.ndarray | None
+    frames: "Frames | None" = None
+    row: int = 0
     bodies: np.ndarray | None = None
+
+
+@dataclass
+class Frames:
+    """Every step of a lookahead batch as the kernels see it, computed at once (HostSide.frames, the same bits
+    as step by step): per step k the followed vehicle's world XY (``world``) and anchor-relative XY
+    (``rel``: the bed centre), the bed's move, its leading direction, the origin's shift, its move before the
+    step (``moved[k]``, None if it stayed), the bed centre in the kernels' frame (``local``) and the rays
+    ((K, T, RAY_FIELDS) in the kernels' frame, or None without tires). ``device``: set by the stepper that
+    uploaded them."""
+
+    world: np.ndarray
+    rel: np.ndarray
+    move: np.ndarray
+    lead: np.ndarray
+    shift: np.ndarray
+    moved: list
+    local: np.ndarray
+    rays: np.ndarray | None
+    dt: float
+    device: object = None
 
 
 class HostSide:
@@ -174,22 +199,78 @@ class HostSide:
         """Steps 1 to 4 of the module docstring for ``st``; the rays are the splashing tires' (or a dummy row)."""
         st.step_count += 1
         st.time += dt
-        # the step's poses, tires and rays: from the lookahead's batch (the same bits), or computed here
-        ahead = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead) if self.lookahead and dt == self.dt \
-            else None
-        poses = self.fleet.poses(st.time) if ahead is None else ahead.poses
+        if self.lookahead and dt == self.dt:  # from the lookahead's batch: the same bits
+            b, k = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead)
+            if b.frames is None:
+                b.frames = self.frames(st, b)
+            return self._serve(st, b, k, dt)
+        poses = self.fleet.poses(st.time)
         move = self._follow(st, poses[self.follow])
         moved = self._keep_origin_near(st)
-        if ahead is None:
-            tires_now = self.fleet.rear_tires(poses, relative=True)
-            rays = self.ray_data(st, st.tires_prev, tires_now, dt) if self.n_tires else self.no_rays
-        else:
-            tires_now = ahead.tires
-            rays = self.local_rays(st, ahead.rows, ahead.far) if self.n_tires else self.no_rays
+        tires_now = self.fleet.rear_tires(poses, relative=True)
+        rays = self.ray_data(st, st.tires_prev, tires_now, dt) if self.n_tires else self.no_rays
         st.tires_prev = tires_now
         bodies = pose_rows(st.poses, poses, self.targets, st.shift) if self.targets else None
         st.poses = poses
-        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved, bodies)
+        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved, bodies=bodies)
+
+    def _serve(self, st: HostState, b, k: int, dt: float) -> StepInput:
+        """Step ``k`` of batch ``b`` into ``st`` (what _follow, _keep_origin_near and the rays do step by step)."""
+        f = b.frames
+        st.bed_center = np.array([f.world[k, 0], f.world[k, 1], st.bed_center[2]])
+        st.bed_rel = f.rel[k]
+        st.lead = f.lead[k]
+        moved = f.moved[k]
+        if moved is not None:
+            st.set_shift(f.shift[k])
+        st.tires_prev = b.prev  # the row's tires (take() set them)
+        poses = TablePoses(self.fleet, b.table, k)
+        bodies = pose_rows(st.poses, poses, self.targets, st.shift) if self.targets else None
+        st.poses = poses
+        rays = self.no_rays if f.rays is None else f.rays[k]
+        return StepInput(st.step_count, dt, f.local[k], f.move[k], f.lead[k], st.shift, rays, moved, f, k, bodies)
+
+    def frames(self, st: HostState, b) -> "Frames":
+        """Every step of batch ``b`` from ``st`` (the state before its first step), NumPy over the batch with
+        the operations of _follow, _keep_origin_near and local_rays step by step (the same bits)."""
+        t, i = b.table, self.follow
+        world = np.column_stack([t.x[:, i], t.y[:, i]])
+        rel = np.column_stack([t.rx[:, i], t.ry[:, i]])
+        move = rel - np.vstack([st.bed_rel[None, :2], rel[:-1]])
+        vel = np.column_stack([t.vx[:, i], t.vy[:, i]])
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        moving = speed > 1e-9
+        lead = np.empty_like(vel)
+        lead[moving] = vel[moving] / speed[moving, None]
+        last = np.maximum.accumulate(np.where(moving, np.arange(len(rel)), -1))  # kept while standing
+        lead[~moving] = np.where((last[~moving] >= 0)[:, None], lead[np.maximum(last[~moving], 0)], st.lead)
+        shift, moved = self._shifts(st.shift, rel)
+        local = rel - shift
+        rays = None
+        if self.n_tires and b.rows is not None:
+            park_z = st.bed_center[2] - st.origin[2] + 1000.0
+            rays = batch_local_rays(b.rows, b.far, shift, local, park_z)
+        return Frames(world, rel, move, lead, shift, moved, local, rays, b.dt)
+
+    def _shifts(self, shift0: np.ndarray, rel: np.ndarray) -> tuple:
+        """The origin's shift at each step of a batch from ``shift0`` (_keep_origin_near step by step): (K, 2)
+        shifts and, per step, its move (None where it stayed)."""
+        k = len(rel)
+        shift = np.empty((k, 2))
+        moved = [None] * k
+        cur, start = np.asarray(shift0, np.float64), 0
+        while start < k:
+            far = np.max(np.abs(rel[start:] - cur), axis=1) > ORIGIN_RANGE if self.floating else None
+            if far is None or not far.any():
+                shift[start:] = cur
+                break
+            j = start + int(np.argmax(far))
+            shift[start:j] = cur
+            new = snapped(rel[j])
+            moved[j] = new - cur
+            cur = shift[j] = new
+            start = j + 1
+        return shift, moved
 
     def _follow(self, st: HostState, pose) -> np.ndarray:
         """Move the bed under the followed vehicle (``pose``) and turn its leading edge to the vehicle's travel
@@ -264,6 +345,25 @@ def ray_rows(prev: RearTires, cur: RearTires, dt: float, bed_rel: np.ndarray, re
     return rows, far
 
 
+def batch_local_rays(rows: np.ndarray, far: np.ndarray, shift: np.ndarray, local: np.ndarray,
+                     park_z: float) -> np.ndarray:
+    """``local_rays`` of every step of a batch at once: rows (K, T, RAY_FIELDS) and far (K, T) of ``ray_rows``,
+    the shift (K, 2) and the bed centre in the kernels' frame (K, 2) at each step; far tires parked at the
+    local centre, ``park_z`` high."""
+    k = len(shift)
+    o = np.zeros((k, RAY_FIELDS))  # x - (+0.0) is x, bit for bit: the other columns are unchanged
+    o[:, 0:12] = np.tile(np.column_stack([shift, np.zeros(k)]), 4)
+    o[:, HULL:] = np.tile(shift, (RAY_FIELDS - HULL) // 2)
+    data = rows - o[:, None, :]
+    if far.any():
+        park = np.column_stack([local, np.full(k, park_z)])
+        kk = np.nonzero(far)[0]
+        data[far, 0:12] = np.tile(park, 4)[kk]
+        data[far, HULL:] = np.tile(local, (RAY_FIELDS - HULL) // 2)[kk]
+        data[far, 17] = 0.0
+    return data
+
+
 def local_rays(rows: np.ndarray, far: np.ndarray, shift: np.ndarray, park: np.ndarray) -> np.ndarray:
     """Rows of ``ray_rows`` in the kernels' frame (origin = anchor + ``shift``, XY): positions minus the
     shift; the far tires' rays parked, degenerate, at ``park`` (local frame, high above the bed)."""
@@ -278,22 +378,19 @@ def local_rays(rows: np.ndarray, far: np.ndarray, shift: np.ndarray, park: np.nd
     return data
 
 
-@dataclass(frozen=True)
-class Ahead:
-    """One step served: the vehicles' poses, the rear tires (relative to the anchor) and, with splashing
-    tires, their ray rows and far flags (``ray_rows``; None without)."""
-
-    poses: Sequence[VehiclePose]
-    tires: RearTires
-    rows: np.ndarray | None
-    far: np.ndarray | None
-
-
 class _Batch:
+    """A lookahead batch: the steps' times, the fleet's PoseTable, the rear tires (K, T, ...), the ray rows and
+    far flags (relative to the anchor; None without tires) and, once served, their Frames."""
+
     def __init__(self, times, dt, table, tires, rows, far, prev):
         self.times, self.dt, self.table, self.tires, self.rows, self.far = times, dt, table, tires, rows, far
         self.next = 0
         self.prev = prev  # the tires the next step's rays start from
+        self.frames = None
+        self._tire_arrays = tire_fields(tires)
+
+    def tires_at(self, k: int) -> RearTires:
+        return RearTires(*(a[k] for a in self._tire_arrays))
 
 
 class Lookahead:
@@ -311,20 +408,20 @@ class Lookahead:
         """Forget the batch (restore(), anything that changes the clock or the tires other than a step)."""
         self._batch = None
 
-    def take(self, time: float, tires_prev: RearTires, dt: float, limit: int) -> Ahead:
+    def take(self, time: float, tires_prev: RearTires, dt: float, limit: int) -> tuple:
         """The step being taken: the clock already advanced by ``dt`` to ``time``, ``tires_prev`` the tires of
-        the step before; a new batch holds at most ``limit`` steps."""
+        the step before; a new batch holds at most ``limit`` steps (and BATCH_ROWS). Returns (batch, its row):
+        the row's tires are ``batch.tires_at(row)``, which the next take() expects as ``tires_prev``."""
         b = self._batch
         if (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != time
                 or b.prev is not tires_prev):
             if b is not None:  # a batch used up: the next twice as long; left early: as long as was used
                 self._size = 2 * len(b.times) if b.next >= len(b.times) else b.next + 1
-            b = self._batch = self._compute(time, tires_prev, dt, max(1, min(self._size, int(limit))))
+            b = self._batch = self._compute(time, tires_prev, dt, max(1, min(self._size, int(limit), BATCH_ROWS)))
         k = b.next
-        tires = RearTires(*(a[k] for a in tire_fields(b.tires)))
-        b.next, b.prev = k + 1, tires
-        rows = None if b.rows is None else b.rows[k]
-        return Ahead(TablePoses(self.fleet, b.table, k), tires, rows, None if b.far is None else b.far[k])
+        b.next = k + 1
+        b.prev = b.tires_at(k)
+        return b, k
 
     def _compute(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
         times = [time]

@@ -51,20 +51,21 @@ from ..config.plan import Plan
 from ..config.scene import SceneError
 from ..motion.bodies import LABELS, body_parts, hexahedron_planes, label_table
 from .events import EVENT_DTYPE, append
+from . import tumble
 from .impacts import bounce, damage_class, stone_mass, surface_velocity, swept_sphere_hull
 from .rockfields import FLYING
-from .world import Par
+from .world import POSE_ROWS, Par
 
 __all__ = ["DRAIN_EVERY", "LEGS", "POSE_ROWS", "Bodies", "body_table", "event_capacity", "body_problem",
-           "check_bodies", "write_bodies", "pose_rows", "time_row", "hit_bodies", "ImpactLog"]
+           "check_bodies", "write_bodies", "pose_rows", "time_row", "load_rows", "hit_bodies", "ImpactLog"]
 
 DRAIN_EVERY = 64  # steps between drains of the device buffer into the host's list
 LEGS = 3  # contacts a stone can have with one body in one step
 KEEP = 1 << 20  # events the host keeps for sim.impacts() at most (~130 MB); older ones are dropped and counted
 # rows of a target's pose in the step's frame (2-vectors, float64): centre at the start and the end (local
 # frame), (cos, sin) of the heading at the start and the end, velocity at the start and the end, yaw rate
-C0, C1, H0, H1, V0, V1, YAW = range(7)
-POSE_ROWS = 7
+C0, C1, H0, H1, V0, V1, YAW = range(POSE_ROWS)
+vec2 = ti.types.vector(2, ti.f64)
 
 
 # ------------------------------------------------------------------------------------------------ host side
@@ -232,6 +233,14 @@ class ImpactLog:
 
 
 # ------------------------------------------------------------------------------------------------ device side
+@ti.kernel
+def load_rows(w: ti.template(), rows: ti.types.ndarray(dtype=vec2, ndim=1)):
+    """A step's impacts rows (:func:`time_row`, :func:`pose_rows`) into ``w.body_rows`` (active stepping: its
+    step kernel takes no arrays, engine/stepdata.py)."""
+    for r in range(rows.shape[0]):
+        w.body_rows[r] = rows[r]
+
+
 @ti.func
 def _rot(cs, v):
     """R(h) v about z, ``cs`` = (cos h, sin h)."""
@@ -297,7 +306,8 @@ def _record(w: ti.template(), i, k, part, face, point, normal, u, un, r, t_rel, 
 
 
 @ti.func
-def hit_bodies(w: ti.template(), i, x0, v0, h, frame: ti.template(), base: ti.template(), step):
+def hit_bodies(w: ti.template(), plan: ti.template(), i, x0, v0, h, frame: ti.template(), base: ti.template(),
+               step):
     """Rock i flew from (x0, v0) to its state now over the step of h seconds: the impacts pass (module
     docstring) against the targets whose poses are rows ``base`` + 1 ... of ``frame``. One loop over the legs
     (the first against every target, the others against the one hit), so that the swept test is compiled
@@ -307,6 +317,7 @@ def hit_bodies(w: ti.template(), i, x0, v0, h, frame: ti.template(), base: ti.te
     e, mu, slop = w.par[Par.BODY_RESTITUTION], w.par[Par.BODY_FRICTION], w.par[Par.CONTACT_SLOP]
     t_rel = ti.cast(frame[base][0], w.real)
     hit_k = -1  # the target hit in the first leg
+    ht = ti.Vector([ti.cast(1.0, w.real), ti.cast(0.0, w.real)])  # its heading at that contact (cos, sin)
     pc, end = x0, x1  # the leg's path: body frame of hit_k from the second leg on
     u = v0 * 0.0  # the relative velocity in the body frame of hit_k
     left = h  # s of the step after the leg's start
@@ -343,10 +354,8 @@ def hit_bodies(w: ti.template(), i, x0, v0, h, frame: ti.template(), base: ti.te
                     _record(w, i, hit_k, part, face, point, normal, u, un, r, t_rel + h - left * (1.0 - t), step,
                             thrower)
                     u_new, _ = bounce(u, u * 0.0, normal, e, mu)
-                    # Tumbling stones (issue 22) take the contact's tangential impulse as torque on their spin
-                    # here, in the body's axes (the body frame's heading at the contact turns them to the world's):
-                    #   impulse = stone_mass(r, w.par[Par.MASS_PER_R3]) * (u_new - u), arm = -r * normal
-                    #   if ti.static(plan.tumble): tumble.apply_impulse(w, i, impulse, arm)
+                    if ti.static(plan.spin):  # the contact's impulse turns the stone (world axes; engine/tumble.py)
+                        tumble.apply_impulse(w, plan, i, _rot(ht, -r * normal), _rot(ht, u_new - u))
                     u = u_new
                     left *= 1.0 - t
                     pc = point + (r + slop) * normal

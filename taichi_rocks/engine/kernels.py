@@ -16,7 +16,7 @@ field (``reorder_rocks``) loop over the declaration (engine/rockfields.py, ``w.r
 
 import taichi as ti
 
-from . import hashgrid, tires
+from . import hashgrid, tires, tumble
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from .impact_pass import hit_bodies
@@ -59,13 +59,14 @@ class Switches:
 
 # The Plan's switches each kernel reads.
 READS = {
-    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground", "impacts"),
-    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground", "impacts"),
-    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "impacts"),  # also tires.tire_pass
+    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground", "spin",
+                  "impacts"),
+    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground", "spin", "impacts"),
+    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts"),  # also tire_pass
     "health": ("recycle", "ground"),
     "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
-                    "ground", "impacts"),
-    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "impacts"),
+                    "ground", "spin", "impacts"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts"),
 }
 
 
@@ -91,10 +92,23 @@ def take_rays(w: ti.template(), plan: ti.template(), rays: ti.template()):
 
 
 @ti.func
+def recycle(w: ti.template(), plan: ti.template(), i, c, m, d, step):
+    """Recycling to the leading edge (engine/bed.py); a tumbling rock recycled in motion arrives at rest, so it
+    stops spinning (its orientation stays)."""
+    if ti.static(plan.spin):
+        moving = w.phase[i] != RESTING
+        recycle_to_leading_edge(w, i, c, m, d, step)
+        if moving and w.phase[i] == RESTING:
+            tumble.rest(w, i)
+    else:
+        recycle_to_leading_edge(w, i, c, m, d, step)
+
+
+@ti.func
 def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template(),
-              frame: ti.template(), bodies: ti.template()):
+              rows: ti.template(), base: ti.template()):
     """Pass 1 for rock i: flight, stones against the bodies they hit (``plan.impacts``: engine/impact_pass.py,
-    the poses in ``frame`` from row ``bodies`` on), recycling to the leading edge, counting for the hash;
+    the poses in ``rows`` from row ``base`` on), recycling to the leading edge, counting for the hash;
     ``hash_flying``: count flying rocks too (they are never launched, tires.try_launch; active stepping leaves
     them out)."""
     ph0 = RESTING
@@ -106,15 +120,15 @@ def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, has
             x0 = w.pos[i]
             v0 = w.vel[i]
     if ti.static(plan.flight):
-        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
     if ti.static(plan.impacts):
-        # flying at the start or the end (the same rocks: nothing launches in this pass). Testing the phase after
-        # flight too also keeps Taichi 1.7.4 from merging this if with flight's own on the same phase, which
-        # breaks its IR ("block->parent != current_container_stmt")
+        # flying at the start (the same rocks at the end: nothing launches in this pass). Testing the phase after
+        # flight too keeps Taichi 1.7.4 from merging this if with flight's own on the same phase, which breaks
+        # its IR ("block->parent != current_container_stmt")
         if ph0 == FLYING or w.phase[i] == FLYING:
-            hit_bodies(w, i, x0, v0, h, frame, bodies, step)
+            hit_bodies(w, plan, i, x0, v0, h, rows, base, step)
     if ti.static(plan.recycle):
-        recycle_to_leading_edge(w, i, c, m, d, step)
+        recycle(w, plan, i, c, m, d, step)
     if ti.static(plan.impacts):
         if ph0 != RESTING and w.phase[i] == RESTING:  # landed or recycled: a resting rock has no thrower
             w.thrower[i] = -1
@@ -159,9 +173,9 @@ def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, cen
     for i in range(w.ipar[IPar.N_ROCKS]):
         for s in range(n):
             if ti.static(plan.flight):
-                fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground)
+                fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
             if ti.static(plan.recycle):
-                recycle_to_leading_edge(w, i, c, m, d, step0 + s + 1)
+                recycle(w, plan, i, c, m, d, step0 + s + 1)
             if w.phase[i] == RESTING:
                 if ti.static(plan.impacts):  # coasting with impacts: no stone flies (Simulation._can_coast)
                     w.thrower[i] = -1

@@ -160,6 +160,8 @@ TABLE = (
           what="1: damage classes by normal momentum, 0: by normal energy"),
     Param("MASS_PER_R3", derive=lambda s: 4.0 / 3.0 * math.pi * s.scene.bed.density, what="kg/m^3 (docstring)"),
     Param("CONTACT_SLOP", derive=_contact_slop, what="m (docstring)"),
+    Param("SPIN_SPREAD", "launch.spin_spread", runtime=True, what="a launched stone's spin scatter, a share of "
+                                                                  "its rolling spin (engine/tumble.py)"),
 )
 
 # World.ipar (int32).

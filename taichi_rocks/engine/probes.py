@@ -13,6 +13,8 @@ or reaches into a Simulation.
 * :func:`rocks_in_air` - rocks in flight (a kernel's count, both stepping modes); :func:`activity` - where the
   rocks are (active list, tiles, full tiles, resting rocks left active); :func:`move_frame` - the kernels'
   frame moved by any distance (tests of drawing far from the origin).
+* :func:`launch_costs` - what a kernel launch costs in Python for the arguments a step passes (empty kernels,
+  so only the launch is timed); :func:`task_labels` - what each task of active stepping's kernels does.
 
 The pass-level probes take the rocks from the World's rock arrays: they need ``[sim] stepping = "full"``
 (every rock in those arrays) and raise ValueError otherwise; :func:`set_flying` works in both modes.
@@ -23,12 +25,14 @@ changed Scene (the World pool, engine/world.py ``acquire``, hands a released Wor
 from __future__ import annotations
 
 import contextlib
+import time
 from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
+import taichi as ti
 
-from . import hashgrid, tires
+from . import active, hashgrid, stepdata, tires
 from .kernels import READS, Switches, rock_pass
 from .world import FLYING, RAY_FIELDS, RESTING, SLIDING, IPar
 
@@ -58,7 +62,8 @@ def _pass_args(sim) -> tuple:
 def _switches(flight, recycle, count, center, integrator, gravity, drag, ground) -> Switches:
     """rock_pass's switches: which parts run (``count``: the hash count, the plan's ``splash``)."""
     return Switches(SimpleNamespace(splash=count, flight=flight, recycle=recycle, center=center,
-                                    integrator=integrator, gravity=gravity, drag=drag, ground=ground, impacts=False),
+                                    integrator=integrator, gravity=gravity, drag=drag, ground=ground, impacts=False,
+                                    spin=False),
                     READS["rock_pass"])
 
 
@@ -212,3 +217,37 @@ def move_frame(sim, d) -> None:
     h = sim._host
     h.shift = h.shift + d
     h.origin[:2] += d
+
+
+def launch_costs(sim, reps: int = 2000) -> dict:
+    """Microseconds of Python per launch of kernels that do nothing on the device, median of 5 rounds of
+    ``reps`` launches: "empty" (no arguments), "step" (the World, a kernel's switches and three integers: a
+    step's launch of active stepping, engine/active.py), "step, same arguments" (the same integers every
+    launch: Taichi 1.7.4 caches nothing between launches), "arrays" (the arguments the step's first launch
+    took before its inputs were on the device: a (T, RAY_FIELDS) float64 array of rays, 5 rows of 2-vectors,
+    a float and two integers)."""
+    w, plan = sim.world, sim._switches["active_step"]
+    rays = np.zeros((max(w.n_tires, 1), RAY_FIELDS))
+    frame = np.zeros((5, 2))
+    counter = iter(range(1 << 40))
+    cases = {"empty": lambda: stepdata.launch_empty(),
+             "step": lambda: stepdata.launch_ints(w, plan, next(counter) & 63, next(counter), 0),
+             "step, same arguments": lambda: stepdata.launch_ints(w, plan, 0, 1, 0),
+             "arrays": lambda: stepdata.launch_arrays(w, plan, rays, frame, 0.002, next(counter), 0)}
+    out = {k: [] for k in cases}
+    for f in cases.values():
+        f()
+    ti.sync()
+    for _ in range(5):
+        for name, f in cases.items():
+            t = time.perf_counter()
+            for _ in range(reps):
+                f()
+            ti.sync()
+            out[name].append((time.perf_counter() - t) / reps * 1e6)
+    return {k: float(np.median(v)) for k, v in out.items()}
+
+
+def task_labels() -> dict:
+    """Kernel name -> what each of its offloaded tasks does, in order (active stepping's step kernels)."""
+    return dict(active.TASKS)

@@ -77,6 +77,9 @@ ROCK_FIELDS = (
     RockField("slot", "i32", when="splash", stored=False, carried=False, saved=False),  # its hash slot (centre)
     # the vehicle whose tire launched it (engine/tires.py try_launch; -1: none): a resting rock has none
     RockField("thrower", "i32", when="impacts", stored=False, rest=-1, initial=-1, pad=-1),
+    # tumbling (engine/tumble.py): angular velocity (rad/s, world axes; none at rest) and orientation (x, y, z, w)
+    RockField("spin", "real", 3, when="spin", stored=False, rest=0.0, state="angular_velocities"),
+    RockField("orient", "real", 4, when="spin", initial="given", state="orientations"),
 )
 
 

@@ -18,11 +18,12 @@ from ..config.arches import ARCHES
 _state: dict = {"arch": None}
 
 
-def init_taichi(arch: str = "cpu", *, warn=None) -> str:
+def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
     """Initialise Taichi once; return the arch actually used ("cpu", "cuda" or "vulkan").
 
     ``gpu``/``cuda``/``vulkan`` fall back to the CPU with one warning line when unavailable.
-    Calling again with another arch keeps the first one (and says so once).
+    Calling again with another arch keeps the first one (and says so once). ``profiler``: turn on Taichi's
+    kernel profiler (engine/timing.py ``kernel_tasks``; every task then times itself: for the benchmark).
     """
     if arch not in ARCHES:
         raise ValueError(f"arch must be one of {', '.join(ARCHES)}, got {arch!r}")
@@ -32,6 +33,8 @@ def init_taichi(arch: str = "cpu", *, warn=None) -> str:
     threads = os.environ.get("TAICHI_ROCKS_THREADS")
     # fast_math off: x / l must round exactly like NumPy for cells on boundaries to agree everywhere
     opts = dict(log_level=ti.ERROR, random_seed=0, fast_math=False)
+    if profiler:
+        opts["kernel_profiler"] = True
     if threads:
         opts["cpu_max_num_threads"] = int(threads)
     quiet = contextlib.redirect_stdout(io.StringIO())  # Taichi prints its banner on stdout

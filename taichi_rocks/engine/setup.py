@@ -3,7 +3,8 @@ into ``World.par`` / ``World.ipar``. No Taichi field is written here.
 
 Initial rocks: radius uniform in [r_min, r_max], static friction uniform in the scene's range, position
 uniform over the bed's disk (radius R sqrt(u), angle uniform), resting on the ground; all drawn from one
-NumPy generator seeded with the scene's seed, in that order.
+NumPy generator seeded with the scene's seed, in that order. With tumbling (the Plan's ``spin``), orientations
+uniform over rotations, from counter-based uniforms of (seed, rock id) (``initial_orientations``).
 
 Hash sizing (Teschner et al. 2003: a table of about as many slots as entries, prime):
     entries   centre insert: one per rock; AABB insert: sum over rocks of (floor(2 r / l (1 + 1e-5) + 1e-3)
@@ -23,7 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.streams import INITIAL_ORIENTATION
 from .params import Source, dilation_cells, pack_source
+from .randomness import uniform01_np
 from .world import next_prime
 
 
@@ -62,6 +65,18 @@ def initial_rocks(scene) -> InitialRocks:
     rho = np.sqrt(rng.uniform(0.0, 1.0, n))  # uniform over the disk's area
     theta = rng.uniform(0.0, 2.0 * np.pi, n)
     return InitialRocks(radius, friction, rho, theta)
+
+
+def initial_orientations(seed: int, n: int) -> np.ndarray:
+    """(n, 4) unit quaternions (x, y, z, w), uniform over rotations (Shoemake's method), of rocks 0 .. n-1
+    before the first step: counter-based uniforms of (seed, rock, 0) (config/streams.py INITIAL_ORIENTATION),
+    so they depend on nothing else drawn."""
+    ids = np.arange(n)
+    u1, u2, u3 = (uniform01_np(seed & 0x7FFFFFFF, ids, 0, INITIAL_ORIENTATION.id(k)).astype(np.float64)
+                  for k in range(3))
+    a, b = np.sqrt(1.0 - u1), np.sqrt(u1)
+    return np.stack([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2), b * np.sin(2 * np.pi * u3),
+                     b * np.cos(2 * np.pi * u3)], axis=1)
 
 
 # ---------------------------------------------------------------------------------------------------

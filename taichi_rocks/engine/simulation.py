@@ -33,7 +33,7 @@ from .kernels import count_flying, shift_origin, switches
 from .layout import check_fits, world_layout
 from .rockfields import ID
 from .runtime import init_taichi
-from .setup import initial_rocks, scene_params
+from .setup import initial_orientations, initial_rocks, scene_params
 from .steppers import stepper_for
 from .timing import NO_TIMER
 from .world import Par, World, acquire
@@ -46,13 +46,16 @@ class HealthError(RuntimeError):
 
 
 class Simulation:
-    """A rock bed following a vehicle, with splashing rear tires. See the module docstring."""
+    """A rock bed following a vehicle, with splashing rear tires. See the module docstring. ``tumble``: also
+    track each rock's spin and orientation (engine/tumble.py; ``state()`` then has "angular_velocities" and
+    "orientations"), as the commands that draw or export them ask; without it (and without the scene's
+    ``[effects] tumble = "always"``) they are neither allocated nor compiled."""
 
     @classmethod
-    def from_scene(cls, path, arch: str = "cpu", seed=None, timer=NO_TIMER) -> "Simulation":
-        return cls(load_scene(path), arch=arch, seed=seed, timer=timer)
+    def from_scene(cls, path, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False) -> "Simulation":
+        return cls(load_scene(path), arch=arch, seed=seed, timer=timer, tumble=tumble)
 
-    def __init__(self, scene, arch: str = "cpu", seed=None, timer=NO_TIMER):
+    def __init__(self, scene, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False):
         if seed is not None:
             scene = scene_with(scene, {"seed": int(seed)})
         check_fits(scene)  # a scene too big for this machine is refused before anything is allocated
@@ -64,7 +67,8 @@ class Simulation:
         self.dt = float(scene.sim.dt)
         self.fleet = Fleet(scene)
         self.follow = scene.vehicle_index(scene.bed.follow)
-        self.plan = plan = Plan.from_scene(scene)
+        self.tumble = bool(tumble)  # the caller draws or exports orientations (config/plan.py spin_on)
+        self.plan = plan = Plan.from_scene(scene, self.tumble)
         self.cell_size = plan.cell_size
         self._switches = switches(plan)  # what each kernel reads from the plan (engine/kernels.py)
         start = initial_rocks(scene)
@@ -78,8 +82,10 @@ class Simulation:
         self._par, ipar = scene_params(scene, plan, self._sizing, ground_z=scene.world.ground_z - self.origin[2])
         self.world.set_params(self._par, ipar)
         pos = start.resting_positions(self._host.local_centre(), scene.bed.radius, self._par[Par.GROUND_Z])
-        rocks.write(self.world, rocks.initial_arrays(self.world, self.n_rocks, {
-            "pos": pos, "radius": start.radius, "friction": start.friction}), self.n_rocks)
+        given = {"pos": pos, "radius": start.radius, "friction": start.friction}
+        if plan.spin:
+            given["orient"] = initial_orientations(scene.seed, self.n_rocks)
+        rocks.write(self.world, rocks.initial_arrays(self.world, self.n_rocks, given), self.n_rocks)
         self._put_rays()
         self._impacts = None  # with impacts: the events' host side (engine/impact_pass.py ImpactLog)
         if plan.impacts:
@@ -224,7 +230,8 @@ class Simulation:
         h.last_launches = 0
 
     def _step(self, dt=None) -> None:
-        s = self._host_side.advance(self._host, self.dt if dt is None else float(dt))
+        with self._timer("vehicles + rays"):
+            s = self._host_side.advance(self._host, self.dt if dt is None else float(dt))
         if s.origin_moved is not None and self.n_rocks:
             self._stepper.shift_origin(s.origin_moved)
         launched = self._stepper.step(s)
@@ -254,8 +261,8 @@ class Simulation:
     def rock_arrays(self) -> dict:
         """Every rock's fields in id order, wherever the rock is (active list or tiles): every rock field the
         checkpoints carry (engine/rockfields.py) but the id: "pos" (local frame), "vel", "radius", "friction"
-        (the World's precision), "phase", and "hit_step" (splashing scenes: the step it was last launched at,
-        -1 if never)."""
+        (the World's precision), "phase", "hit_step" (splashing scenes: the step it was last launched at,
+        -1 if never), and with tumbling (``tumble``) "spin" (rad/s) and "orient" (quaternions x, y, z, w)."""
         return self._stepper.rock_arrays()
 
     def set_rocks(self, ids, positions=None, velocities=None, phase=None, **fields) -> None:
@@ -307,7 +314,8 @@ class Simulation:
         return data
 
     def restore(self, data: dict) -> None:
-        """Continue from a checkpoint() of a simulation of the same scene (either stepping mode)."""
+        """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint
+        without orientations, of a simulation without tumbling, restores them as they were at the start)."""
         self._host_side.ahead.clear()
         if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
             raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
@@ -318,6 +326,9 @@ class Simulation:
         par = self._par.copy()
         par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
         w.par.from_numpy(par.astype(w.np_real()))
+        if self.plan.spin and "rock_orient" not in data:  # a checkpoint of a run without tumbling
+            data = {**data, "rock_orient": initial_orientations(self.scene.seed, self.n_rocks),
+                    "rock_spin": np.zeros((self.n_rocks, 3))}
         self._stepper.load(rocks.from_checkpoint(w, data))  # after the origin: the tiles are keyed by its shift
         self._host_side.resume(h)
         if self.plan.splash:

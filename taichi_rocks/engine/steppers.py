@@ -6,9 +6,10 @@ rocks, moving the origin and the runtime guard do to the World's fields.
   build and the tire pass in one launch (``hash_and_tires``); every ``reorder_every`` steps the rocks are
   re-sorted in memory by slot between the scatter and the tire pass (the next steps' scattered writes stay
   local).
-* :class:`ActiveStepper` ("active", engine/active.py): resting rocks wait in ground tiles; a step is two
-  launches over the active list (``active_step``: tiles classified and gathered, the rock pass;
-  ``active_finish``: hash, tires, settling, compaction), the hash's slots in use fitted to the list.
+* :class:`ActiveStepper` ("active", engine/active.py): resting rocks wait in ground tiles; a step is one
+  launch over the active list (``active_step``: tiles classified and gathered, the rock pass, hash, tires,
+  settling, compaction) whose arguments are three integers: the step's inputs are on the device, uploaded
+  once per lookahead batch (engine/stepdata.py); the hash's slots in use fitted to the list.
 
 Both get the same host input (engine/host.py ``StepInput``) and give the same results; only where the rocks
 are in memory differs, which ``rock_arrays`` (id order) hides. Coasting (every vehicle that matters stopped
@@ -19,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import active, hashgrid, rocks, tires
-from .impact_pass import time_row
+from . import active, hashgrid, rocks, stepdata, tires
+from .impact_pass import load_rows, time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
 from .world import IPar, next_prime
 
@@ -172,6 +173,7 @@ class ActiveStepper(Stepper):
     def __init__(self, *args):
         super().__init__(*args)
         self.check_all = True  # the next step tests every rim tile's rocks (rocks were just loaded)
+        self._on_device = None  # the Frames (engine/host.py) whose rows step_frame and step_rays hold
 
     def tile_shift(self) -> np.ndarray:
         return self.host.shift / self.world.store_tile
@@ -212,16 +214,36 @@ class ActiveStepper(Stepper):
     def step(self, s) -> int:
         if not self.moves:
             return 0
-        frame = self.with_bodies(active.frame_rows(s.centre, s.move, s.lead, self.grid_origin(s.centre), s.shift,
-                                                   self.world.store_tile), s)
+        row = self._upload(s)
+        if s.bodies is not None:  # the step's poses of the bodies stones hit (engine/impact_pass.py)
+            with self.timer("batch upload"):
+                load_rows(self.world, self.with_bodies(np.zeros((0, 2)), s))
         with self.timer("active step"):
-            active.active_step(self.world, self.switches["active_step"], s.rays, frame, s.dt, s.step,
-                               int(self.check_all))
-            launched = active.active_finish(self.world, self.switches["active_finish"], frame, s.step)
+            active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
+            launched = active.active_finish(self.world, self.switches["active_finish"], row, s.step)
         self.check_all = False
         if s.step % 32 == 0:
             self._fit_table()
         return launched
+
+    def _upload(self, s) -> int:
+        """The step's inputs on the device (engine/stepdata.py): its lookahead batch's rows, uploaded with the
+        batch's first step, or this step alone into row 0; returns the step's row."""
+        f = s.frames
+        if f is not None and self._on_device is f:
+            return s.row
+        with self.timer("batch upload"):
+            if f is None:
+                rows = (s.centre[None], s.move[None], s.lead[None], np.asarray(s.shift)[None], np.array([s.dt]),
+                        s.rays[None] if self.world.n_tires else None)
+            else:
+                rows = (f.local, f.move, f.lead, f.shift, np.full(len(f.local), f.dt), f.rays)
+            centre, move, lead, shift, dt, rays = rows
+            data, frame = stepdata.batch_arrays(centre, move, lead, centre - self.sizing.grid_half, shift, dt,
+                                                self.world.store_tile, rays)
+            stepdata.load_batch(self.world, data, frame)
+        self._on_device = f
+        return 0 if f is None else s.row
 
     def coast(self, n: int, dt: float, centre: np.ndarray, lead: np.ndarray, step0: int) -> None:
         super().coast(n, dt, centre, lead, step0)

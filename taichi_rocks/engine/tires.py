@@ -9,7 +9,8 @@ the ray at several positions interpolated within the step.
 
 Launch. A rock run over is thrown with the velocity of the scene's launch model (engine/launch/, a module per
 model), picked at compile time from the Plan's ``throw``. A rock is launched at most once per step, by the
-first ray (in tire order) that finds it; flying rocks are not re-launched.
+first ray (in tire order) that finds it; flying rocks are not re-launched. With the Plan's ``spin`` a launched
+rock also gets the spin of a stone rolling off the tread at the model's release angle (engine/tumble.py).
 
 "patch" detection (engine/patch.py) adds the tread's swept footprint to the swept test: a rock on the ground
 anywhere under the tread is run over. The query box is then the union of the swept ray's box and the
@@ -19,7 +20,7 @@ Switches, engine/kernels.py).
 
 import taichi as ti
 
-from . import patch
+from . import patch, tumble
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
@@ -67,7 +68,9 @@ def trace_rays(w: ti.template()):
 
 @ti.func
 def trace_all(w: ti.template()):
-    """DDA cells of every ray of every substep (ray index = tire * substeps + s)."""
+    """DDA cells of every ray of every substep (ray index = tire * substeps + s): serial, a handful of rays
+    (a parallel task's start-up would cost more than they do)."""
+    ti.loop_config(serialize=True)
     for t, s in ti.ndrange(w.n_tires, w.substeps):
         f = ti.cast(s + 1, w.real) / w.substeps
         a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
@@ -80,12 +83,14 @@ def try_launch(w: ti.template(), plan: ti.template(), i, t, step):
     """Launch rock i by tire t unless already launched this step or flying; returns 1 if launched."""
     launched = 0
     if w.hit_step[i] != step and w.phase[i] != FLYING:
-        v = MODELS[plan.throw].launch_velocity(w, plan, t, i, step)  # the model: a compile-time choice
+        v, v_tread, alpha = MODELS[plan.throw].launch(w, plan, t, i, step)  # the model: a compile-time choice
         if v.norm() > w.par[Par.REST_SPEED]:
             w.hit_step[i] = step
             w.vel[i] = v
             if ti.static(plan.impacts):  # who threw it: its own body is not hit (engine/impact_pass.py)
                 w.thrower[i] = w.tire_vehicle[t]
+            if ti.static(plan.spin):  # it rolls off the tread (engine/tumble.py)
+                w.spin[i] = tumble.launch_spin(w, t, alpha, v_tread, w.radius[i], w.rock_id[i], step)
             if ti.static(plan.ground == "none"):
                 w.phase[i] = FLYING
             else:

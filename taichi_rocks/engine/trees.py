@@ -41,7 +41,7 @@ class _Trees:
 
     def place(self, spec, real):
         """The field of a :class:`FieldSpec` (``real``: the World's Taichi precision)."""
-        dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64}[spec.dtype]
+        dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64, "f64": ti.f64}[spec.dtype]
         f = ti.field(dtype) if spec.n == 1 else ti.Vector.field(spec.n, dtype)
         return self._place(f, dtype, spec.shape)
 

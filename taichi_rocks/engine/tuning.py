@@ -41,7 +41,7 @@ def set_runtime(sim, values: dict):
     if other:
         raise ValueError(f"not a runtime key: {', '.join(other)} (runtime keys: {', '.join(RUNTIME_KEYS)})")
     scene = scene_with(sim.scene, dict(values))
-    if Plan.from_scene(scene) != sim.plan:  # cannot happen for these keys; a guard for new ones
+    if Plan.from_scene(scene, sim.tumble) != sim.plan:  # cannot happen for these keys; a guard for new ones
         raise ValueError("these values change what the kernels compile: build a new Simulation")
     par, _ = scene_params(scene, sim.plan, sim._sizing, ground_z=scene.world.ground_z - sim.origin[2])
     sim.scene = scene
@@ -64,17 +64,17 @@ def runtime_values(sim) -> dict:
 
 def rebuilder(sim, changes: dict):
     """Validate ``changes`` (dotted scene keys, any: switches included) and checkpoint ``sim``; return
-    ``make()``, which builds the Simulation of the changed scene (same arch and timer) continuing from the
+    ``make()``, which builds the Simulation of the changed scene (same arch, timer and tumble) continuing from the
     checkpoint. Drop every reference to ``sim`` before calling ``make()``, so that its World goes back to the
     pool and the new one reuses it when the layout allows (no new fields; kernels compiled once per switch
     set). SceneError if a value is invalid."""
     scene = scene_with(sim.scene, dict(changes))
-    state, arch, timer = sim.checkpoint(), sim.arch, sim.timer
+    state, arch, timer, tumble = sim.checkpoint(), sim.arch, sim.timer, sim.tumble
     coast = sim.coast
 
     def make():
         gc.collect()
-        new = Simulation(scene, arch=arch, timer=timer)
+        new = Simulation(scene, arch=arch, timer=timer, tumble=tumble)
         new.restore(state)
         new.coast = coast
         return new

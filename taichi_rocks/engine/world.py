@@ -9,6 +9,7 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
+import warnings
 import weakref
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -36,6 +37,16 @@ A0, B0, A1, B1, VEL, FWD, SPIN, ACTIVE = 0, 3, 6, 9, 12, 15, 17, 18
 HALF_W, HALF_L, TIRE_R, FENDER, FLAP, HULL = 19, 20, 21, 22, 23, 24
 HULL_VERTICES = 8
 RAY_FIELDS = HULL + 2 * HULL_VERTICES
+# With impacts, the rows of a step's poses of each vehicle stones hit (engine/impact_pass.py pose_rows)
+POSE_ROWS = 7
+
+# The per-step inputs of active stepping on the device, a lookahead batch of up to BATCH_ROWS steps at a time
+# (engine/stepdata.py): ``step_rays[k, t, :]`` (float64, the layout above, kernels' frame) and
+# ``step_frame[k, r]`` (2-vectors, float64), rows CENTRE, MOVE, LEAD, GRID, TILES (the origin's shift in tiles)
+# and CLOCK (dt, 0).
+BATCH_ROWS = 64
+CENTRE, MOVE, LEAD, GRID, TILES, CLOCK = range(6)
+FRAME_ROWS = 6
 
 
 def next_prime(n: int) -> int:
@@ -62,7 +73,7 @@ def next_prime(n: int) -> int:
 @dataclass(frozen=True)
 class FieldSpec:
     """One Taichi field of a World: ``n`` components (1: a scalar field) of ``dtype`` ("real": the World's
-    precision, "i32", "i64") over ``shape``."""
+    precision, "i32", "i64", "f64") over ``shape``."""
 
     name: str
     dtype: str
@@ -123,7 +134,11 @@ def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
         out += [FieldSpec("ts_tires", "i32", 1, (slots,)),  # which tires marked a slot (bit t mod 32)
                 FieldSpec("tire_box", "real", 4, (n_tires,)),  # each tire's query box (lo, hi) this step
                 FieldSpec("tire_keys", "i32", 4, (n_tires,))]  # and its tiles (first and last key)
-    out.append(FieldSpec("a_counts", "i32", 1, (6,)))
+    out.append(FieldSpec("a_counts", "i32", 1, (A_COUNTS,)))
+    # the step inputs of a lookahead batch (engine/stepdata.py); more per-step inputs go beside these
+    out.append(FieldSpec("step_frame", "f64", 2, (BATCH_ROWS, FRAME_ROWS)))
+    if n_tires > 0:
+        out.append(FieldSpec("step_rays", "f64", 1, (BATCH_ROWS, n_tires, RAY_FIELDS)))
     return out
 
 
@@ -140,9 +155,13 @@ def _impact_specs(bodies, n_tires: int, events: int) -> list[FieldSpec]:
             FieldSpec("part_corners", "real", 1, (p, 8, 3)),
             FieldSpec("part_labels", "i32", 1, (p, 6, 2)),  # per face: LABELS index ahead of / behind the split
             FieldSpec("part_split", "real", 1, (p,)),
+            FieldSpec("body_rows", "f64", 2, (1 + POSE_ROWS * t,)),  # a step's time and poses (active stepping)
             FieldSpec("ev_ints", "i32", 1, (max(int(events), 1), N_INT)),
             FieldSpec("ev_reals", "real", 1, (max(int(events), 1), N_REAL)),
             FieldSpec("ev_count", "i32", 1, ())]
+
+
+A_COUNTS = 8  # active stepping's counters (engine/active.py)
 
 
 def tmp_name(f) -> str:
@@ -159,8 +178,9 @@ def _distinct_kinds(rocks) -> list:
 
 
 def default_rock_fields(hashed: bool, stored: bool) -> tuple:
-    """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed."""
-    return present(SimpleNamespace(splash=hashed), "active" if stored else "full")
+    """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed,
+    no "spin" or "impacts" ones."""
+    return present(SimpleNamespace(splash=hashed, spin=False, impacts=False), "active" if stored else "full")
 
 
 @ti.data_oriented
@@ -250,7 +270,9 @@ def acquire(owner, n: int, real, **layout) -> World:
     key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
     for w in _POOL.get(key, ()):
         if w.owner is None or w.owner() is None:
-            _zero_fields(w)
+            with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
+                warnings.simplefilter("ignore", SyntaxWarning)
+                _zero_fields(w)
             w.owner = weakref.ref(owner)
             return w
     w = World(n, real, **layout)

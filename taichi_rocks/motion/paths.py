@@ -18,7 +18,10 @@ world coordinates keep their precision: ``Pose.from_anchor`` is that relative po
 ``Pose.position = anchor + from_anchor``. The relative position depends only on the waypoints relative to
 the first one (a circle's radius and angles), not on where the path is: a path moved by an offset its
 waypoints take exactly gives the same bits (the simulation's floating origin relies on it).
-``pose(t)`` only does bisections and closed forms; ``pose_values(t)`` gives the same as plain floats.
+``pose(t)`` only does bisections and closed forms; ``pose_values(t)`` gives the same as plain floats, and
+``pose_values_many(times)`` the same bits at many times at once: the arithmetic with NumPy over the times (the
+same operations in the same order), the transcendental functions (hypot, atan2, remainder, cos, sin) through
+``math`` one time at a time, as ``pose_values`` calls them (NumPy's own may round differently).
 """
 
 from __future__ import annotations
@@ -88,6 +91,26 @@ class _Timing:
     def duration(self) -> float | None:
         return None if self.parked else self.t_end
 
+    def at_many(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``at`` of each of ``t`` (float64 array), the same bits."""
+        s, v = np.full(t.shape, self.S[0]), np.full(t.shape, self.V[0])
+        mid = t > 0.0
+        tt = t
+        if self.period is not None:
+            tt = np.fmod(t, self.period)
+        else:
+            end = mid & (t >= self.t_end)
+            s[end], v[end] = self.s_end, 0.0
+            mid &= ~end
+        if mid.any():
+            x = tt[mid]
+            i = np.minimum(np.searchsorted(self.Tc, x, side="right") - 1, len(self.A) - 1)
+            S, V, A = np.asarray(self.S), np.asarray(self.V), np.asarray(self.A)
+            tau, v0, a = x - np.asarray(self.Tc)[i], V[i], A[i]
+            s[mid] = np.minimum(S[i] + tau * (v0 + 0.5 * a * tau), S[i + 1])
+            v[mid] = np.maximum(v0 + a * tau, 0.0)
+        return s, v
+
     def at(self, t: float) -> tuple[float, float]:
         if t <= 0.0:  # the start, with its speed
             return self.S[0], self.V[0]
@@ -117,6 +140,10 @@ class _ProfiledPath(Path):
         """Local (x, y), tangent angle, signed curvature at arc length s."""
         raise NotImplementedError
 
+    def _geom_many(self, s: np.ndarray) -> tuple:
+        """``_geom`` at each of ``s`` as arrays (subclasses do it with NumPy, the same bits)."""
+        return tuple(np.array(c, dtype=np.float64) for c in zip(*(self._geom(float(x)) for x in s)))
+
     @property
     def duration(self) -> float | None:  # type: ignore[override]
         return self._timing.duration
@@ -140,6 +167,21 @@ class _ProfiledPath(Path):
             tangent, v = tangent + math.pi, -v if v > 0.0 else 0.0
         h = _wrap(tangent)
         return x, y, h, v, yaw, v * math.cos(h), v * math.sin(h)
+
+    def pose_values_many(self, times) -> np.ndarray:
+        """``pose_values`` at each of ``times``, (K, 7) float64, the same bits (module docstring)."""
+        t = np.array(times, dtype=np.float64).ravel()
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"pose time must be finite, got {t[~np.isfinite(t)][0]}")
+        s, v = self._timing.at_many(t)
+        x, y, tangent, kappa = self._geom_many(s)
+        yaw = np.where(v > 0.0, kappa * v, 0.0)
+        if self._reverse:
+            tangent, v = tangent + math.pi, np.where(v > 0.0, -v, 0.0)
+        h = np.array([_wrap(a) for a in tangent.tolist()])
+        cos = np.array([math.cos(a) for a in h.tolist()])
+        sin = np.array([math.sin(a) for a in h.tolist()])
+        return np.column_stack([x, y, h, v, yaw, v * cos, v * sin])
 
     def pose(self, t: float) -> Pose:
         x, y, h, v, yaw, vx, vy = self.pose_values(t)
@@ -195,7 +237,7 @@ class WaypointPath(_ProfiledPath):
         self._S, self._Q = S.tolist(), Q.tolist()
         d = np.diff(Q, axis=0)
         self._seg_heading = np.arctan2(d[:, 1], d[:, 0]).tolist()
-        self._geom = self._geom_polyline
+        self._geom, self._geom_many = self._geom_polyline, self._geom_polyline_many
         return S
 
     def _build_spline(self, Q, chord) -> np.ndarray:
@@ -234,7 +276,7 @@ class WaypointPath(_ProfiledPath):
         self._seg, self._knots = seg.tolist(), u.tolist()
         c = cs.c  # (4, nseg, 2): coefficients of (u - u_k)^3 .. ^0
         self._coef = [tuple(c[:, k, :].T.ravel().tolist()) for k in range(len(chord))]
-        self._geom = self._geom_spline
+        self._geom, self._geom_many = self._geom_spline, self._geom_spline_many
         return s[np.concatenate([[0], np.cumsum(m)])]
 
     def _geom_polyline(self, s):
@@ -244,6 +286,50 @@ class WaypointPath(_ProfiledPath):
         w = min(max((s - S[k]) / L, 0.0), 1.0)
         (x0, y0), (x1, y1) = self._Q[k], self._Q[k + 1]
         return x0 + w * (x1 - x0), y0 + w * (y1 - y0), self._seg_heading[k], 0.0
+
+    def _tables(self) -> dict:
+        """The curve's tables as NumPy arrays (built once, for ``_geom_many``)."""
+        if getattr(self, "_np", None) is None:
+            names = ("_S", "_Q", "_seg_heading") if not self.smooth else (
+                "_s_tab", "_u_tab", "_du_tab", "_seg", "_knots", "_coef")
+            self._np = {n: np.asarray(getattr(self, n)) for n in names}
+        return self._np
+
+    def _geom_polyline_many(self, s):
+        tab = self._tables()
+        S = tab["_S"]
+        k = np.minimum(np.maximum(np.searchsorted(S, s, side="right") - 1, 0), len(S) - 2)
+        L = S[k + 1] - S[k]
+        w = np.minimum(np.maximum((s - S[k]) / L, 0.0), 1.0)
+        Q = tab["_Q"]
+        x0, y0, x1, y1 = Q[k, 0], Q[k, 1], Q[k + 1, 0], Q[k + 1, 1]
+        return x0 + w * (x1 - x0), y0 + w * (y1 - y0), tab["_seg_heading"][k], np.zeros(len(s))
+
+    def _geom_spline_many(self, s):
+        tab = self._tables()
+        st, ut, dt = tab["_s_tab"], tab["_u_tab"], tab["_du_tab"]
+        k = np.minimum(np.maximum(np.searchsorted(st, s, side="right") - 1, 0), len(st) - 2)
+        h = st[k + 1] - st[k]
+        pos = h > 0.0
+        w = np.zeros(len(s))
+        w[pos] = np.minimum(np.maximum((s[pos] - st[k][pos]) / h[pos], 0.0), 1.0)
+        w2, w3 = w * w, w * w * w
+        u = ((2 * w3 - 3 * w2 + 1) * ut[k] + (w3 - 2 * w2 + w) * h * dt[k]
+             + (3 * w2 - 2 * w3) * ut[k + 1] + (w3 - w2) * h * dt[k + 1])
+        u = np.minimum(np.maximum(u, ut[k]), ut[k + 1])
+        seg = tab["_seg"][k]
+        d = u - tab["_knots"][seg]
+        ax, bx, cx, ex, ay, by, cy, ey = tab["_coef"][seg].T
+        x = ((ax * d + bx) * d + cx) * d + ex
+        y = ((ay * d + by) * d + cy) * d + ey
+        x1, y1 = (3 * ax * d + 2 * bx) * d + cx, (3 * ay * d + 2 * by) * d + cy
+        x2, y2 = 6 * ax * d + 2 * bx, 6 * ay * d + 2 * by
+        n = np.array([math.hypot(a, b) for a, b in zip(x1.tolist(), y1.tolist())])
+        kappa = np.zeros(len(s))
+        big = n > 1e-12
+        kappa[big] = (x1[big] * y2[big] - y1[big] * x2[big]) / (n[big] * n[big] * n[big])
+        tangent = np.array([math.atan2(b, a) for a, b in zip(x1.tolist(), y1.tolist())])
+        return x, y, tangent, kappa
 
     def _geom_spline(self, s):
         st, ut, dt = self._s_tab, self._u_tab, self._du_tab
@@ -298,6 +384,13 @@ class CirclePath(_ProfiledPath):
         a = self.start_angle + self._sign * s / self.radius
         R = self.radius
         return R * math.cos(a), R * math.sin(a), a + self._sign * 0.5 * math.pi, self._sign / R
+
+    def _geom_many(self, s):
+        a = self.start_angle + self._sign * s / self.radius
+        R = self.radius
+        cos = np.array([math.cos(x) for x in a.tolist()])
+        sin = np.array([math.sin(x) for x in a.tolist()])
+        return R * cos, R * sin, a + self._sign * 0.5 * math.pi, np.full(len(s), self._sign / R)
 
 
 def path_from_spec(kind: str, **kwargs) -> Path:

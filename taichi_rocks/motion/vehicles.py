@@ -148,8 +148,8 @@ class Fleet:
         cols = []
         for path in self.paths:
             a = getattr(path, "anchor", None)
-            if hasattr(path, "pose_values") and a is not None:  # a profiled path: plain floats, no arrays
-                v = np.array([path.pose_values(t) for t in times], dtype=np.float64).reshape(-1, 7)
+            if hasattr(path, "pose_values_many") and a is not None:  # a profiled path: NumPy over the times
+                v = path.pose_values_many(times)
                 cols.append((a[0] + v[:, 0], a[1] + v[:, 1], (a[0] - self.anchor[0]) + v[:, 0],
                              (a[1] - self.anchor[1]) + v[:, 1], *v[:, 2:].T))
                 continue

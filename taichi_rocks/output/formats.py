@@ -15,9 +15,11 @@ app/export.py runs the frames and drives the writer; output/export.py makes the 
 (``--only``, ``--crop``), M of them: ``world`` (M, 3) float64 world metres, ``local`` (M, 3) float32
 (``world - origin``), ``velocities`` (M, 3), ``radii`` (M,), ``ids`` (M,) int64 (new after a recycle),
 ``proto`` (M,) rock shape, ``orientations`` (M, 4) quaternions (x, y, z, w), ``angular_velocities`` (M, 3)
-rad/s (output/instances.py); ``vehicles``: positions (V, 3), unwrapped headings (V,), wheel angles
-``front`` and ``rear`` (V,); ``camera``: (eye, target) of the scene's camera rig, world points; and
-``state``: the engine's whole state of the frame (``Simulation.state()``: every rock, phase included).
+rad/s (output/instances.py), ``tints`` (M, 3) the renderer's resting colour of each rock and ``tint`` (M,)
+the nearest entry of the stage's tint palette (output/looks.py); ``vehicles``: positions (V, 3), unwrapped
+headings (V,), wheel angles ``front`` and ``rear`` (V,); ``camera``: (eye, target) of the scene's camera,
+world points; ``cut``: True where a shot of the camera starts (a cut between the previous frame and this
+one); and ``state``: the engine's whole state of the frame (``Simulation.state()``: every rock, phase included).
 
 Adding a format (impact events as CSV or PLY from the phase changes in ``frame["state"]``, per-rock
 orientations as a table, ...) is one module and one line: a module ``output/<name>.py`` with a subclass of

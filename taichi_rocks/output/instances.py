@@ -1,5 +1,5 @@
 """What an exported frame shows of the rocks and vehicles beyond the simulated state: instance ids that change
-when a rock is recycled, a tumble, and the vehicles' wheel spin.
+when a rock is recycled, the prototype each instance draws, and the vehicles' wheel spin.
 
 Ids. A rock recycled to the bed's leading edge jumps across the bed; a tool that matches instances by id
 would interpolate (and motion-blur) it along that jump. So each recycle gives the rock a new id: id = rock
@@ -8,11 +8,10 @@ export. The engine counts recycles (``recycles_total``) but does not say which r
 moved farther since the previous frame than their speed allows (|dp| > (max(|v0|, |v1|) + g dt) dt + 1 mm)
 the exporter takes, per frame, as many as the counter went up, farthest beyond the bound first.
 
-Tumble. The engine has no angular velocity. A rock's orientation is derived, deterministically, from its id
-and the time it has spent moving: a fixed random orientation q0(id) (uniform over rotations), turned about a
-random axis a(id) at a rate w(id) in [3, 15] rad/s for as long as the rock flies or slides, i.e.
-q = rot(a, w tau) q0 with tau the moving time. A resting rock keeps its orientation (q0 for one that has not
-moved since it was placed); a recycled rock starts again from the q0 of its new id.
+Orientations and angular velocities are the engine's (engine/tumble.py: a Simulation built with tumbling,
+whose ``state()`` has "orientations", unit quaternions (x, y, z, w) from the rock's frame to the world's, and
+"angular_velocities", rad/s in world axes): set at launch by the tread, constant in the air, changed by the
+ground's impulses, kept at rest. A recycled rock keeps its orientation under its new id.
 
 Wheels. Each wheel turns by the distance the vehicle travelled along its heading over the tire radius,
 times (1 + slip) for the rear wheels (the engine's tread speed of the splashing tires).
@@ -24,29 +23,29 @@ import math
 
 import numpy as np
 
-from ..config.streams import EXPORT_ORIENTATION, EXPORT_PROTOTYPE, EXPORT_SPIN_AXIS, EXPORT_SPIN_RATE
-from .shapes import axis_angle, quat_mul, random_quaternions, uniforms
+from ..config.streams import EXPORT_PROTOTYPE
+from .shapes import uniforms
 
-__all__ = ["RockTracker", "VehicleTracker", "PROTOTYPES", "SPIN_RANGE"]
+__all__ = ["RockTracker", "VehicleTracker", "PROTOTYPES"]
 
 PROTOTYPES = 3  # rock shapes, chosen per id
-SPIN_RANGE = (3.0, 15.0)  # rad/s, tumble rate of a moving rock
 
 
 class RockTracker:
-    """Per-rock export state across frames: generations (ids), moving time; see the module docstring."""
+    """Per-rock export state across frames: generations (ids); see the module docstring."""
 
     def __init__(self, n: int, gravity: float, fps: float):
         self.n = int(n)
         self.g, self.dt = float(gravity), 1.0 / float(fps)
         self.generation = np.zeros(self.n, np.int64)
-        self.moving_time = np.zeros(self.n)
         self.prev = None  # positions, velocities, recycles_total of the previous frame
 
     def update(self, st: dict) -> dict:
-        """Advance to the frame ``st`` (Simulation.state()); per rock (N,): ids, active (in the air or sliding,
-        or moved since the previous frame), proto, orientations (x, y, z, w), angular velocities (rad/s),
-        and ``recycled`` (given a new id in this frame)."""
+        """Advance to the frame ``st`` (Simulation.state() of a simulation with tumbling); per rock (N,): ids,
+        active (in the air or sliding, or moved since the previous frame), proto, orientations (x, y, z, w) and
+        angular velocities (rad/s) as the engine has them, and ``recycled`` (given a new id in this frame)."""
+        if "orientations" not in st:
+            raise ValueError("the export needs the rocks' orientations: a Simulation built with tumble=True")
         pos = st["positions"]
         vel = np.asarray(st["velocities"], np.float64)
         moving = (vel != 0.0).any(axis=1)
@@ -57,16 +56,11 @@ class RockTracker:
             active |= (pos != p0).any(axis=1)
             recycled = self._recycled(pos, vel, p0, v0, int(st["recycles_total"]) - r0)
             self.generation[recycled] += 1
-            self.moving_time[recycled] = 0.0
-            self.moving_time[active & ~recycled] += self.dt
         self.prev = (pos.copy(), vel, int(st["recycles_total"]))
         ids = np.arange(self.n, dtype=np.int64) + self.n * self.generation
-        axis, rate = self._spin(ids)
-        q = quat_mul(axis_angle(axis, rate * self.moving_time), random_quaternions(ids, EXPORT_ORIENTATION.first))
-        omega = axis * (rate * (moving & ~recycled))[:, None]
         proto = np.minimum((uniforms(ids, EXPORT_PROTOTYPE.first) * PROTOTYPES).astype(np.int32), PROTOTYPES - 1)
-        return {"ids": ids, "active": active, "proto": proto, "orientations": q, "angular_velocities": omega,
-                "recycled": recycled}
+        return {"ids": ids, "active": active, "proto": proto, "orientations": np.asarray(st["orientations"]),
+                "angular_velocities": np.asarray(st["angular_velocities"]), "recycled": recycled}
 
     def _recycled(self, pos, vel, p0, v0, count: int) -> np.ndarray:
         """The ``count`` rocks that jumped farthest beyond what their speed allows (see the module docstring)."""
@@ -79,15 +73,6 @@ class RockTracker:
         order = candidates[np.argsort(-excess[candidates], kind="stable")]
         out[order[:count]] = True
         return out
-
-    @staticmethod
-    def _spin(ids):
-        z = 2.0 * uniforms(ids, EXPORT_SPIN_AXIS.first) - 1.0
-        phi = 2.0 * np.pi * uniforms(ids, EXPORT_SPIN_AXIS.first + 1)
-        s = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-        axis = np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=1)
-        lo, hi = SPIN_RANGE
-        return axis, lo + (hi - lo) * uniforms(ids, EXPORT_SPIN_RATE.first)
 
 
 class VehicleTracker:

@@ -1,5 +1,6 @@
-"""Geometry and motion for exported scenes, host side (NumPy only): rock prototypes, vehicle boxes and wheel
-cylinders, quaternions, per-id random numbers, the follow camera.
+"""Geometry and motion for exported scenes, host side (NumPy only): rock prototypes (motion/rockshapes.py, which
+the renderer's flying rocks draw too), vehicle boxes and wheel cylinders, quaternions, per-id random numbers,
+the follow camera.
 
 Meshes are (points (P, 3) float32, face_vertex_counts (F,) int32, face_vertex_indices (I,) int32), faces
 counter-clockwise seen from outside (USD's right-handed default).
@@ -10,52 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rock_prototype", "box_mesh", "cylinder_mesh", "uniforms", "random_quaternions", "axis_angle",
-           "quat_mul", "camera_matrix"]
+from ..motion.rockshapes import rock_prototype
 
-_GOLDEN = (1.0 + 5.0 ** 0.5) / 2.0
-_ICOSAHEDRON_FACES = np.array([
-    [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6],
-    [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-    [8, 6, 7], [9, 8, 1]])
-
-
-def _icosphere() -> tuple[np.ndarray, np.ndarray]:
-    """The unit icosahedron subdivided once: 42 points, 80 triangles."""
-    g = _GOLDEN
-    v = [(-1, g, 0), (1, g, 0), (-1, -g, 0), (1, -g, 0), (0, -1, g), (0, 1, g), (0, -1, -g), (0, 1, -g),
-         (g, 0, -1), (g, 0, 1), (-g, 0, -1), (-g, 0, 1)]
-    pts = [np.array(p, np.float64) / np.linalg.norm(p) for p in v]
-    mid: dict = {}
-
-    def middle(a, b):
-        key = (min(a, b), max(a, b))
-        if key not in mid:
-            m = pts[a] + pts[b]
-            pts.append(m / np.linalg.norm(m))
-            mid[key] = len(pts) - 1
-        return mid[key]
-
-    faces = []
-    for a, b, c in _ICOSAHEDRON_FACES:
-        ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
-        faces += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
-    return np.array(pts), np.array(faces)
-
-
-def rock_prototype(variant: int):
-    """An irregular rock of mean radius ~1 (a bumpy, slightly flattened icosphere), the same for the same
-    ``variant``: scaled by a rock's radius it stands for the simulation's sphere."""
-    pts, faces = _icosphere()
-    rng = np.random.default_rng(9173 + int(variant))
-    dirs = rng.normal(size=(4, 3))
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    bumps = (pts @ dirs.T) ** 2 @ rng.uniform(-0.35, 0.35, 4)  # smooth, low-frequency radial relief
-    r = 1.0 + bumps + rng.uniform(-0.06, 0.06, len(pts))
-    p = pts * r[:, None] * np.array([1.0, rng.uniform(0.8, 1.0), rng.uniform(0.6, 0.85)])
-    p /= np.mean(np.linalg.norm(p, axis=1))
-    return (p.astype(np.float32), np.full(len(faces), 3, np.int32), faces.reshape(-1).astype(np.int32))
-
+__all__ = ["rock_prototype", "box_mesh", "cylinder_mesh", "uniforms", "axis_angle", "quat_mul", "camera_matrix"]
 
 def box_mesh(center, size):
     """An axis-aligned box: 8 points, 6 quads."""
@@ -96,14 +54,6 @@ def uniforms(ids, stream: int) -> np.ndarray:
     x = np.asarray(ids, np.int64).astype(np.uint64) * np.uint64(0x100000001B3) + np.uint64(stream)
     with np.errstate(over="ignore"):
         return (_splitmix64(_splitmix64(x)) >> np.uint64(11)).astype(np.float64) / float(1 << 53)
-
-
-def random_quaternions(ids, stream: int) -> np.ndarray:
-    """Uniformly distributed unit quaternions (x, y, z, w), one per id (Shoemake's method)."""
-    u1, u2, u3 = (uniforms(ids, stream + k) for k in range(3))
-    a, b = np.sqrt(1.0 - u1), np.sqrt(u1)
-    return np.stack([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2), b * np.sin(2 * np.pi * u3),
-                     b * np.cos(2 * np.pi * u3)], axis=1)
 
 
 def axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:

@@ -4,18 +4,30 @@ Stage: Z up, 1 metre per unit, timeCodesPerSecond = framesPerSecond = fps, time 
 code f is frame f, t = f / fps). Prims::
 
     /World                          Xform, the default prim
+      Looks/DisplayColor            Material: a UsdPreviewSurface whose diffuse colour is the displayColor primvar
+      Looks/Glass                   Material: the same, with opacity GLASS_OPACITY (the windows)
       Ground/Plane                  Mesh: a rectangle around every vehicle's path (its Xform: double translate)
       Bed                           Xform, xformOp:translate double, time-sampled: the floating origin
         Rocks                       PointInstancer, positions float32 relative to Bed
-          Prototypes/rock_0..2      Mesh: low-poly rocks of mean radius 1 (drawn only as instances)
+          Prototypes/rock_<k>_<j>   Mesh: low-poly rocks of mean radius 1, shape k in tint j (only instanced)
       Vehicles/<name>               Xform: translate (double, world) and rotateZ (heading, deg), time-sampled
-        Body                        Mesh: a box
+        Body                        Mesh: the body's parts (motion/bodies.py) with the faces the renderer draws
+        Glass                       Mesh: their windows (bound to Looks/Glass: a camera in the cabin sees out)
         Wheel_<FL|FR|RL|RR>         Xform: translate, rotateY (spin, deg, time-sampled); its Tire: a cylinder
-      Camera                        Camera: xformOp:transform (double), time-sampled; the [camera] follow rig
+      Camera                        Camera: xformOp:transform (double), time-sampled; the scene's camera
+                                    ([camera] and its shots; at a cut the shot before is held, as below)
 
 Per frame the PointInstancer has protoIndices, ids (int64), positions, orientations (quath), scales
-(the rock radius on each axis), velocities (m/s, for motion blur) and angularVelocities (deg/s) of the
-rocks written in that frame, and an extent.
+(the rock radius on each axis), velocities (m/s, for motion blur), angularVelocities (deg/s) and
+primvars:displayColor (per instance) of the rocks written in that frame, and an extent.
+
+Colours (output/looks.py): every mesh has a displayColor primvar, the renderer's colours: the rocks' tints
+(per instance on the instancer, and in the prototype's tint: prototype k * TINTS + j is shape k in palette
+tint j, for tools such as Blender 4.5 that read neither per-instance primvars nor displayColor alone), the
+vehicles' bodies in their scene colour, tires per face as the renderer's tread and rim, the ground. Each mesh
+is bound to one material reading displayColor (UsdPrimvarReader_float3), so that an import looks like the
+render before anyone assigns materials. displayColor is linear, the renderer's display colours converted by
+the sRGB transfer function (output/looks.py ``linear``).
 
 Precision. float32 positions far from the world origin would be coarse (8 mm at 100 km), so they are local
 to the Bed Xform, whose translate (double) is the engine's floating origin: the origin the engine computes
@@ -27,7 +39,9 @@ between frames f - 1 and f, the frame is also written at time code f - STEP_HOLD
 origin (the Bed translate holding the old value): a tool interpolating the samples linearly then composes
 the interpolated world positions, and one extrapolating from a sample with its velocities (motion blur)
 stays in that sample's frame, instead of sliding the rocks across the step (64 m or more) in between (only
-extrapolation from the extra sample, within STEP_HOLD of the step, still sees the slide).
+extrapolation from the extra sample, within STEP_HOLD of the step, still sees the slide). A camera cut (a
+[[camera.shot]] starting) is held the same way: the camera of the previous frame is written again at
+f - STEP_HOLD, so that a tool interpolating between the two shots cuts instead of flying the camera across.
 
 The layer is saved after every frame: a crate (.usdc) file saved again to the same file appends the new time
 samples, and the samples already written are no longer held in memory, so memory stays flat.
@@ -41,19 +55,21 @@ import numpy as np
 
 from .formats import FileWriter
 from .instances import PROTOTYPES
-from .shapes import box_mesh, camera_matrix, cylinder_mesh, rock_prototype
+from ..motion.bodies import FACE_CORNERS, FACES, body_parts
+from .looks import GROUND_COLOR, TINTS, TIRE_COLOR, TREAD_COLOR, WHEEL_SIDE_COLOR, linear, part_faces, tint_palette
+from .shapes import camera_matrix, cylinder_mesh, rock_prototype
 
 try:
-    from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+    from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 except ImportError:  # usd-core is optional: UsdWriter.check_target says how to install it
-    Gf = Sdf = Tf = Usd = UsdGeom = Vt = None
+    Gf = Sdf = Tf = Usd = UsdGeom = UsdShade = Vt = None
 
 __all__ = ["UsdWriter", "STEP_HOLD", "USD_SUFFIXES", "ground_extent"]
 
 STEP_HOLD = 1e-4  # time codes before a step of the origin at which the old origin is held
-ROCK_COLORS = ((0.42, 0.39, 0.35), (0.50, 0.46, 0.40), (0.35, 0.33, 0.31))
-GROUND_COLOR = (0.45, 0.40, 0.33)
-TIRE_COLOR = (0.08, 0.08, 0.08)
+MATERIAL = "/World/Looks/DisplayColor"
+GLASS = "/World/Looks/Glass"
+GLASS_OPACITY = 0.35  # the windows: see-through, so that the driver's and bonnet shots look out of the cabin
 WHEELS = (("FL", 0.5, 0.5), ("FR", 0.5, -0.5), ("RL", -0.5, 0.5), ("RR", -0.5, -0.5))
 USD_SUFFIXES = (".usdc", ".usd")  # crate files: saving again appends, so a long export streams
 
@@ -67,16 +83,57 @@ def ground_extent(fleet, scene, frames: int, fps: float):
     return (lo + hi) / 2.0, (hi - lo) / 2.0 + margin
 
 
-def _mesh(stage, path: str, mesh, color) -> UsdGeom.Mesh:
+def _material(stage, path: str = MATERIAL, opacity=None):
+    """A material of the stage: a UsdPreviewSurface whose diffuse colour reads the displayColor primvar (and
+    ``opacity``, if given)."""
+    mat = UsdShade.Material.Define(stage, path)
+    surface = UsdShade.Shader.Define(stage, f"{path}/Surface")
+    surface.CreateIdAttr("UsdPreviewSurface")
+    if opacity is not None:
+        surface.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(opacity))
+    reader = UsdShade.Shader.Define(stage, f"{path}/DisplayColor")
+    reader.CreateIdAttr("UsdPrimvarReader_float3")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("displayColor")
+    reader.CreateInput("fallback", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(0.5, 0.5, 0.5))
+    color = reader.CreateOutput("result", Sdf.ValueTypeNames.Float3)
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(color)
+    surface.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.8)
+    mat.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    return mat
+
+
+def _face_normals(points, counts, indices) -> np.ndarray:
+    """Per face vertex (faceVarying), its face's unit normal (Newell's method), float32."""
+    p = np.asarray(points, np.float64)
+    out, k = [], 0
+    for c in np.asarray(counts):
+        ring = p[indices[k:k + c]]
+        nxt = np.roll(ring, -1, axis=0)
+        n = np.cross(ring, nxt).sum(axis=0)
+        out.append(np.tile(n / np.linalg.norm(n), (c, 1)))
+        k += c
+    return np.ascontiguousarray(np.concatenate(out), np.float32)
+
+
+def _mesh(stage, path: str, mesh, color, material: str = MATERIAL) -> UsdGeom.Mesh:
+    """A mesh bound to the stage's material; ``color``: one rgb (constant) or one per face (uniform), display
+    values (written linear: output/looks.py)."""
     points, counts, indices = mesh
     m = UsdGeom.Mesh.Define(stage, path)
     m.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, np.float32)))
     m.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(counts, np.int32)))
     m.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(indices, np.int32)))
     m.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    m.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(_face_normals(points, counts, indices)))
+    m.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying)  # flat faces, as the renderer shades them
     lo, hi = points.min(axis=0), points.max(axis=0)
     m.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
-    m.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, color))]))
+    color = linear(color).astype(np.float32).reshape(-1, 3)
+    per_face = len(color) > 1
+    pv = UsdGeom.PrimvarsAPI(m).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                                               UsdGeom.Tokens.uniform if per_face else UsdGeom.Tokens.constant)
+    pv.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(color)))
+    UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(UsdShade.Material.Get(stage, material))
     return m
 
 
@@ -90,6 +147,33 @@ def _prim_names(names) -> list:
             candidate, k = f"{base}_{k}", k + 1
         out.append(candidate)
     return out
+
+
+def _body_meshes(spec) -> dict:
+    """The body of vehicle ``spec`` as two meshes, "Body" and "Glass": each part of motion/bodies.py with the
+    faces the renderer draws (output/looks.py part_faces), per face its colour; quads wound counter-clockwise
+    seen from outside their (convex) part."""
+    body = body_parts(spec)
+    out = {"Body": ([], []), "Glass": ([], [])}
+    for part in body.parts:
+        corners = part.corners()
+        centre = corners.mean(axis=0)
+        for face, (color, glass) in part_faces(body.kind, part.name, spec.color).items():
+            quad = corners[list(FACE_CORNERS[FACES.index(face)])]
+            n = np.cross(quad[1] - quad[0], quad[2] - quad[0]) + np.cross(quad[2] - quad[0], quad[3] - quad[0])
+            if n @ (quad.mean(axis=0) - centre) < 0:
+                quad = quad[::-1]
+            out["Glass" if glass else "Body"][0].append(quad)
+            out["Glass" if glass else "Body"][1].append(color)
+    return {name: ((np.concatenate(q).astype(np.float32), np.full(len(q), 4, np.int32),
+                    np.arange(4 * len(q), dtype=np.int32)), np.array(c)) for name, (q, c) in out.items() if q}
+
+
+def _tire_colors(faces: int) -> np.ndarray:
+    """Per face of output/shapes.py's cylinder (its tread quads, then its two caps): the tread blocks alternating
+    between the renderer's two rubbers, the sides in the mean colour of its rim."""
+    tread = [TREAD_COLOR if k % 2 else TIRE_COLOR for k in range(faces - 2)]
+    return np.array(tread + [WHEEL_SIDE_COLOR] * 2, np.float32)
 
 
 class UsdWriter(FileWriter):
@@ -132,13 +216,15 @@ class UsdWriter(FileWriter):
         world = UsdGeom.Xform.Define(stage, "/World")
         stage.SetDefaultPrim(world.GetPrim())
         self.layer.customLayerData = {k: v for k, v in info.items()}
+        _material(stage)
+        _material(stage, GLASS, GLASS_OPACITY)
         self._ground(scene, *ground)
         bed = UsdGeom.Xform.Define(stage, "/World/Bed")
         self.origin_op = bed.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
         self._rocks()
         self._vehicles(scene)
         self._camera_prim(scene)
-        self.last_origin = None
+        self.last_origin = self.last_camera = None
         self.layer.Save()
 
     # -------------------------------------------------------------------------------------- static parts
@@ -154,13 +240,17 @@ class UsdWriter(FileWriter):
     def _rocks(self) -> None:
         pi = UsdGeom.PointInstancer.Define(self.stage, "/World/Bed/Rocks")
         UsdGeom.Scope.Define(self.stage, "/World/Bed/Rocks/Prototypes")
-        protos = [_mesh(self.stage, f"/World/Bed/Rocks/Prototypes/rock_{k}", rock_prototype(k), ROCK_COLORS[k])
-                  for k in range(PROTOTYPES)]
+        palette = tint_palette()
+        protos = [_mesh(self.stage, f"/World/Bed/Rocks/Prototypes/rock_{k}_{j}", rock_prototype(k), palette[j])
+                  for k in range(PROTOTYPES) for j in range(TINTS)]
         pi.CreatePrototypesRel().SetTargets([p.GetPath() for p in protos])
+        colors = UsdGeom.PrimvarsAPI(pi).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                                                       UsdGeom.Tokens.vertex)
         self.attrs = {"proto": pi.CreateProtoIndicesAttr(), "ids": pi.CreateIdsAttr(),
                       "positions": pi.CreatePositionsAttr(), "orientations": pi.CreateOrientationsAttr(),
                       "scales": pi.CreateScalesAttr(), "velocities": pi.CreateVelocitiesAttr(),
-                      "angular": pi.CreateAngularVelocitiesAttr(), "extent": pi.CreateExtentAttr()}
+                      "angular": pi.CreateAngularVelocitiesAttr(), "extent": pi.CreateExtentAttr(),
+                      "colors": colors}
 
     def _vehicles(self, scene) -> None:
         self.vehicle_ops = []
@@ -172,14 +262,15 @@ class UsdWriter(FileWriter):
             ops = [xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble),
                    xf.AddRotateZOp(UsdGeom.XformOp.PrecisionDouble)]
             r, z0 = float(spec.tire_radius), 0.8 * float(spec.tire_radius)
-            body = box_mesh((0.0, 0.0, z0 + spec.height / 2), (spec.length, spec.width, spec.height))
-            _mesh(self.stage, f"{root}/Body", body, spec.color)
+            for name, (mesh, colors) in _body_meshes(spec).items():
+                _mesh(self.stage, f"{root}/{name}", mesh, colors, GLASS if name == "Glass" else MATERIAL)
             tire = cylinder_mesh(r, float(spec.tire_width))
+            tire_colors = _tire_colors(len(tire[1]))
             for label, sx, sy in WHEELS:
                 wheel = UsdGeom.Xform.Define(self.stage, f"{root}/Wheel_{label}")
                 wheel.AddTranslateOp().Set(Gf.Vec3f(sx * spec.wheelbase, sy * spec.track, r))
                 ops.append(wheel.AddRotateYOp(UsdGeom.XformOp.PrecisionDouble))
-                _mesh(self.stage, f"{root}/Wheel_{label}/Tire", tire, TIRE_COLOR)
+                _mesh(self.stage, f"{root}/Wheel_{label}/Tire", tire, tire_colors)
             self.vehicle_ops.append(ops)
 
     def _camera_prim(self, scene) -> None:
@@ -211,13 +302,19 @@ class UsdWriter(FileWriter):
             ops[1].Set(math.degrees(float(veh["headings"][i])), t)
             for j, (label, sx, _) in enumerate(WHEELS):
                 ops[2 + j].Set(math.degrees(float(veh["front" if sx > 0 else "rear"][i])), t)
-        self.camera_op.Set(Gf.Matrix4d(*map(float, camera_matrix(*fr["camera"]).reshape(-1))), t)
+        camera = Gf.Matrix4d(*map(float, camera_matrix(*fr["camera"]).reshape(-1)))
+        if fr.get("cut") and self.last_camera is not None:  # a cut: the shot before holds up to it
+            self.camera_op.Set(self.last_camera, t - STEP_HOLD)
+        self.camera_op.Set(camera, t)
+        self.last_camera = camera
         self.layer.Save()
 
     def _rock_samples(self, fr: dict, local: np.ndarray, t: float) -> None:
         """The PointInstancer's samples at time code ``t``: the rocks of ``fr`` at ``local`` positions."""
         a = self.attrs
-        a["proto"].Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(fr["proto"], np.int32)), t)
+        proto = np.asarray(fr["proto"], np.int32) * TINTS + np.asarray(fr["tint"], np.int32)
+        a["proto"].Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(proto)), t)
+        a["colors"].Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(linear(fr["tints"]), np.float32)), t)
         a["ids"].Set(Vt.Int64Array.FromNumpy(np.ascontiguousarray(fr["ids"], np.int64)), t)
         a["positions"].Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)), t)
         a["orientations"].Set(Vt.QuathArray.FromNumpy(np.ascontiguousarray(fr["orientations"], np.float16)), t)

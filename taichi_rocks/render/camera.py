@@ -11,11 +11,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..motion.camera import CHASE_OFFSET, VIEWS, CameraRig, camera_of, view_preset  # noqa: F401
+from ..motion.camera import (CHASE_OFFSET, MOUNTED, VIEWS, CameraRig, SceneCamera, camera_of,  # noqa: F401
+                             scene_camera, view_preset)
 from .looks import SUN_DIR_CAMERA
 
-__all__ = ["GL_UP", "NEAR", "VIEWS", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of", "View",
-           "Lens", "look", "frame_of", "sun_vector", "sun_direction"]
+__all__ = ["GL_UP", "NEAR", "VIEWS", "MOUNTED", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of",
+           "SceneCamera", "scene_camera", "View", "Lens", "look", "look_at_time", "frame_of", "sun_vector",
+           "sun_direction"]
 
 GL_UP = (0.0, 0.0, 1.0)  # GGUI camera up: the simulation's +Z (no axis swap anywhere)
 NEAR = 0.05  # near plane, m (GGUI's and the rock culling's)
@@ -45,6 +47,15 @@ def look(rig: CameraRig, position, heading: float, t: float, origin, target=None
     """Advance ``rig`` to time ``t`` following a vehicle at ``position`` (world) with ``heading`` (and looking
     at ``target`` = (position, heading), if given: see :meth:`CameraRig.update`); the view."""
     eye_w, target_w, heading = rig.update(position, heading, t, target)
+    origin = np.asarray(origin, np.float64)
+    return frame_of(to_gl(eye_w, origin), to_gl(target_w, origin), heading)
+
+
+def look_at_time(camera: SceneCamera, poses, t: float, origin) -> View:
+    """Advance the scene's ``camera`` to time ``t`` with the vehicles at ``poses`` (motion/vehicles.py
+    VehiclePose, world); the view (local f32 coordinates)."""
+    positions = np.array([p.position for p in poses], np.float64)
+    eye_w, target_w, heading = camera.update(positions, [p.heading for p in poses], t)
     origin = np.asarray(origin, np.float64)
     return frame_of(to_gl(eye_w, origin), to_gl(target_w, origin), heading)
 

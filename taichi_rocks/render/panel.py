@@ -4,7 +4,8 @@
   shown, rocks in the air, launches, the camera, notices such as "recompiling") and the time slider;
 * "tune" (right): the runtime parameters as sliders (engine/tuning.py SLIDERS, from engine/params.py; they act
   at once; a [min, max] pair gets two), the switches that need a recompile (engine/tuning.py SWITCH_KEYS) as
-  buttons that step through their choices, the camera presets as buttons and the overlays as check boxes.
+  buttons that step through their choices, the cameras as buttons (the scene's shots, if it has any, then the
+  presets; ``v.cameras``) and the overlays as check boxes.
 
 Widgets only read the viewer and return what the user changed (:class:`Changes`); the viewer applies it.
 The first widget of "tune" is the wetness slider, a fixed place the tests drag with the mouse.
@@ -13,7 +14,6 @@ The first widget of "tune" is the wetness slider, a fixed place the tests drag w
 from dataclasses import dataclass, field
 
 from ..engine.tuning import SLIDERS
-from ..motion.camera import VIEWS
 
 __all__ = ["SLIDERS", "Changes", "draw_panel", "hud_lines", "panel_width"]
 
@@ -72,7 +72,7 @@ def draw_panel(gui, v) -> Changes:
             if w.button(f"{key.rsplit('.', 1)[-1]}: {_word(cur)}"):
                 ch.switch = (key, choices[(choices.index(cur) + 1) % len(choices)])
         w.text("camera (c cycles, f free):")
-        for name in VIEWS + ("free",):
+        for name in tuple(v.cameras) + ("free",):
             if w.button(("> " if v.camera_name == name else "  ") + name):
                 ch.view = name
         w.text("overlays:")

@@ -7,7 +7,8 @@ app/view.py: the same code draws both). A frame is made of two layers:
 1. the background image, filled by the Taichi kernels of :mod:`.kernels`: sky, ground and the *resting*
    rocks, splatted in software;
 2. the GGUI 3D scene: vehicles (a car, van or truck body of a few boxes, lights, four wheels that turn at
-   their angular velocity; all in one mesh instance, :mod:`.bodies`, :mod:`.meshes`), the *flying* rocks as
+   their angular velocity; all in one mesh instance, :mod:`.bodies`, :mod:`.meshes`; from the driver's view,
+   the ridden vehicle's greenhouse left out and its windscreen's frame drawn, :mod:`.interior`), the *flying* rocks as
    ``scene.particles`` from compact f32 fields (atomic-counter compaction in the same pass, ``index_count``
    = the count, power-of-two buckets), debug overlays (:mod:`.overlays`) as ``scene.lines``;
 
@@ -47,15 +48,16 @@ import taichi as ti
 from ..config.resolution import check_resolution
 from ..engine import drawing
 from . import kernels as K
-from .camera import GL_UP, NEAR, Lens, View, camera_of, look, sun_direction
+from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
 from .bodies import scene_meshes
+from .interior import interior_of
 from .meshes import merge, pose_mesh
 from .overlays import Overlays
 from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
 
-__all__ = ["Renderer", "DEFAULT_LOD_PIXELS", "ROCK_MODES", "WINDOW_EVERY", "check_rocks"]
+__all__ = ["Renderer", "DEFAULT_LOD_PIXELS", "ROCK_MODES", "WINDOW_EVERY", "SHOTS", "check_rocks"]
 
 DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this many pixels are thinned
 ROCK_MODES = ("splat", "particles")
@@ -67,6 +69,8 @@ CONTACT_PX = 3.0  # resting rocks at least this many pixels in radius darken the
 GLITCH_DROP = 0.3  # a frame whose GGUI pixels fall below this fraction of the last frame's is drawn again
 GLITCH_RETRIES = 3  # at most this many extra draws of one frame
 LOST_COVERAGE = 0.15  # a vehicle in view drawing less than this share of its screen box was lost
+SHOTS = "shots"  # the name of the scene's own camera when it has [[camera.shot]] tables (set_view)
+INSIDE_VIEWS = ("driver",)  # views from inside the ridden vehicle's cabin (drawn by .interior)
 
 
 def check_rocks(rocks: str) -> str:
@@ -152,36 +156,83 @@ class Renderer:
                                      hash_cells=bool(rs.hash_cells), tread_patch=False)
 
     def _camera_setup(self, scene) -> None:
-        """Which vehicle the camera follows and which it looks at, its view, lens and rig; the sun."""
-        self.rig, self.follow, self.target = camera_of(scene)
-        self.view_name = scene.camera.view
+        """The scene's camera (its shots: motion/camera.py), its lens; the sun."""
+        self.rig = scene_camera(scene)
+        self.view_name = SHOTS if scene.camera.shots else scene.camera.view
         self.fov = float(scene.camera.fov)
         self.tan_x, self.tan_y, self.px_per_rad = Lens.of(self.fov, *self.resolution)
         self.ground_z = float(scene.world.ground_z)
         self.sun = (scene.render.sun, scene.render.sun_frame)
 
     def set_view(self, name: str) -> None:
-        """Frame the scene with another view preset (chase, side, low, orbit: :func:`.camera.camera_of`; the
-        scene's own view keeps its offset and aim). The new rig snaps to its place at the next frame."""
-        self.rig, self.follow, self.target = camera_of(self.sim.scene, name)
+        """Frame the scene with another view preset (chase, side, low, orbit, driver, bonnet:
+        :func:`.camera.scene_camera`; the scene's own view keeps its offset and aim), or with the scene's own
+        camera and its shots (``SHOTS``). The new camera snaps to its place at the next frame."""
+        self.rig = scene_camera(self.sim.scene, None if name == SHOTS else name)
         self.view_name = name
+        if not self._inside_needed() <= set(self._interiors):
+            self._vehicle_fields()
+
+    @property
+    def follow(self) -> int:
+        """The vehicle the camera rides with in the shot of its last update."""
+        return self.rig.shot.rides
+
+    @property
+    def target(self) -> int:
+        """The vehicle the camera looks at in the shot of its last update."""
+        return self.rig.shot.target
+
+    def _inside_needed(self) -> set:
+        """The vehicles a shot of the camera looks out of (the driver's view): their interiors are drawn."""
+        return {s.rides for s in self.rig.shots if s.view in INSIDE_VIEWS}
 
     def _vehicle_fields(self) -> None:
-        """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer)."""
-        self._meshes = scene_meshes(self.sim.scene)
+        """The vehicles: one merged mesh, posed on the host each frame (wheels turned by the odometer). A vehicle
+        that a shot looks out of also holds its windscreen frame (:mod:`.interior`); the triangles drawn are
+        those of the outside (``_layouts[None]``) or of the view from that vehicle's cabin (``_layouts[i]``)."""
+        scene = self.sim.scene
+        self._meshes = scene_meshes(scene)
+        self._interiors = {}
+        for i in sorted(self._inside_needed()):
+            self._interiors[i] = interior_of(scene.vehicles[i], self._meshes[i])
+            self._meshes[i] = self._interiors[i].mesh
         self._v_sizes = [len(m.verts) for m in self._meshes]
         vs, ns, cs, ids = merge([m[:4] for m in self._meshes])
+        self._layouts = {None: self._triangles(None)}
+        self._layouts.update({i: self._triangles(i) for i in self._interiors})
+        self._layout = None
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
+        self._inside = None  # the vehicle whose cabin the camera looks out of this frame
         self._odometer = Odometer(self.sim.fleet.paths)
         self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
         self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols = ti.Vector.field(3, ti.f32, len(vs))
         self._v_cols.from_numpy(cs.astype(np.float32))
-        self._v_idx = ti.field(ti.i32, len(ids))
-        self._v_idx.from_numpy(ids.astype(np.int32))
+        self._v_idx = ti.field(ti.i32, max(len(t) for t in self._layouts.values()))
+        self._upload_layout(None)
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
         self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
         self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
+
+    def _triangles(self, inside) -> np.ndarray:
+        """The merged mesh's indices drawn from outside (``inside`` None) or from the cabin of vehicle
+        ``inside`` (its own triangles first, nearest first: the depth test then rejects what they hide before
+        GGUI shades it)."""
+        out, start = [], np.cumsum([0] + self._v_sizes)
+        for i, m in enumerate(self._meshes):
+            tri = self._interiors[i].triangles(i == inside) if i in self._interiors else m.idx
+            out.append(np.asarray(tri, np.int64) + start[i])
+        if inside is not None:
+            out.insert(0, out.pop(inside))
+        return np.concatenate(out)
+
+    def _upload_layout(self, inside) -> None:
+        ids = self._layouts[inside]
+        full = np.zeros(self._v_idx.shape[0], np.int32)
+        full[:len(ids)] = ids
+        self._v_idx.from_numpy(full)
+        self._layout = inside
 
     def wheel_angles(self, t: float) -> list:
         """Per vehicle, its wheels' angles (rad) at time ``t``: distance driven / tire radius (rear wheels:
@@ -210,12 +261,7 @@ class Renderer:
         """Advance the camera to ``sim.time``; return the view in local f32 coordinates:
         (eye, target, forward, right, up, heading). Calling it twice at the same time changes nothing."""
         sim = self.sim
-        poses = sim.vehicle_poses()
-        pose = poses[self.follow]
-        target = None
-        if self.target != self.follow:
-            target = (poses[self.target].position, poses[self.target].heading)
-        return look(self.rig, pose.position, pose.heading, sim.time, sim.origin, target)
+        return look_at_time(self.rig, sim.vehicle_poses(), sim.time, sim.origin)
 
     def sun_direction(self, heading: float) -> np.ndarray:
         """Unit vector towards the sun (:func:`.camera.sun_direction`; ``heading``: the rig's)."""
@@ -296,6 +342,8 @@ class Renderer:
         sim = self.sim
         origin = np.asarray(sim.origin, np.float64)
         eye, target, fwd, right, up, heading = self.view()
+        shot = self.rig.shot
+        self._inside = shot.rides if view is None and shot.view in INSIDE_VIEWS else None
         if view is not None:
             eye, target, fwd, right, up = view[:5]
         sd = self.sun_direction(heading)
@@ -430,9 +478,11 @@ class Renderer:
         self._v_frame = out_v
         self._v_verts.from_numpy(out_v.astype(np.float32))
         self._v_norms.from_numpy(np.concatenate([n for _, n in posed]).astype(np.float32))
+        if self._inside != self._layout:
+            self._upload_layout(self._inside)
         scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
                             per_vertex_color=self._v_cols, transforms=self._v_model,
-                            show_wireframe=self._wireframe())
+                            index_count=len(self._layouts[self._layout]), show_wireframe=self._wireframe())
 
     def _wireframe(self) -> bool:
         """Vehicles are drawn as wireframes while an overlay of what is under them is on: the tire rays, the

@@ -59,7 +59,7 @@ def test_streams_are_unique_and_no_two_overlap():
 
 
 # drawing functions -> the argument that is a stream id (0-based position)
-DRAWS = {"uniform01": 3, "_unit": 1, "_unit_np": 1, "uniforms": 1, "random_quaternions": 1}
+DRAWS = {"uniform01": 3, "uniform01_np": 3, "_unit": 1, "_unit_np": 1, "uniforms": 1}
 
 
 def test_no_draw_names_a_stream_id_of_its_own():

@@ -85,6 +85,9 @@ def _rocks(stage, frame):
 def test_usd_stage_metadata_and_time_samples(runs):
     from pxr import UsdGeom
 
+    from taichi_rocks.output.instances import PROTOTYPES
+    from taichi_rocks.output.looks import TINTS
+
     stage = _stage(runs / "all.usdc")
     assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
     assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
@@ -95,7 +98,7 @@ def test_usd_stage_metadata_and_time_samples(runs):
     for attr in (pi.GetPositionsAttr(), pi.GetIdsAttr(), pi.GetProtoIndicesAttr(), pi.GetOrientationsAttr(),
                  pi.GetScalesAttr(), pi.GetVelocitiesAttr()):
         assert attr.GetTimeSamples() == [float(f) for f in range(FRAMES)], attr.GetName()
-    assert len(pi.GetPrototypesRel().GetTargets()) == 3
+    assert len(pi.GetPrototypesRel().GetTargets()) == PROTOTYPES * TINTS  # each rock shape in each tint
     car = UsdGeom.Xformable(stage.GetPrimAtPath("/World/Vehicles/car"))
     assert len(car.GetOrderedXformOps()[0].GetTimeSamples()) == FRAMES
     cam = UsdGeom.Camera(stage.GetPrimAtPath("/World/Camera"))
@@ -354,29 +357,66 @@ def test_camera_matrix_looks_from_the_eye_at_the_target():
         np.testing.assert_allclose(m[3, :3], eye, atol=1e-12)
 
 
-def test_tumble_orientations_are_unit_and_turn_only_while_moving():
+def test_instances_carry_the_engines_orientations_and_new_ids_after_a_recycle():
+    """The tracker hands on the engine's orientations and angular velocities as they are (a recycled rock keeps
+    its orientation under its new id) and refuses a state without them."""
     from taichi_rocks.output.instances import RockTracker
 
     n = 50
+    rng = np.random.default_rng(0)
     pos = np.zeros((n, 3))
     pos[:, 0] = np.arange(n)
     vel = np.zeros((n, 3), np.float32)
+    q = rng.normal(size=(n, 4)).astype(np.float32)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    omega = np.zeros((n, 3), np.float32)
     tracker = RockTracker(n, 9.81, 10.0)
-    st = {"positions": pos, "velocities": vel, "recycles_total": 0}
+    st = {"positions": pos, "velocities": vel, "recycles_total": 0, "orientations": q, "angular_velocities": omega}
     first = tracker.update(st)
     vel2 = vel.copy()
     vel2[:10, 0] = 2.0  # rocks 0-9 fly
     pos2 = pos.copy()
     pos2[:10, 0] += 0.2
     pos2[10, 0] += 30.0  # rock 10 recycled across the bed
-    second = tracker.update({"positions": pos2, "velocities": vel2, "recycles_total": 1})
-    np.testing.assert_allclose(np.linalg.norm(second["orientations"], axis=1), 1.0, atol=1e-12)
+    q2, omega2 = q[::-1].copy(), rng.normal(size=(n, 3)).astype(np.float32)
+    second = tracker.update({"positions": pos2, "velocities": vel2, "recycles_total": 1, "orientations": q2,
+                             "angular_velocities": omega2})
+    assert np.array_equal(first["orientations"], q) and np.array_equal(second["orientations"], q2)
+    assert np.array_equal(second["angular_velocities"], omega2)
     assert np.flatnonzero(second["recycled"]).tolist() == [10]
     assert second["ids"][10] == 10 + n and np.array_equal(np.delete(second["ids"], 10), np.delete(first["ids"], 10))
-    turned = ~np.isclose(np.abs(np.sum(second["orientations"] * first["orientations"], axis=1)), 1.0)
-    assert turned[:10].all() and not turned[11:].any()
-    assert np.all(np.linalg.norm(second["angular_velocities"][:10], axis=1) >= 3.0)
-    assert not second["angular_velocities"][10:].any()
+    with pytest.raises(ValueError, match="tumble=True"):
+        RockTracker(n, 9.81, 10.0).update({"positions": pos, "velocities": vel, "recycles_total": 0})
+
+
+def test_usd_orientations_and_angular_velocities_are_the_engines(runs, taichi_cpu):
+    """Read back from the stage at every frame: each instance's orientation (quath) and angular velocity
+    (deg/s) are those of its rock (id mod N) in the engine's state at that frame, simulated here."""
+    from pxr import UsdGeom
+
+    from taichi_rocks.app.frames import frame_states
+    from taichi_rocks.config.scene import load_scene
+    from taichi_rocks.engine.simulation import Simulation
+
+    stage = _stage(runs / "all.usdc")
+    pi = UsdGeom.PointInstancer(stage.GetPrimAtPath("/World/Bed/Rocks"))
+    sim = Simulation(load_scene(MINIMAL), tumble=True)
+    spinning = turned = 0
+    first = None
+    for f, st in frame_states(sim, FRAMES, FPS, True, None):
+        ids = np.asarray(pi.GetIdsAttr().Get(f), np.int64)
+        rock = ids % sim.n_rocks
+        q = np.array([[x.GetImaginary()[0], x.GetImaginary()[1], x.GetImaginary()[2], x.GetReal()]
+                      for x in pi.GetOrientationsAttr().Get(f)], np.float64)
+        omega = np.asarray(pi.GetAngularVelocitiesAttr().Get(f), np.float64).reshape(-1, 3)
+        want_q = st["orientations"][rock].astype(np.float64)
+        np.testing.assert_allclose(q, want_q, atol=5e-4)  # half precision: 2^-12 of a unit
+        np.testing.assert_allclose(omega, np.degrees(st["angular_velocities"][rock].astype(np.float64)),
+                                   rtol=1e-6, atol=1e-4)
+        spinning += int(np.any(omega != 0.0, axis=1).sum())
+        first = want_q if first is None else first
+        turned = int(np.sum(np.abs(np.sum(want_q * first, axis=1)) < 0.999))
+    assert spinning > 20 and turned > 5  # stones were thrown, spun and turned
 
 
 def test_every_registered_format_is_a_writer_named_as_its_key():
@@ -449,7 +489,7 @@ def test_a_new_format_is_one_module_and_one_registry_line(taichi_cpu, tmp_path, 
         module.LandingsWriter = cls
         monkeypatch.setitem(sys.modules, module.__name__, module)
         monkeypatch.setitem(formats.FORMATS, "landings", ("landings", "LandingsWriter"))
-        sim = Simulation(load_scene(MINIMAL))
+        sim = Simulation(load_scene(MINIMAL), tumble=True)
         if fail_at is None:
             info = export_run(sim, out, 40, 30.0, fmt="landings")
             rows = out.read_text().splitlines()
@@ -460,3 +500,134 @@ def test_a_new_format_is_one_module_and_one_registry_line(taichi_cpu, tmp_path, 
             with pytest.raises(RuntimeError, match="disk full"):
                 export_run(sim, out, 10, 30.0, fmt="landings")
             assert cls.calls == [0, 1, 2, "abort"] and not out.parent.exists()
+
+
+# ---------------------------------------------------------------------------------------------- colours
+def test_the_exports_colours_are_the_renderers():
+    """output/looks.py computes the renderer's colours itself (output/ does not import render/): its numbers
+    are render/looks.py's and render/rocklook.py's, its rock tints the renderer's resting-rock colour on random
+    and edge-case ids, its wheel side the area-weighted mean of the side of render/meshes.py's wheel."""
+    from taichi_rocks.output import looks as out
+    from taichi_rocks.render import looks, rocklook
+    from taichi_rocks.render.meshes import wheel
+
+    assert (out.ROCK_GREY, out.ROCK_BROWN, out.ROCK_DARK) == (rocklook._GREY, rocklook._BROWN, rocklook._DARK)
+    assert (out.TIRE_COLOR, out.TREAD_COLOR) == (looks.TIRE_COLOR, looks.TREAD_COLOR)
+    np.testing.assert_allclose(out.GROUND_COLOR, (np.array(looks.GROUND_A) + looks.GROUND_B) / 2, atol=1e-15)
+    rng = np.random.default_rng(5)
+    ids = np.concatenate([rng.integers(0, 2 ** 31 - 1, 3000), [0, 1, 2 ** 31 - 1, 2 ** 32 - 1, 2 ** 32, 10 ** 12]])
+    want = np.array([rocklook.rock_color(int(i)) for i in ids])
+    np.testing.assert_allclose(out.rock_tints(ids), want, rtol=0, atol=1e-12)
+    v, n, c, i = wheel(0.33, 0.22)
+    tri = v[i.reshape(-1, 3)]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    side = np.abs(n[i[0::3], 1]) > 0.99
+    mean = (c[i[0::3]][side] * area[side, None]).sum(axis=0) / area[side].sum()
+    np.testing.assert_allclose(out.WHEEL_SIDE_COLOR, mean, atol=1e-12)
+    palette = out.tint_palette()
+    assert palette.shape == (out.TINTS, 3) and np.array_equal(palette, out.tint_palette())  # the same every time
+    tints = out.rock_tints(np.arange(20000))
+    near = palette[out.nearest_tint(tints, palette)]
+    assert np.abs(near - tints).max() < 0.12 and np.sqrt(((near - tints) ** 2).sum(axis=1)).mean() < 0.05
+    np.testing.assert_allclose(out.linear([0.0, 0.04045, 0.5, 1.0]), [0.0, 0.04045 / 12.92, 0.214041, 1.0],
+                               atol=1e-6)
+
+
+def test_usd_colours_are_the_renderers(runs):
+    """Every mesh of the stage carries displayColor (linear: output/looks.py) and is bound to the one material,
+    a UsdPreviewSurface whose diffuse colour reads it: the rocks' instances their renderer's colour, each
+    prototype its tint, each rock the prototype of its shape in the tint nearest its own; the car its scene
+    colour, its tires the renderer's tread blocks and rims, the ground the renderer's checker."""
+    from pxr import Usd, UsdGeom, UsdShade
+
+    from taichi_rocks.config.scene import load_scene
+    from taichi_rocks.output.instances import PROTOTYPES
+    from taichi_rocks.output.looks import TINTS, linear, nearest_tint, tint_palette
+    from taichi_rocks.output.usd import MATERIAL
+    from taichi_rocks.render import looks
+    from taichi_rocks.render.rocklook import rock_color
+
+    stage = _stage(runs / "all.usdc")
+    surface = UsdShade.Material.Get(stage, MATERIAL).ComputeSurfaceSource()[0]
+    assert surface.GetIdAttr().Get() == "UsdPreviewSurface"
+    reader = surface.GetInput("diffuseColor").GetConnectedSources()[0][0].source
+    assert UsdShade.Shader(reader.GetPrim()).GetIdAttr().Get() == "UsdPrimvarReader_float3"
+    assert UsdShade.Shader(reader.GetPrim()).GetInput("varname").Get() == "displayColor"
+    meshes = [p for p in Usd.PrimRange(stage.GetPseudoRoot()) if p.IsA(UsdGeom.Mesh)]
+    assert len(meshes) == 3 + 4 + PROTOTYPES * TINTS  # the ground, the car's body, glass and tires, the rocks
+    for p in meshes:
+        bound = UsdShade.MaterialBindingAPI(p).ComputeBoundMaterial()[0].GetPath()
+        assert bound == ("/World/Looks/Glass" if p.GetName() == "Glass" else MATERIAL), p.GetPath()
+        assert UsdGeom.Mesh(p).GetDisplayColorPrimvar().HasValue(), p.GetPath()
+
+    def color(path):
+        return np.asarray(UsdGeom.Mesh(stage.GetPrimAtPath(path)).GetDisplayColorAttr().Get(), np.float64)
+
+    palette = tint_palette()
+    for k in range(PROTOTYPES):
+        for j in range(TINTS):
+            np.testing.assert_allclose(color(f"/World/Bed/Rocks/Prototypes/rock_{k}_{j}"), [linear(palette[j])],
+                                       atol=1e-6)
+    pi = UsdGeom.PointInstancer(stage.GetPrimAtPath("/World/Bed/Rocks"))
+    pv = UsdGeom.PrimvarsAPI(pi).GetPrimvar("displayColor")
+    assert pv.GetInterpolation() == UsdGeom.Tokens.vertex
+    n = load_scene(MINIMAL).bed.rocks
+    for f in (0, FRAMES // 2, FRAMES - 1):
+        index = np.asarray(pi.GetIdsAttr().Get(f), np.int64) % n
+        want = np.array([rock_color(int(i)) for i in index])
+        np.testing.assert_allclose(np.asarray(pv.Get(f), np.float64), linear(want), atol=1e-6)
+        proto = np.asarray(pi.GetProtoIndicesAttr().Get(f))
+        assert np.array_equal(proto % TINTS, nearest_tint(want, palette)) and proto.max() < PROTOTYPES * TINTS
+    scene = load_scene(MINIMAL)
+    body = color("/World/Vehicles/car/Body")
+    assert np.isclose(body, linear(scene.vehicles[0].color), atol=1e-6).all(axis=1).sum() >= 6  # its lower body
+    np.testing.assert_allclose(color("/World/Vehicles/car/Glass"), linear([looks.GLASS_COLOR] * 4), atol=1e-6)
+    assert UsdShade.MaterialBindingAPI(stage.GetPrimAtPath("/World/Vehicles/car/Glass")).ComputeBoundMaterial()[0] \
+        .GetPath() == "/World/Looks/Glass"
+    tire = color("/World/Vehicles/car/Wheel_RL/Tire")
+    tread = [looks.TREAD_COLOR if k % 2 else looks.TIRE_COLOR for k in range(len(tire) - 2)]
+    np.testing.assert_allclose(tire[:-2], linear(tread), atol=1e-6)
+    np.testing.assert_allclose(color("/World/Ground/Plane"),
+                               [linear((np.array(looks.GROUND_A) + looks.GROUND_B) / 2)], atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["car", "van", "truck"])
+def test_usd_bodies_are_the_renderers(kind):
+    """A vehicle's USD body is its parts (motion/bodies.py) with the faces the renderer draws in its colours:
+    every face of the stage's Body and Glass meshes is a face of render/bodies.py's mesh, corner for corner,
+    in the same colour (the lower body, which the renderer cuts round the wheels, in the scene's colour), and
+    wound to face outwards; the glass faces are the renderer's glass."""
+    from scenes_util import scene
+
+    from taichi_rocks.output.usd import _body_meshes
+    from taichi_rocks.render.bodies import vehicle_mesh
+    from taichi_rocks.render.looks import GLASS_COLOR
+
+    spec = scene(vehicles=[{"name": "v", "kind": kind, "length": 6.0, "width": 2.2, "height": 2.2, "wheelbase": 3.6,
+                            "track": 1.9, "tire_radius": 0.4, "color": [0.2, 0.5, 0.8]}]).vehicles[0]
+    m = vehicle_mesh(spec)
+    body = m.wheel < 0
+    quads = m.verts[body].reshape(-1, 4, 3)
+    cols = m.cols[body].reshape(-1, 4, 3)[:, 0]
+    norms = m.norms[body].reshape(-1, 4, 3)[:, 0]
+    keys = {tuple(sorted(map(tuple, np.round(q, 9)))): (c, n) for q, c, n in zip(quads, cols, norms)}
+    meshes = _body_meshes(spec)
+    assert set(meshes) == {"Body", "Glass"}
+    matched = 0
+    for name, ((points, counts, idx), colors) in meshes.items():
+        assert (counts == 4).all() and len(colors) == len(counts)
+        for f, face in enumerate(points[idx].reshape(-1, 4, 3).astype(np.float64)):
+            n = np.cross(face[1] - face[0], face[2] - face[0])  # the winding's normal (counter-clockwise)
+            key = tuple(sorted(map(tuple, np.round(face, 5))))
+            near = [k for k in keys if np.allclose(np.array(k), np.array(key), atol=1e-5)]
+            if near:
+                color, normal = keys[near[0]]
+                np.testing.assert_allclose(colors[f], color, atol=1e-12)
+                assert n @ normal > 0  # outwards, as the renderer's face
+                matched += 1
+            else:  # the lower body's faces: the renderer's are cut round the wheel wells
+                np.testing.assert_allclose(colors[f], spec.color, atol=1e-12)
+            if name == "Glass":
+                np.testing.assert_allclose(colors[f], GLASS_COLOR, atol=1e-12)
+    faces = sum(len(c) for _, c in meshes.values())
+    assert matched == faces - (4 if kind != "truck" else 0)  # all but the lower body's sides, top and bottom

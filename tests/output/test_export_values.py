@@ -248,3 +248,29 @@ def test_light_layout_across_an_origin_step_gives_the_full_run(fast, real):
     moved = full["positions"][-1, :, 0] - full["positions"][0, :, 0]
     assert full["bed_center"][-1, 0] - full["bed_center"][0, 0] == pytest.approx(80.0 * (FRAMES - 1) / FPS)
     assert (moved > 100.0).any()  # rocks recycled ahead of the bed: their rows are relative to the new origin
+
+
+# ---------------------------------------------------------------------------------------------- shots
+def test_usd_camera_follows_the_shots_and_holds_at_the_cuts(taichi_cpu, tmp_path):
+    """The shots scene exported at 10 frames/s: the camera of every frame is the shot's rig at that time
+    (tests/shots_util.py: chase until 0.75 s, the car's driver's seat, then beside the van), and at each cut
+    (frames 8 and 14) the frame before is written again STEP_HOLD before it, so that a tool interpolating between
+    the samples cuts instead of flying the camera from one shot to the next; nowhere else an extra sample."""
+    from shots_util import CUTS, expected_eyes, write_shots_scene
+    from taichi_rocks.config.scene import load_scene
+    from taichi_rocks.output.usd import STEP_HOLD
+
+    path = write_shots_scene(tmp_path)
+    _cli("export", path, "--out", tmp_path / "shots.usdc", "--frames", FRAMES, "--fps", FPS)
+    stage = _stage(tmp_path / "shots.usdc")
+    want, _ = expected_eyes(load_scene(path), [f / FPS for f in range(FRAMES)])
+    for f in range(FRAMES):
+        np.testing.assert_allclose(_world(stage, "/World/Camera", f)[3, :3], want[f], rtol=0, atol=1e-9)
+    cuts = [int(np.ceil(c * FPS - 1e-9)) for c in CUTS]
+    assert cuts == [8, 14]
+    samples = stage.GetPrimAtPath("/World/Camera").GetAttribute("xformOp:transform").GetTimeSamples()
+    assert samples == sorted([float(f) for f in range(FRAMES)] + [c - STEP_HOLD for c in cuts])
+    for c in cuts:
+        held = _world(stage, "/World/Camera", c - STEP_HOLD)
+        np.testing.assert_array_equal(held, _world(stage, "/World/Camera", c - 1))
+        assert np.linalg.norm(want[c] - want[c - 1]) > 1.0  # a cut: the eye jumps

@@ -204,3 +204,50 @@ def test_no_display_exits_2_pointing_to_render(display):
     assert "display" in lines[0] and "taichi-rocks render" in lines[0]
     assert "Starting on arch" not in r.stdout + r.stderr  # Taichi never started
     assert time.perf_counter() - t < TIMEOUT
+
+
+def test_the_viewer_plays_the_scene_shots_and_its_camera_keys_keep_working(xdisplay, tmp_path):
+    """A scene with [[camera.shot]] tables opens on its own camera ("shots"): every frame shown, playing and
+    stepped back across a cut, has the shot's camera at that time (tests/shots_util.py); c goes on to the
+    presets (the chase view, then the others) and round again to "shots", which plays them again."""
+    from shots_util import CUTS, expected_eyes, write_shots_scene
+    from taichi_rocks.config.scene import load_scene
+
+    path = write_shots_scene(tmp_path, name="shots")
+    scene = load_scene(path)
+    fps = scene.render.fps
+    frames = int(round(scene.duration * fps))
+    want, shot = expected_eyes(scene, [k / fps for k in range(frames)])
+    v = View(xdisplay, tmp_path, scene=path)
+    try:
+        seen = {}
+        s = v.wait(lambda s: s["camera"] == "shots", "the scene's own camera")
+        while len(set(shot[k] for k in seen)) < 3:  # play until frames of all three shots were shown
+            s = v.frames_later(1)
+            assert s["camera"] == "shots"
+            seen[s["frame"]] = np.array(s["eye"])
+        for k, eye in seen.items():
+            np.testing.assert_allclose(eye, want[k], rtol=0, atol=2e-4, err_msg=f"frame {k}")
+        s = v.still(panel=False)
+        cut = int(np.ceil(CUTS[0] * fps - 1e-9))
+        while v.status()["frame"] != cut - 1:  # step to just before the first cut, then across it
+            f = v.status()["frame"]
+            v.key("Left" if f > cut - 1 else "Right")
+            v.wait(lambda x: x["frame"] != f, "a frame step")
+        for k in (cut - 1, cut):
+            if k == cut:
+                v.key("Right")
+            s = v.wait(lambda x: x["frame"] == k, f"frame {k}")
+            np.testing.assert_allclose(s["eye"], want[k], rtol=0, atol=2e-4, err_msg=f"frame {k}")
+        v.key("c")
+        s = v.wait(lambda x: x["camera"] == "chase", "the chase preset after the shots")
+        while v.status()["camera"] != "shots":  # round the presets, back to the scene's own camera
+            cam = v.status()["camera"]
+            v.key("c")
+            v.wait(lambda x: x["camera"] != cam, "the next camera")
+        s = v.frames_later(2)
+        np.testing.assert_allclose(s["eye"], want[s["frame"]], rtol=0, atol=2e-4)
+    finally:
+        if v.proc.poll() is None:
+            v.proc.kill()
+        v.finish()

@@ -203,10 +203,10 @@ def test_camera_buttons_pick_the_preset(view, widgets):
         y, x = widgets["cameras"][names.index(name)]
         s = click(view, x, y, lambda s, name=name: s["camera"] == name, f"the {name} camera")
         eyes[name] = np.array(s["eye"])
-    for name in ("side", "low", "orbit"):  # each its own place (orbit: the side view turned by the time)
-        assert np.linalg.norm(eyes[name] - start) > 1.0, name
-    assert np.linalg.norm(eyes["side"] - eyes["low"]) > 1.0
-    np.testing.assert_allclose(eyes["free"], eyes["orbit"], atol=1e-3)  # free starts where the camera was
+    for name in ("side", "low", "orbit", "driver", "bonnet"):  # each its own place (orbit: the side view turned
+        assert np.linalg.norm(eyes[name] - start) > 1.0, name  # by the time)
+    assert np.linalg.norm(eyes["side"] - eyes["low"]) > 1.0 and np.linalg.norm(eyes["driver"] - eyes["bonnet"]) > 1.0
+    np.testing.assert_allclose(eyes["free"], eyes[VIEWS[-1]], atol=1e-3)  # free starts where the camera was
     np.testing.assert_allclose(eyes["chase"], start, atol=1e-3)  # back behind the car (it drives straight)
 
 

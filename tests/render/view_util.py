@@ -64,15 +64,17 @@ def _env(display, **extra):
 
 
 class View:
-    """A running viewer: its status, its window (xdotool), its outputs in ``cwd``."""
+    """A running viewer of ``scene`` (default scenes/minimal.toml; its window is titled with the file's stem, the
+    scene's name): its status, its window (xdotool), its outputs in ``cwd``."""
 
-    def __init__(self, display, cwd: Path, *args, resolution=(480, 320)):
+    def __init__(self, display, cwd: Path, *args, resolution=(480, 320), scene=None):
         self.display, self.cwd = display, cwd
+        self.scene = Path(scene) if scene is not None else ROOT / "scenes" / "minimal.toml"
         self.status_file = cwd / "status.json"
         self.out, self.err = open(cwd / "stdout.txt", "w+"), open(cwd / "stderr.txt", "w+")  # never a full pipe
         w, h = resolution
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "taichi_rocks", "view", str(ROOT / "scenes" / "minimal.toml"), "--resolution",
+            [sys.executable, "-m", "taichi_rocks", "view", str(self.scene), "--resolution",
              f"{w}x{h}", *map(str, args)], cwd=cwd, env=_env(display, TAICHI_ROCKS_VIEW_STATUS=str(self.status_file)),
             stdout=self.out, stderr=self.err, text=True)
         self.wait(lambda s: s["shown"] >= 1)
@@ -119,7 +121,8 @@ class View:
     def _window(self) -> str:
         deadline = time.time() + TIMEOUT
         while time.time() < deadline:
-            r = self.xdo("search", "--pid", str(self.proc.pid), "--name", "taichi-rocks view: minimal", check=False)
+            r = self.xdo("search", "--pid", str(self.proc.pid), "--name", f"taichi-rocks view: {self.scene.stem}",
+                         check=False)
             if r.returncode == 0 and r.stdout.split():
                 return r.stdout.split()[0]
             time.sleep(0.1)

@@ -4,13 +4,18 @@ with the same interface:
     NAME             its name in scene files (one of the choices of ``launch.model`` in config/scene.py)
     PARAMS           the rows of engine/params.py it reads (``w.par[Par.X]``)
     STREAMS          the random-stream ids it draws, from the launch models' block (config/streams.py LAUNCH)
+    launch(w, plan, t, i, step)
+                     a ``ti.func``: (v, v_tread, alpha) of rock i (an index of the rock arrays) run over by
+                     tire t (its row of ``World.ray``) at step ``step``: its launch velocity, the velocity the
+                     tread gave it before a fender or mud flap stopped it (v when nothing did) and the release
+                     angle up the back of the tire (rad; the spin of a stone rolling off the tread follows
+                     from them, engine/tumble.py); ``plan``: the tire pass's switches (engine/kernels.py
+                     Switches: ``plan.fenders``, ...)
     launch_velocity(w, plan, t, i, step)
-                     a ``ti.func``: the velocity of rock i (an index of the rock arrays) run over by tire t
-                     (its row of ``World.ray``) at step ``step``; ``plan``: the tire pass's switches
-                     (engine/kernels.py Switches: ``plan.fenders``, ...)
+                     the same call's v alone
     its docstring    the physics: what it computes, the equations, the sources
 
-The tire pass (engine/tires.py ``try_launch``) picks the model at compile time: ``MODELS[plan.throw]``. A new
+The tire pass (engine/tires.py ``try_launch``) picks the model at compile time: ``MODELS[plan.throw].launch``. A new
 model is a module here, its line in :data:`MODELS` and its name among the scene's choices (config/scene.py).
 """
 

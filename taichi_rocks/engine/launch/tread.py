@@ -161,6 +161,14 @@ def throw_angle(w: ti.template(), r, mu, spin, radius, half_length, seed, rock, 
 @ti.func
 def throw_velocity(w: ti.template(), t, r, mu, rock, step, fenders: ti.template()):
     """Launch velocity of a stone (radius r, friction mu, id rock) run over by tire t (its ray row)."""
+    v, _, _ = throw(w, t, r, mu, rock, step, fenders)
+    return v
+
+
+@ti.func
+def throw(w: ti.template(), t, r, mu, rock, step, fenders: ti.template()):
+    """:func:`throw_velocity`, the velocity the tread gave before a fender or flap stopped it, and the release
+    angle."""
     seed = w.ipar[IPar.SEED]
     radius = w.ray[t, TIRE_R]
     spin = w.ray[t, SPIN]
@@ -169,14 +177,21 @@ def throw_velocity(w: ti.template(), t, r, mu, rock, step, fenders: ti.template(
     alpha = throw_angle(w, r, mu, spin, radius, w.ray[t, HALF_L], seed, rock, step)
     beta = w.par[Par.SPREAD] * (2.0 * uniform01(seed, rock, step, S_SPREAD) - 1.0)
     k = ti.min(1.0, w.par[Par.TRANSFER] * mu)
-    v = tread_velocity(wheel_vel, forward, spin, alpha, beta, k)
+    free = tread_velocity(wheel_vel, forward, spin, alpha, beta, k)
+    v = free
     if ti.static(fenders):
-        v = guarded(w, v, wheel_vel, forward, spin, alpha, radius, w.ray[t, FENDER], w.ray[t, FLAP])
-    return v
+        v = guarded(w, free, wheel_vel, forward, spin, alpha, radius, w.ray[t, FENDER], w.ray[t, FLAP])
+    return v, free, alpha
 
+
+@ti.func
+def launch(w: ti.template(), plan: ti.template(), t, i, step):
+    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``."""
+    return throw(w, t, w.radius[i], w.friction[i], w.rock_id[i], step, plan.fenders)
 
 
 @ti.func
 def launch_velocity(w: ti.template(), plan: ti.template(), t, i, step):
-    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``."""
-    return throw_velocity(w, t, w.radius[i], w.friction[i], w.rock_id[i], step, plan.fenders)
+    """The launch velocity alone (:func:`launch`)."""
+    v, _, _ = launch(w, plan, t, i, step)
+    return v

@@ -25,11 +25,22 @@ STREAMS = (S_ANGLE, S_SPREAD)
 
 
 @ti.func
+def release_angle(w: ti.template(), seed, rock, step):
+    """alpha, uniform in the release-angle range."""
+    u_alpha = uniform01(seed, rock, step, S_ANGLE)
+    return w.par[Par.ANGLE_MIN] + (w.par[Par.ANGLE_MAX] - w.par[Par.ANGLE_MIN]) * u_alpha
+
+
+@ti.func
 def wheel_throw(w: ti.template(), wheel_vel, forward, spin, mu, seed, rock, step):
     """Velocity of a rock thrown by a tread (see the module docstring). spin = omega * R, signed."""
-    u_alpha = uniform01(seed, rock, step, S_ANGLE)
+    return throw_at(w, wheel_vel, forward, spin, mu, release_angle(w, seed, rock, step), seed, rock, step)
+
+
+@ti.func
+def throw_at(w: ti.template(), wheel_vel, forward, spin, mu, alpha, seed, rock, step):
+    """:func:`wheel_throw` at the release angle alpha."""
     u_beta = uniform01(seed, rock, step, S_SPREAD)
-    alpha = w.par[Par.ANGLE_MIN] + (w.par[Par.ANGLE_MAX] - w.par[Par.ANGLE_MIN]) * u_alpha
     beta = w.par[Par.SPREAD] * (2.0 * u_beta - 1.0)
     cb, sb = ti.cos(beta), ti.sin(beta)
     back = -spin * ti.cos(alpha)
@@ -39,8 +50,19 @@ def wheel_throw(w: ti.template(), wheel_vel, forward, spin, mu, seed, rock, step
 
 
 @ti.func
-def launch_velocity(w: ti.template(), plan: ti.template(), t, i, step):
-    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``."""
+def launch(w: ti.template(), plan: ti.template(), t, i, step):
+    """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``: (its
+    velocity, the same (nothing stops it), the release angle)."""
     forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
     wheel_vel = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]])
-    return wheel_throw(w, wheel_vel, forward, w.ray[t, SPIN], w.friction[i], w.ipar[IPar.SEED], w.rock_id[i], step)
+    seed = w.ipar[IPar.SEED]
+    alpha = release_angle(w, seed, w.rock_id[i], step)
+    v = throw_at(w, wheel_vel, forward, w.ray[t, SPIN], w.friction[i], alpha, seed, w.rock_id[i], step)
+    return v, v, alpha
+
+
+@ti.func
+def launch_velocity(w: ti.template(), plan: ti.template(), t, i, step):
+    """The launch velocity alone (:func:`launch`)."""
+    v, _, _ = launch(w, plan, t, i, step)
+    return v
