@@ -232,11 +232,14 @@ def mark_segments(e, s: float, cabin) -> np.ndarray:
         segs = _crack(c, s, rng)
     else:
         segs = _star(c, CHIP_R[0] + s * (CHIP_R[1] - CHIP_R[0]), rng)
+    # the plane through the hit parallel to the cabin's windscreen (the body's glass face starts 1 cm below the
+    # belt line, motion/bodies.py EPS: a few mm off the cabin's plane)
+    dx = float(e["point"][0]) - cabin.windscreen_x(float(e["point"][2]))
     out = []
     for a, b in segs:
         a, b = _clip(cabin, np.asarray(a), np.asarray(b))
         if a is not None:
-            out.append((_on_glass(cabin, a), _on_glass(cabin, b)))
+            out.append((_on_glass(cabin, a, dx), _on_glass(cabin, b, dx)))
     return np.array(out, np.float64).reshape(-1, 2, 3)
 
 
@@ -270,9 +273,9 @@ def _clip(cabin, a, b):
     return a, a + lo * (b - a)
 
 
-def _on_glass(cabin, p) -> tuple:
+def _on_glass(cabin, p, dx: float) -> tuple:
     y, z = p[0], _height(cabin, p[1])
-    return (cabin.windscreen_x(z), y, z)
+    return (cabin.windscreen_x(z) + dx, y, z)
 
 
 def glass_side(segments: np.ndarray, cabin, inside: bool) -> np.ndarray:

@@ -82,6 +82,7 @@ def test_a_windscreen_mark_lies_where_the_stone_hit_on_the_glass(damage):
     assert len(seg) >= 8
     p = seg.reshape(-1, 3)
     np.testing.assert_allclose(p[:, 0], cab.windscreen_x(p[:, 2]), atol=1e-12)  # on the glass's plane
+    assert np.linalg.norm(p - ev["point"][0], axis=1).min() < 1e-12  # from the hit
     assert np.all(p[:, 2] >= cab.belt) and np.all(p[:, 2] <= cab.roof)
     u = (p[:, 2] - cab.belt) / (cab.roof - cab.belt)
     assert np.all(np.abs(p[:, 1]) <= cab.base_half + u * (cab.top_half - cab.base_half))
