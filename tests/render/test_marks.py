@@ -168,3 +168,23 @@ def test_a_flash_rides_with_the_vehicle_and_keeps_its_size_in_pixels():
     assert np.all(col <= HOT) and np.all(col > 0.4)
     _, r_old, col_old, _, _ = flash_geometry(ev[:1], [0.9 * FLASH_S], pos[:1], [0.0], (0.0, 0.0, 1.0), 1000.0)
     assert r_old[0] < r[0] and np.all(col_old[0] < col[0])  # it fades and shrinks
+
+
+def test_the_hud_counts_the_players_hits_by_class():
+    from types import SimpleNamespace
+
+    from taichi_rocks.render.hits import HitLayer
+    from taichi_rocks.render.panel import hud_lines
+
+    scene = make_scene(vehicles=[{"name": n, "path": {"points": [[x, 0.0], [x + 99.0, 0.0]]}}
+                                 for n, x in (("player", 0.0), ("lead", 8.0))], bed={"follow": "player"})
+    layer = HitLayer(scene)
+    tl = SimpleNamespace(time=1.0, frame=30, frames=60, playing=True, speed=1.0)
+    v = SimpleNamespace(timeline=tl, fps=30.0, in_air=0, sim=SimpleNamespace(launches_total=0), camera_name="chase",
+                        renderer=SimpleNamespace(hits=layer), switches={"effects.impacts": False}, notice="")
+    assert not any("hits" in line for line in hud_lines(v))  # impacts off, nothing seen: no line
+    v.switches["effects.impacts"] = True
+    assert "hits on the player  mark 0   chip 0   crack 0" in hud_lines(v)
+    layer.hits.update(_events(4, time=[0.2, 0.3, 0.4, 0.5], rock=[1, 2, 3, 4], vehicle=[0, 0, 1, 0],
+                              damage=[0, 2, 2, 2]), 1.0)
+    assert "hits on the player  mark 1   chip 0   crack 2" in hud_lines(v)
