@@ -32,10 +32,14 @@ class _Buffer:
 
     def __init__(self):
         self.pos = self.col = self.rad = None
+        self._colours = None  # the key of the colours uploaded, if the caller gave one
 
-    def put(self, pos: np.ndarray, col: np.ndarray, rad: np.ndarray = None) -> int:
+    def put(self, pos: np.ndarray, col: np.ndarray, rad: np.ndarray = None, colour_key=None) -> int:
+        """Upload ``pos``, ``col`` (skipped if ``colour_key`` is that of the last upload: an upload is a launch)
+        and ``rad``; return the count."""
         n = len(pos)
         if self.pos is None or self.pos.shape[0] < n:
+            self._colours = None
             cap = 64
             while cap < n:
                 cap *= 2
@@ -44,7 +48,9 @@ class _Buffer:
         cap = self.pos.shape[0]
         pad = lambda a, shape: np.concatenate([a, np.zeros((cap - n,) + shape, np.float32)]).astype(np.float32)
         self.pos.from_numpy(pad(pos, (3,)))
-        self.col.from_numpy(pad(col, (3,)))
+        if colour_key is None or colour_key != self._colours:
+            self.col.from_numpy(pad(col, (3,)))
+            self._colours = colour_key
         if rad is not None:
             self.rad.from_numpy(pad(rad, ()))
         return n
@@ -109,5 +115,5 @@ class HitLayer:
         if not segs:
             return
         pts = np.concatenate(segs)[-2 * MAX_SEGMENTS:]
-        n = self._marks.put(pts, np.tile(np.array(MARK_COLOR, np.float32), (len(pts), 1)))
+        n = self._marks.put(pts, np.tile(np.array(MARK_COLOR, np.float32), (len(pts), 1)), colour_key=len(pts))
         scene.lines(self._marks.pos, MARK_PX, per_vertex_color=self._marks.col, vertex_count=n)
