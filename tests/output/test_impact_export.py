@@ -159,3 +159,31 @@ def test_a_ply_folder_with_its_impacts_is_ours_to_overwrite(exported):
     with pytest.raises(FileExistsError):
         PlyWriter.check_target(exported["ply"], overwrite=False)
     PlyWriter.check_target(exported["ply"], overwrite=True)
+
+
+def test_the_engines_hits_reach_the_export(taichi_cpu, tmp_path):
+    """A stone the player drives into (tests/render/test_marks_engine.py's scene): ``export`` takes the engine's
+    event through ``sim.impacts()``; impacts.ply holds it at the windscreen point aimed at, placed with the
+    player's pose at the time of the hit."""
+    from render.test_marks_engine import ROCK, SCENE, _aim  # tests/render: the same scene and stone
+
+    from taichi_rocks.app.export import export_run
+    from taichi_rocks.config.scene import parse_scene
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.motion.bodies import LABELS
+    from taichi_rocks.motion.cabin import cabin_of
+    from taichi_rocks.output.ply import IMPACT, IMPACTS_FILE
+
+    scene = parse_scene(SCENE, source="<test>")
+    sim = Simulation(scene, tumble=True)
+    start, v, target = _aim(sim, cabin_of(scene.vehicles[0]))
+    sim.set_rocks([ROCK], positions=start[None], velocities=v[None], phase=np.array([1], np.int8))
+    export_run(sim, tmp_path / "ply", 6, 30.0, fmt="ply")
+    rows = np.frombuffer((tmp_path / "ply" / IMPACTS_FILE).read_bytes().partition(b"end_header\n")[2], IMPACT)
+    assert len(rows) == 1 and rows["rock"][0] == ROCK and rows["vehicle"][0] == 0
+    assert LABELS[rows["part"][0]] == "windscreen"
+    pose = sim.fleet.poses(float(rows["time"][0]))[0]
+    want = pose.position + target  # heading 0: along +x
+    got = np.array([rows["x"][0], rows["y"][0], rows["z"][0]])
+    assert np.linalg.norm(got - want) < 0.03, (got, want)
+    assert rows["frame"][0] == int(np.ceil(rows["time"][0] * 30.0 - 1e-9))
