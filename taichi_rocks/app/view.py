@@ -234,7 +234,7 @@ class Viewer:
                 self.notice = str(e).splitlines()[0][-80:]
             else:
                 self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
-                self.timeline.forget_after(self.timeline.frame)
+                self._forget_future()
         if ch.switch is not None and self.pending is None:
             self.pending = ch.switch
             key, value = ch.switch
@@ -262,9 +262,14 @@ class Viewer:
             self.pending, self.notice, self._notice_shown = None, str(e).splitlines()[0][-80:], False
             return
         self.switches[key] = value
-        self.timeline.forget_after(self.timeline.frame)
+        self._forget_future()
         self.rebuilds += 1
         self.pending, self.notice, self._notice_shown = None, "", False
+
+    def _forget_future(self) -> None:
+        """The settings changed: the saved states and the hits after this frame are no longer this run's."""
+        self.timeline.forget_after(self.timeline.frame)
+        self.renderer.hits.hits.clear_after(self.timeline.time)
 
     # -------------------------------------------------------------------------------------------- output
     def _capture(self) -> None:

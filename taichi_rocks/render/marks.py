@@ -1,11 +1,13 @@
 """Hits you can see, host side (NumPy, no Taichi calls): the impacts seen so far, their flashes and the marks
 they leave on windscreens, kept by time so that going back in time takes them away again.
 
-State (:class:`Hits`): the events (engine/events.py ``EVENT_DTYPE``) the simulation reported up to the time of
-the frame shown, their points moved into the body frame the renderer draws in (motion/bodies.py: on the ground,
-:func:`to_body_frame`). :meth:`Hits.update` adds a frame's events (an event seen again, as after a restore that
-steps the same steps again, is kept once: its key is (step, rock, vehicle)); a time earlier than the last one (a
-scrub back, the view playing round to frame 0, a restart) first forgets every event after it
+State (:class:`Hits`): the events (engine/events.py ``EVENT_DTYPE``) the simulation reported, their points moved
+into the body frame the renderer draws in (motion/bodies.py: on the ground, :func:`to_body_frame`), and the time
+of the frame shown. :meth:`Hits.update` adds a frame's events and sets that time (an event seen again, as after
+a restore that steps the same steps again, is kept once: its key is (step, rock, vehicle)). Only the hits up to
+the time shown count, flash and mark: a scrub back, the view playing round to frame 0 or a restart hides the
+later ones, and a scrub forward past a saved state (whose steps are not stepped again) shows them again, as the
+run is deterministic. What changes the future (a runtime parameter, a rebuild) forgets the hits after the time
 (:meth:`Hits.clear_after`). :meth:`Hits.counts` counts a vehicle's hits by damage class (config/impacts.py
 DAMAGE_CLASSES), the view's HUD.
 
@@ -103,11 +105,9 @@ class Hits:
         return cls(scene.impacts.thresholds(), scene.impacts.damage_by)
 
     def update(self, events, t: float) -> int:
-        """The events reported up to time ``t`` (body frame: :func:`to_body_frame`); return how many were new."""
-        t = float(t)
-        if t < self.t:
-            self.clear_after(t)
-        self.t = t
+        """Add the events reported up to time ``t`` (body frame: :func:`to_body_frame`), the time shown now;
+        return how many were new."""
+        self.t = float(t)
         ev = np.asarray(events, EVENT_DTYPE)
         if not len(ev):
             return 0
@@ -122,8 +122,12 @@ class Hits:
             self.events = allev[np.argsort(allev["time"], kind="stable")]
         return len(ev)
 
+    def shown(self) -> np.ndarray:
+        """The hits up to the time shown."""
+        return self.events[self.events["time"] <= self.t]
+
     def clear_after(self, t: float) -> None:
-        """Forget the events after time ``t`` (a scrub back before them, a restart: t = 0)."""
+        """Forget the events after time ``t`` (their future changed: a runtime parameter, a rebuild)."""
         keep = self.events["time"] <= float(t)
         if not keep.all():
             gone = set(_keys(self.events[~keep]))
@@ -139,19 +143,21 @@ class Hits:
 
     def counts(self, vehicle: int) -> dict:
         """Hits on ``vehicle`` so far, by damage class: {"mark": n, "chip": n, "crack": n}."""
-        ev = self.events[self.events["vehicle"] == int(vehicle)]
+        ev = self.shown()
+        ev = ev[ev["vehicle"] == int(vehicle)]
         n = np.bincount(ev["damage"].astype(np.int64), minlength=len(DAMAGE_CLASSES))
         return {c: int(n[k]) for k, c in enumerate(DAMAGE_CLASSES)}
 
     def flashing(self, t: float) -> tuple:
         """(events, ages in s) of the flashes at time ``t``: the hits of the last FLASH_S seconds."""
-        age = float(t) - self.events["time"]
+        ev = self.shown()
+        age = float(t) - ev["time"]
         sel = (age >= 0.0) & (age < FLASH_S)
-        return self.events[sel], age[sel]
+        return ev[sel], age[sel]
 
     def marks(self) -> np.ndarray:
-        """The events that left a mark on a windscreen: chips and cracks on part "windscreen"."""
-        ev = self.events
+        """The hits shown that left a mark on a windscreen: chips and cracks on part "windscreen"."""
+        ev = self.shown()
         return ev[(ev["part"] == WINDSCREEN) & (ev["damage"] >= CHIP)]
 
     def windscreen_segments(self, vehicle: int, cabin) -> np.ndarray:

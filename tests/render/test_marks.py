@@ -34,7 +34,7 @@ def _windscreen_hit(cab, u=0.5, y=0.1, damage=1, **kw):
                    normal_momentum=kw.pop("momentum", 0.02), normal_speed=kw.pop("speed", 20.0), **kw)
 
 
-def test_each_hit_is_kept_once_and_a_time_gone_back_to_forgets_what_came_after():
+def test_each_hit_is_kept_once_and_only_those_up_to_the_time_shown_count():
     from taichi_rocks.render.marks import Hits
 
     hits = Hits()
@@ -44,11 +44,17 @@ def test_each_hit_is_kept_once_and_a_time_gone_back_to_forgets_what_came_after()
     assert list(hits.events["rock"]) == [1, 2, 3]
     hits.update(ev[3:], 0.45)
     assert hits.counts(0) == {"mark": 1, "chip": 2, "crack": 1}
-    hits.update(ev[:0], 0.25)  # a scrub back to 0.25 s: the hits after it are gone
+    hits.update(ev[:0], 0.25)  # a scrub back to 0.25 s: the hits after it do not count
+    assert list(hits.shown()["rock"]) == [1, 2] and hits.counts(0) == {"mark": 1, "chip": 1, "crack": 0}
+    assert hits.update(ev[2:], 0.45) == 0  # played again: the same hits, shown again
+    assert list(hits.shown()["rock"]) == [1, 2, 3, 4]
+    hits.update(ev[:0], 0.0)  # round to frame 0: none shown
+    assert len(hits.shown()) == 0 and hits.counts(0) == {"mark": 0, "chip": 0, "crack": 0}
+    hits.update(ev[:0], 0.45)  # a jump forward past a saved state (its steps not stepped again): shown again
+    assert len(hits.shown()) == 4
+    hits.clear_after(0.2)  # the future changed (a rebuild at 0.2 s): forgotten
     assert list(hits.events["rock"]) == [1, 2]
-    assert hits.update(ev[2:], 0.45) == 2  # and come back when played again
-    hits.clear_after(0.0)
-    assert len(hits.events) == 0 and hits.counts(0) == {"mark": 0, "chip": 0, "crack": 0}
+    assert hits.update(ev[2:], 0.45) == 2
 
 
 def test_counts_are_per_vehicle_and_flashes_last_their_time():
@@ -110,6 +116,8 @@ def test_no_mark_from_a_light_hit_or_off_the_glass_and_none_after_a_scrub_back()
     assert len(hits.windscreen_segments(0, cab))
     hits.update(chip[:0], 0.9)  # the viewer goes back before the chip
     assert hits.windscreen_segments(0, cab).shape == (0, 2, 3)
+    hits.update(chip[:0], 1.0)  # and forward again
+    assert len(hits.windscreen_segments(0, cab))
 
 
 def test_a_mark_is_the_same_every_time_and_grows_with_the_hit():

@@ -2,7 +2,7 @@
 and the free camera (W/A/S/D/E/Q), the camera buttons, the overlay check boxes, the time slider and the
 recompile buttons of the panel; and ``--quit-after`` with ``--record DIR --overwrite`` and ``--seed``.
 
-One viewer process (480x680: the whole "tune" panel fits) serves the control tests, in this order (the recompile
+One viewer process (480x720: the whole "tune" panel fits) serves the control tests, in this order (the recompile
 buttons last: they change the simulation). Widgets are found in a screenshot, not at fixed pixels: Dear ImGui
 draws every slider, button and check box on a blue frame, so the rows of blue in the panel's column are its
 widgets, in render/panel.py's order. Every wait is on the viewer's status file."""
@@ -16,7 +16,7 @@ import pytest
 
 from view_util import ROOT, TIMEOUT, View, _env, xdisplay  # noqa: F401  (xdisplay: the display fixture)
 
-W, H = 480, 680
+W, H = 480, 720
 
 
 # ---------------------------------------------------------------------------------------------- a process of its own
