@@ -69,8 +69,7 @@ class HitLayer:
 
     def update(self, sim) -> int:
         """Take ``sim``'s impacts since the last frame (none without impacts); the clock is ``sim.time``."""
-        take = getattr(sim, "impacts", None)
-        events = take() if sim.plan.impacts and take is not None else ()
+        events = sim.impacts() if sim.plan.impacts else ()
         if len(events):
             events = to_body_frame(events, float(sim.scene.world.ground_z) - float(sim.origin[2]))
         return self.hits.update(events if len(events) else self.hits.events[:0], sim.time)
