@@ -230,3 +230,16 @@ def test_vulkan_gives_the_cpu_events(full_run, scene, scene_file, tmp_path):
     for k in ("time", "speed", "normal_speed", "energy", "radius"):
         np.testing.assert_allclose(vk[k], cpu[k], rtol=1e-4, err_msg=k)
     np.testing.assert_allclose(vk["point"], cpu["point"], atol=1e-4)
+
+
+def test_a_restore_records_the_steps_after_it_again(full_run, scene):
+    sim = Simulation(scene)
+    sim.step(200)
+    saved = sim.checkpoint()
+    sim.step(150)
+    first = sim.impacts()
+    sim.restore(saved)
+    sim.step(150)
+    again = sim.impacts()
+    want = full_run["events"][(full_run["events"]["step"] > 200) & (full_run["events"]["step"] <= 350)]
+    assert len(want) > 5 and _same(again, want) and _same(first, full_run["events"][full_run["events"]["step"] <= 350])
