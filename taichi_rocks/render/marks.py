@@ -1,5 +1,5 @@
 """Hits you can see, host side (NumPy, no Taichi calls): the impacts seen so far, their flashes and the marks
-they leave on windscreens, kept by time so that going back in time takes them away again.
+they leave on windscreens, kept by time so that going back in time hides them again.
 
 State (:class:`Hits`): the events (engine/events.py ``EVENT_DTYPE``) the simulation reported, their points moved
 into the body frame the renderer draws in (motion/bodies.py: on the ground, :func:`to_body_frame`), and the time
@@ -43,8 +43,8 @@ from ..engine.events import EVENT_DTYPE
 from ..motion.bodies import LABELS
 from ..motion.cabin import cabin_of
 
-__all__ = ["Hits", "to_body_frame", "body_to_local", "flash_geometry", "mark_segments", "glass_side", "cabin_for", "severity", "FLASH_S",
-           "WINDSCREEN", "CHIP", "CRACK"]
+__all__ = ["Hits", "to_body_frame", "body_to_local", "flash_geometry", "mark_segments", "glass_side", "cabin_for",
+           "severity", "FLASH_S", "WINDSCREEN", "CHIP", "CRACK"]
 
 WINDSCREEN = LABELS.index("windscreen")
 MARK, CHIP, CRACK = (DAMAGE_CLASSES.index(c) for c in ("mark", "chip", "crack"))
