@@ -84,3 +84,39 @@ def test_going_back_before_the_hit_takes_the_mark_away_and_playing_brings_it_bac
     again = layer.hits.marks()
     assert len(again) == 1
     np.testing.assert_allclose(again["point"], first["point"], atol=1e-6)
+
+
+UNDER_FIRE = {  # a car 6 m behind another: its windscreen is cracked at 0.51 s and 0.56 s (frames 16, 17)
+    "name": "under_fire", "duration": 0.8, "seed": 3, "effects": {"impacts": True},
+    "bed": {"radius": 10.0, "rocks": 8000, "rock_radius": [0.004, 0.015]}, "sim": {"detection": "patch"},
+    "camera": {"view": "driver"},
+    "vehicle": [{"name": "player", "path": {"points": [[0.0, 0.0], [260.0, 0.0]], "speed": 20.0}},
+                {"name": "lead", "path": {"points": [[6.0, 0.0], [266.0, 0.0]], "speed": 20.0}}],
+}
+
+
+def test_a_resumed_render_keeps_the_marks_made_before_its_saved_state(taichi_cpu, tmp_path):
+    """Interrupted at frame 20 with states saved after frames 14 and 19 (after the cracks): the resume replays
+    from frame 0, so the frames it draws have the marks an uninterrupted render has."""
+    import imageio.v3 as iio
+
+    from taichi_rocks.app.render import render_scene
+
+    scene = parse_scene(UNDER_FIRE, source="<test>")
+    kw = dict(frames=24, resolution=(320, 192), fmt="png", progress=False)
+    render_scene(scene, out_dir=tmp_path / "ref", **kw)
+
+    def stop(k, img):
+        if k == 20:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        render_scene(scene, out_dir=tmp_path / "cut", on_frame=stop, checkpoint_every=5, **kw)
+    assert len(list((tmp_path / "cut" / ".resume").glob("frame_*.npz"))) == 2
+    res = render_scene(scene, out_dir=tmp_path / "cut", resume=True, checkpoint_every=5, **kw)
+    assert res["resumed_from"] == 20 and res["replayed_from"] == 0
+    ref = [iio.imread(tmp_path / "ref" / "frames" / f"frame_{k:05d}.png") for k in (15, 20, 23)]
+    assert np.abs(ref[1].astype(int) - ref[0]).max() > 100  # the cracks show between frames 15 and 20
+    for k in (20, 23):
+        np.testing.assert_array_equal(iio.imread(tmp_path / "cut" / "frames" / f"frame_{k:05d}.png"),
+                                      iio.imread(tmp_path / "ref" / "frames" / f"frame_{k:05d}.png"))
