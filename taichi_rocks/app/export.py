@@ -1,7 +1,8 @@
 """``taichi-rocks export``: a run written for the tools artists use, frame by frame while simulating.
 
 The format is a writer of the registry (output/formats.py: USD, PLY, ...); this runs the frames (app/frames.py),
-makes each exported frame (output/export.py) and hands it to the writer, which writes under a temporary name
+makes each exported frame (output/export.py), adds the frame's impacts when the simulation records them
+(``frame["impacts"]``, :func:`impact_frame`) and hands it to the writer, which writes under a temporary name
 beside the output and renames it when complete. An existing output is replaced only with ``overwrite``
 (checked by the writer before anything is simulated); the missing folders of the output are created, and
 removed again if the export fails or is interrupted.
@@ -20,9 +21,10 @@ from ..output.atomic import new_folders, remove_stale_temporaries
 from ..output.export import ExportFrames
 from ..output.formats import ExportRun, writer_class
 from ..output.runs import check_selection
+from ..render.marks import body_to_local, to_body_frame
 from .frames import frame_count, frame_states
 
-__all__ = ["export_scene", "export_run", "default_out"]
+__all__ = ["export_scene", "export_run", "default_out", "impact_frame"]
 
 
 def default_out(scene, fmt: str) -> Path:
@@ -67,6 +69,8 @@ def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = 
             writer = cls(out, run)
             for f, st in frame_states(sim, frames, fps, guard, progress):
                 frame = make.frame(f, st, sim.origin)
+                if sim.plan.impacts:
+                    frame["impacts"] = impact_frame(sim, sim.impacts())
                 writer.write(frame)
                 counts.append(len(frame["ids"]))
             size = writer.close()
@@ -78,3 +82,20 @@ def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = 
     return {"path": str(out), "frames": frames, "bytes": size, "rocks_per_frame": counts,
             "rocks_mean": float(counts.mean()) if len(counts) else 0.0,
             "rocks_max": int(counts.max()) if len(counts) else 0}
+
+
+def impact_frame(sim, events) -> dict:
+    """The impacts of one exported frame (``events``: ``sim.impacts()`` since the frame before, engine/events.py
+    EVENT_DTYPE): ``events`` with their points and normals in the body frame on the ground (render/marks.py
+    to_body_frame), and ``world`` (K, 3) float64 contact points and ``normals`` (K, 3), placed with each hit
+    vehicle's pose at the time of its hit (motion/vehicles.py Fleet.poses)."""
+    ev = to_body_frame(events, float(sim.scene.world.ground_z) - float(sim.origin[2]))
+    world, normals = np.empty((len(ev), 3)), np.empty((len(ev), 3))
+    for t in np.unique(ev["time"]):
+        sel = np.flatnonzero(ev["time"] == t)
+        poses = sim.fleet.poses(float(t))
+        pos = np.array([poses[v].position for v in ev["vehicle"][sel]], np.float64)
+        head = np.array([poses[v].heading for v in ev["vehicle"][sel]], np.float64)
+        world[sel] = body_to_local(ev["point"][sel], pos, head)
+        normals[sel] = body_to_local(ev["normal"][sel], np.zeros_like(pos), head)
+    return {"events": ev, "world": world, "normals": normals}

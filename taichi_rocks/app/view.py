@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import taichi as ti
 
+from ..config.keys import choices
 from ..config.scene import SceneError
 from ..engine.probes import rocks_in_air
 from ..engine.simulation import Simulation
@@ -45,13 +46,16 @@ from ..render.renderer import SHOTS, Renderer
 from ..render.window import ShownWindow, trim_heap
 from .timeline import Timeline
 
-__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "check_record_dir", "screenshot_path"]
+__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "VIEW_SWITCHES", "check_record_dir",
+           "screenshot_path"]
 
 STATUS_ENV = "TAICHI_ROCKS_VIEW_STATUS"
 READY_LINE = "view: ready"
 TRIM_EVERY = 100  # frames shown between giving freed heap memory back to the OS
 REFRESH_MB = 300.0  # growth of the resident set since the window opened that makes it open anew
 MAX_FPS = 30.0  # more would only feed GGUI's memory (the scene's fps is 30)
+# the panel's recompile buttons: the engine's switches and whether stones hit the vehicles' bodies
+VIEW_SWITCHES = {**SWITCH_KEYS, "effects.impacts": choices("effects.impacts")}
 
 
 def check_record_dir(path, overwrite: bool) -> None:
@@ -96,8 +100,8 @@ class Viewer:
         self.camera_name = self.renderer.view_name
         self.cameras = ((SHOTS,) if scene.camera.shots else ()) + VIEWS  # what c and the panel's buttons pick
         self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
-        self.switches = {k: scene_value(scene, k) for k in SWITCH_KEYS}
-        self.switch_choices = SWITCH_KEYS
+        self.switches = {k: scene_value(scene, k) for k in VIEW_SWITCHES}
+        self.switch_choices = VIEW_SWITCHES
         self.notice, self.pending, self._notice_shown = "", None, False
         self.panel_on, self.quit, self._shot = True, False, False
         self.fps, self.shown, self.in_air, self.rebuilds = 0.0, 0, 0, 0
@@ -230,7 +234,7 @@ class Viewer:
                 self.notice = str(e).splitlines()[0][-80:]
             else:
                 self.runtime = {k: scene_value(scene, k) for k in RUNTIME_KEYS}
-                self.timeline.forget_after(self.timeline.frame)
+                self._forget_future()
         if ch.switch is not None and self.pending is None:
             self.pending = ch.switch
             key, value = ch.switch
@@ -244,13 +248,28 @@ class Viewer:
     def _rebuild(self) -> None:
         """Apply the pending switch: a new Simulation of the changed scene, continuing from this state."""
         key, value = self.pending
-        make = rebuilder(self.sim, {key: value})
+        try:
+            make = rebuilder(self.sim, {key: value})
+        except (SceneError, ValueError) as e:
+            self.pending, self.notice, self._notice_shown = None, str(e).splitlines()[0][-80:], False
+            return
+        keep = rebuilder(self.sim, {})
         self.sim = self.renderer.sim = None  # the old World goes back to the pool
-        self.sim = self.renderer.sim = make()
+        try:
+            self.sim = self.renderer.sim = make()
+        except (SceneError, ValueError) as e:  # refused by the engine (a body stones would hit, ...): as before
+            self.sim = self.renderer.sim = keep()
+            self.pending, self.notice, self._notice_shown = None, str(e).splitlines()[0][-80:], False
+            return
         self.switches[key] = value
-        self.timeline.forget_after(self.timeline.frame)
+        self._forget_future()
         self.rebuilds += 1
         self.pending, self.notice, self._notice_shown = None, "", False
+
+    def _forget_future(self) -> None:
+        """The settings changed: the saved states and the hits after this frame are no longer this run's."""
+        self.timeline.forget_after(self.timeline.frame)
+        self.renderer.hits.hits.clear_after(self.timeline.time)
 
     # -------------------------------------------------------------------------------------------- output
     def _capture(self) -> None:
@@ -282,6 +301,7 @@ class Viewer:
                 "shown": self.shown, "panel": self.panel_on, "params": runtime_values(self.sim),
                 "switches": self.switches, "overlays": vars(self.renderer.flags).copy(), "notice": self.notice,
                 "recompiling": self.pending is not None, "rebuilds": self.rebuilds, "replayed": tl.replayed,
+                "hits": self.renderer.hits.counts(),
                 "window_refreshes": self.refreshes,
                 "screenshots": [str(p) for p in self.screenshots], "recorded": self.recorded,
                 "rss_mb": _rss_mb()}

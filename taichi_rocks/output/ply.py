@@ -7,19 +7,48 @@ Houdini (File SOP), Blender (File > Import > Stanford PLY), MeshLab and NumPy re
 
     header, _, body = data.partition(b"end_header\\n")
     rocks = np.frombuffer(body, dtype=VERTEX)
+
+A run that records impacts (``[effects] impacts``: frames carry ``impacts``, app/export.py) also writes
+``DIR/impacts.ply``, one file of every event of the run, one vertex each (:data:`IMPACT`): ``double x, y, z``
+(world metres: the contact point, the vehicle placed at the time of the hit), ``float nx, ny, nz`` (the body's
+outward normal there), ``double time`` (s), ``uint frame`` (the exported frame it shows in: the first at or after
+its time), ``int vehicle`` (the vehicle hit, scene order), ``uchar part`` (index into motion/bodies.py LABELS),
+``uchar damage`` (into config/impacts.py DAMAGE_CLASSES: mark, chip, crack), ``float speed, normal_speed``
+(m/s), ``float normal_momentum`` (N s), ``float energy`` (J), ``float radius`` (m), ``int rock`` and ``int
+thrower`` (-1: unknown). Comments in its header name the labels, the classes and the vehicles; read it as
+above with ``dtype=IMPACT``.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from ..config.impacts import DAMAGE_CLASSES
+from ..motion.bodies import LABELS
 from .formats import FolderWriter, frame_file
 
-__all__ = ["PlyWriter", "VERTEX", "ply_name"]
+__all__ = ["PlyWriter", "VERTEX", "IMPACT", "IMPACTS_FILE", "ply_name"]
 
 VERTEX = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("radius", "<f4"), ("vx", "<f4"), ("vy", "<f4"),
                    ("vz", "<f4"), ("id", "<u4")])
-_TYPES = {"<f8": "double", "<f4": "float", "<u4": "uint"}
+IMPACT = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4"),
+                   ("time", "<f8"), ("frame", "<u4"), ("vehicle", "<i4"), ("part", "u1"), ("damage", "u1"),
+                   ("speed", "<f4"), ("normal_speed", "<f4"), ("normal_momentum", "<f4"), ("energy", "<f4"),
+                   ("radius", "<f4"), ("rock", "<i4"), ("thrower", "<i4")])
+IMPACTS_FILE = "impacts.ply"
+_TYPES = {"<f8": "double", "<f4": "float", "<u4": "uint", "<i4": "int", "|u1": "uchar"}
+
+
+def _header(element: str, dtype: np.dtype, n: int, comments) -> bytes:
+    props = "".join(f"property {_TYPES[dtype[k].str]} {k}\n" for k in dtype.names)
+    lines = "".join(f"comment {c}\n" for c in comments)
+    return (f"ply\nformat binary_little_endian 1.0\n{lines}element {element} {n}\n{props}end_header\n").encode("ascii")
+
+
+def _ascii(text) -> str:
+    return " ".join(str(text).split()).encode("ascii", "backslashreplace").decode("ascii")
 
 
 def ply_name(frame: int) -> str:
@@ -35,9 +64,24 @@ class PlyWriter(FolderWriter):
     frame_suffix = ".ply"
     label = "PLY"
 
+    @classmethod
+    def check_target(cls, out, overwrite: bool) -> None:
+        out = Path(out)
+        if not (out.is_dir() and (out / IMPACTS_FILE).is_file()):
+            return super().check_target(out, overwrite)
+        other = [p.name for p in out.iterdir() if p.name != IMPACTS_FILE
+                 and not (p.name.startswith("frame_") and p.suffix == cls.frame_suffix)]
+        if other:  # as FolderWriter's: the run's impacts beside its frames are ours as well
+            raise ValueError(f"{out}: holds other files ({other[0]}); export {cls.label} frames into a new or "
+                             "empty folder")
+        if not overwrite:
+            raise FileExistsError(f"{out}: holds {cls.label} frames; pass --overwrite to replace them")
+
     def __init__(self, out, run):
         super().__init__(out, run)
-        self.scene = " ".join(str(run.scene.name).split()).encode("ascii", "backslashreplace").decode("ascii")
+        self.scene = _ascii(run.scene.name)
+        self.vehicles = [_ascii(v.name) for v in run.scene.vehicles]
+        self.impacts = None  # the run's events (IMPACT rows), once a frame has brought impacts
 
     def write(self, fr: dict) -> None:
         ids = np.asarray(fr["ids"], np.int64)
@@ -50,10 +94,32 @@ class PlyWriter(FolderWriter):
         for axis, key in enumerate(("vx", "vy", "vz")):
             rows[key] = fr["velocities"][:, axis]
         rows["id"] = ids
-        props = "".join(f"property {_TYPES[VERTEX[k].str]} {k}\n" for k in VERTEX.names)
-        header = (f"ply\nformat binary_little_endian 1.0\ncomment taichi-rocks scene {self.scene}\n"
-                  f"comment frame {fr['frame']} time {fr['time']!r} s\nelement vertex {len(rows)}\n{props}"
-                  "end_header\n")
+        header = _header("vertex", VERTEX, len(rows), (f"taichi-rocks scene {self.scene}",
+                                                       f"frame {fr['frame']} time {fr['time']!r} s"))
         with open(self.frame_path(fr["frame"]), "xb") as f:
-            f.write(header.encode("ascii"))
+            f.write(header)
             f.write(rows.tobytes())
+        if "impacts" in fr:
+            self._add_impacts(fr["impacts"], int(fr["frame"]))
+
+    def _add_impacts(self, imp: dict, frame: int) -> None:
+        ev = imp["events"]
+        rows = np.zeros(len(ev), IMPACT)
+        for axis, key in enumerate("xyz"):
+            rows[key] = imp["world"][:, axis]
+            rows["n" + key] = imp["normals"][:, axis]
+        rows["frame"] = frame
+        for key in ("time", "vehicle", "part", "damage", "speed", "normal_speed", "normal_momentum", "energy",
+                    "radius", "rock", "thrower"):
+            rows[key] = ev[key]
+        self.impacts = rows if self.impacts is None else np.concatenate([self.impacts, rows])
+
+    def close(self) -> int:
+        if self.impacts is not None:
+            header = _header("vertex", IMPACT, len(self.impacts), (
+                f"taichi-rocks scene {self.scene} impacts", "part: " + " ".join(LABELS),
+                "damage: " + " ".join(DAMAGE_CLASSES), "vehicle: " + " ".join(self.vehicles)))
+            with open(self.dir / IMPACTS_FILE, "xb") as f:
+                f.write(header)
+                f.write(self.impacts.tobytes())
+        return super().close()

@@ -9,6 +9,7 @@ code f is frame f, t = f / fps). Prims::
       Ground/Plane                  Mesh: a rectangle around every vehicle's path (its Xform: double translate)
       Bed                           Xform, xformOp:translate double, time-sampled: the floating origin
         Rocks                       PointInstancer, positions float32 relative to Bed
+        Impacts                     Points: the frame's impacts (only when the run records them; below)
           Prototypes/rock_<k>_<j>   Mesh: low-poly rocks of mean radius 1, shape k in tint j (only instanced)
       Vehicles/<name>               Xform: translate (double, world) and rotateZ (heading, deg), time-sampled
         Body                        Mesh: the body's parts (motion/bodies.py) with the faces the renderer draws
@@ -20,6 +21,19 @@ code f is frame f, t = f / fps). Prims::
 Per frame the PointInstancer has protoIndices, ids (int64), positions, orientations (quath), scales
 (the rock radius on each axis), velocities (m/s, for motion blur), angularVelocities (deg/s) and
 primvars:displayColor (per instance) of the rocks written in that frame, and an extent.
+
+Impacts (a run with ``[effects] impacts``: frames carry ``impacts``, app/export.py): the Points prim holds, at
+time code f, the contact points of the hits since frame f - 1 (relative to Bed, like the rocks: Bed.translate +
+point is the world position where the stone touched the body, the vehicle placed at the time of the hit), with
+``normals`` (the body's outward normal there, world axes), ``widths`` (the stone's diameter) and vertex
+primvars ``energy`` (float, J, 1/2 m |u|^2 of the relative motion), ``damage``
+(int, index into the prim's customData ``taichi_rocks:damage_classes``: mark, chip, crack), ``class`` (token,
+the same as a name), ``vehicle`` (int, the vehicle hit, scene order; customData ``taichi_rocks:vehicles``),
+``part`` (token, motion/bodies.py LABELS), ``normalSpeed`` (float, m/s), ``rock`` (int, the stone's id: a
+stone bouncing twice is there twice) and ``time`` (double, s). Every frame
+has a sample (empty without hits) and a frame with hits also an empty one at f - STEP_HOLD, so that no tool
+interpolates one frame's hits into another's: a hit shows in the frame it happens in, where sparks or a decal
+can be put.
 
 Colours (output/looks.py): every mesh has a displayColor primvar, the renderer's colours: the rocks' tints
 (per instance on the instancer, and in the prototype's tint: prototype k * TINTS + j is shape k in palette
@@ -55,7 +69,8 @@ import numpy as np
 
 from .formats import FileWriter
 from .instances import PROTOTYPES
-from ..motion.bodies import FACE_CORNERS, FACES, body_parts
+from ..config.impacts import DAMAGE_CLASSES
+from ..motion.bodies import FACE_CORNERS, FACES, LABELS, body_parts
 from .looks import GROUND_COLOR, TINTS, TIRE_COLOR, TREAD_COLOR, WHEEL_SIDE_COLOR, linear, part_faces, tint_palette
 from .shapes import camera_matrix, cylinder_mesh, rock_prototype
 
@@ -225,6 +240,8 @@ class UsdWriter(FileWriter):
         self._vehicles(scene)
         self._camera_prim(scene)
         self.last_origin = self.last_camera = None
+        self.impacts = None  # the Impacts prim's attributes, made at the first frame that has impacts
+        self.vehicle_names = [str(v.name) for v in scene.vehicles]
         self.layer.Save()
 
     # -------------------------------------------------------------------------------------- static parts
@@ -307,7 +324,55 @@ class UsdWriter(FileWriter):
             self.camera_op.Set(self.last_camera, t - STEP_HOLD)
         self.camera_op.Set(camera, t)
         self.last_camera = camera
+        if "impacts" in fr:
+            self._impact_samples(fr["impacts"], np.asarray(fr["origin"], np.float64), t)
         self.layer.Save()
+
+    def _impact_prim(self) -> dict:
+        pts = UsdGeom.Points.Define(self.stage, "/World/Bed/Impacts")
+        prim = pts.GetPrim()
+        prim.SetCustomDataByKey("taichi_rocks:damage_classes", Vt.StringArray(list(DAMAGE_CLASSES)))
+        prim.SetCustomDataByKey("taichi_rocks:vehicles", Vt.StringArray(self.vehicle_names))
+        api = UsdGeom.PrimvarsAPI(pts)
+        vertex = UsdGeom.Tokens.vertex
+        names = Sdf.ValueTypeNames
+        return {"points": pts.CreatePointsAttr(), "normals": pts.CreateNormalsAttr(),
+                "widths": pts.CreateWidthsAttr(), "extent": pts.CreateExtentAttr(),
+                "energy": api.CreatePrimvar("energy", names.FloatArray, vertex),
+                "damage": api.CreatePrimvar("damage", names.IntArray, vertex),
+                "class": api.CreatePrimvar("class", names.TokenArray, vertex),
+                "vehicle": api.CreatePrimvar("vehicle", names.IntArray, vertex),
+                "part": api.CreatePrimvar("part", names.TokenArray, vertex),
+                "normalSpeed": api.CreatePrimvar("normalSpeed", names.FloatArray, vertex),
+                "rock": api.CreatePrimvar("rock", names.IntArray, vertex),
+                "time": api.CreatePrimvar("time", names.DoubleArray, vertex)}
+
+    def _impact_samples(self, imp: dict, origin: np.ndarray, t: float) -> None:
+        """The Impacts prim's samples at time code ``t``: the hits of ``imp`` (app/export.py impact_frame)."""
+        if self.impacts is None:
+            self.impacts = self._impact_prim()
+        a, ev = self.impacts, imp["events"]
+        if len(ev):  # nothing of the frames before is interpolated into this one
+            self._impact_values(a, ev[:0], np.empty((0, 3)), np.empty((0, 3)), t - STEP_HOLD)
+        self._impact_values(a, ev, np.asarray(imp["world"], np.float64) - origin, imp["normals"], t)
+
+    @staticmethod
+    def _impact_values(a: dict, ev, local, normals, t: float) -> None:
+        # fresh arrays: a one-element view of a structured array's field exports a buffer format pxr refuses
+        col = lambda x, dt: np.array(x, dt, copy=True)
+        local = col(np.asarray(local).reshape(-1, 3), np.float32)
+        a["points"].Set(Vt.Vec3fArray.FromNumpy(local), t)
+        a["normals"].Set(Vt.Vec3fArray.FromNumpy(col(np.asarray(normals).reshape(-1, 3), np.float32)), t)
+        a["widths"].Set(Vt.FloatArray.FromNumpy(col(2.0 * ev["radius"], np.float32)), t)
+        for key, field in (("energy", "energy"), ("normalSpeed", "normal_speed")):
+            a[key].Set(Vt.FloatArray.FromNumpy(col(ev[field], np.float32)), t)
+        for key in ("damage", "vehicle", "rock"):
+            a[key].Set(Vt.IntArray.FromNumpy(col(ev[key], np.int32)), t)
+        a["class"].Set(Vt.TokenArray([DAMAGE_CLASSES[int(k)] for k in ev["damage"]]), t)
+        a["part"].Set(Vt.TokenArray([LABELS[int(k)] for k in ev["part"]]), t)
+        a["time"].Set(Vt.DoubleArray.FromNumpy(col(ev["time"], np.float64)), t)
+        lo, hi = (local.min(axis=0), local.max(axis=0)) if len(local) else (np.zeros(3), np.zeros(3))
+        a["extent"].Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), t)
 
     def _rock_samples(self, fr: dict, local: np.ndarray, t: float) -> None:
         """The PointInstancer's samples at time code ``t``: the rocks of ``fr`` at ``local`` positions."""
@@ -343,3 +408,4 @@ class UsdWriter(FileWriter):
         """Drop the stage, its layer and the handles into it (the layer is freed with the last one)."""
         self.stage = self.layer = None
         self.attrs, self.vehicle_ops, self.camera_op, self.origin_op = {}, [], None, None
+        self.impacts = None

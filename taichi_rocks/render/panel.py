@@ -1,10 +1,11 @@
 """The view's panel and HUD: GGUI (Dear ImGui) widgets drawn over the picture, in two sub-windows.
 
 * "taichi-rocks" (bottom left): the HUD (time and frame, playing or paused and the speed, frames per second
-  shown, rocks in the air, launches, the camera, notices such as "recompiling") and the time slider;
+  shown, rocks in the air, launches, the camera; with impacts on or hits seen, the player's hits by damage
+  class, render/hits.py; notices such as "recompiling") and the time slider;
 * "tune" (right): the runtime parameters as sliders (engine/tuning.py SLIDERS, from engine/params.py; they act
-  at once; a [min, max] pair gets two), the switches that need a recompile (engine/tuning.py SWITCH_KEYS) as
-  buttons that step through their choices, the cameras as buttons (the scene's shots, if it has any, then the
+  at once; a [min, max] pair gets two), the switches that need a recompile (``v.switch_choices``: engine/tuning.py
+  SWITCH_KEYS and the impacts, app/view.py VIEW_SWITCHES) as buttons that step through their choices, the cameras as buttons (the scene's shots, if it has any, then the
   presets; ``v.cameras``) and the overlays as check boxes.
 
 Widgets only read the viewer and return what the user changed (:class:`Changes`); the viewer applies it.
@@ -20,7 +21,7 @@ __all__ = ["SLIDERS", "Changes", "draw_panel", "hud_lines", "panel_width"]
 OVERLAYS = (("bed_edge", "bed edge"), ("tire_rays", "tire rays"), ("hash_cells", "hash cells"),
             ("tread_patch", "tread patch"))
 PANEL_PX = 300  # width of "tune" in pixels (at most 45% of the window)
-HUD_PX = 150  # height of "taichi-rocks" in pixels
+HUD_PX = 170  # height of "taichi-rocks" in pixels (up to six lines and the time slider)
 
 
 @dataclass
@@ -46,6 +47,10 @@ def hud_lines(v) -> list:
              f"{state} x{tl.speed:g}   {v.fps:5.1f} fps",
              f"in the air {v.in_air}   launches {v.sim.launches_total}",
              f"camera {v.camera_name}"]
+    hits = v.renderer.hits
+    if v.switches.get("effects.impacts") or len(hits.hits.events):
+        n = hits.counts()
+        lines.append("hits on the player  " + "   ".join(f"{c} {k}" for c, k in n.items()))
     if v.notice:
         lines.append(v.notice)
     return lines
@@ -58,8 +63,8 @@ def draw_panel(gui, v) -> Changes:
     pw = panel_width(w_px)
     hh = min(0.5, HUD_PX / float(h_px))
     with gui.sub_window("taichi-rocks", 0.0, 1.0 - hh, 1.0 - pw, hh) as w:
-        for i, line in enumerate(hud_lines(v)):
-            w.text(line, color=(1.0, 0.85, 0.3) if i == 4 else None)
+        for line in hud_lines(v):
+            w.text(line, color=(1.0, 0.85, 0.3) if v.notice and line == v.notice else None)
         tl = v.timeline
         t = w.slider_float("time s", tl.time, 0.0, (tl.frames - 1) / tl.fps)
         if abs(t - tl.time) * tl.fps >= 0.5:

@@ -10,7 +10,8 @@ app/view.py: the same code draws both). A frame is made of two layers:
    their angular velocity; all in one mesh instance, :mod:`.bodies`, :mod:`.meshes`; from the driver's view,
    the ridden vehicle's greenhouse left out and its windscreen's frame drawn, :mod:`.interior`), the *flying* rocks as
    ``scene.particles`` from compact f32 fields (atomic-counter compaction in the same pass, ``index_count``
-   = the count, power-of-two buckets), debug overlays (:mod:`.overlays`) as ``scene.lines``;
+   = the count, power-of-two buckets), the impacts' flashes and windscreen marks (:mod:`.hits`), debug
+   overlays (:mod:`.overlays`) as ``scene.lines``;
 
 merged by :func:`.kernels.to_u8` wherever GGUI left its clear colour (offscreen); in a shown window the
 background image is the canvas's ``set_image`` under the 3D scene, which GGUI draws over it (same pixels).
@@ -52,6 +53,7 @@ from . import kernels as K
 from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
 from .bodies import scene_meshes
+from .hits import HitLayer
 from .interior import interior_of
 from .meshes import merge, pose_mesh
 from .overlays import Overlays
@@ -141,6 +143,7 @@ class Renderer:
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
         self._vehicle_fields()
         self._overlays = Overlays(self.flags)
+        self.hits = HitLayer(sim.scene)  # the impacts' flashes and windscreen marks (render/hits.py)
         self._raw = None
         self._win = HiddenWindow(self.resolution) if target is None else target
         if self._win.shown:
@@ -383,6 +386,7 @@ class Renderer:
         t2 = time.perf_counter()
 
         poses = sim.vehicle_poses()
+        self.hits.update(sim)
         self._paint_sky_and_ground(eye, fwd, right, up, origin, poses, sd)
         if self._win.shown:  # nothing to read back: no glitch guard, no re-creation
             self._declare_ggui(eye, target, sd, origin, poses)
@@ -442,6 +446,8 @@ class Renderer:
                 scene.particles(bucket.pos, 0.03, per_vertex_color=bucket.col, per_vertex_radius=bucket.rad,
                                 index_count=count)
             self._draw_rock_meshes(scene, meshes, n_meshes)
+        self.hits.draw(scene, poses, origin, eye, self.px_per_rad, self.resolution[1] / self.resolution[0],
+                       self._inside)
         self._overlays.draw(scene, self.sim, origin, self.ground_z)
         win.canvas.scene(scene)
         return win

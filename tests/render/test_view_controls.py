@@ -2,7 +2,7 @@
 and the free camera (W/A/S/D/E/Q), the camera buttons, the overlay check boxes, the time slider and the
 recompile buttons of the panel; and ``--quit-after`` with ``--record DIR --overwrite`` and ``--seed``.
 
-One viewer process (480x680: the whole "tune" panel fits) serves the control tests, in this order (the recompile
+One viewer process (480x720: the whole "tune" panel fits) serves the control tests, in this order (the recompile
 buttons last: they change the simulation). Widgets are found in a screenshot, not at fixed pixels: Dear ImGui
 draws every slider, button and check box on a blue frame, so the rows of blue in the panel's column are its
 widgets, in render/panel.py's order. Every wait is on the viewer's status file."""
@@ -16,7 +16,7 @@ import pytest
 
 from view_util import ROOT, TIMEOUT, View, _env, xdisplay  # noqa: F401  (xdisplay: the display fixture)
 
-W, H = 480, 680
+W, H = 480, 720
 
 
 # ---------------------------------------------------------------------------------------------- a process of its own
@@ -80,14 +80,14 @@ def layout(img) -> dict:
     """Where the widgets are, from a screenshot: "tune" (the panel's widgets in order: sliders, recompile buttons,
     camera buttons, overlay check boxes; each (row, x to click)) and "time" (the HUD's time slider: row, bar
     start and end)."""
+    from taichi_rocks.app.view import VIEW_SWITCHES
     from taichi_rocks.motion.camera import VIEWS
-    from taichi_rocks.engine.tuning import SWITCH_KEYS
     from taichi_rocks.render.panel import HUD_PX, OVERLAYS, SLIDERS, panel_width
 
     left = int(round(W * (1.0 - panel_width(W))))
     runs, _ = _blue_rows(img, left + 4, W - 4, 0, H)
     rows = [(a + b) // 2 for a, b in runs if a > 2 and b - a >= 12]  # not the title bar, not the border
-    n = {"sliders": len(SLIDERS) + 1, "switches": len(SWITCH_KEYS), "cameras": len(VIEWS) + 1,
+    n = {"sliders": len(SLIDERS) + 1, "switches": len(VIEW_SWITCHES), "cameras": len(VIEWS) + 1,
          "overlays": len(OVERLAYS)}  # release_angle: two sliders; the cameras and "free"
     assert len(rows) == sum(n.values()), rows
     tune, k = {}, 0
@@ -272,14 +272,14 @@ def test_time_slider_jumps_to_the_frame_clicked(view, widgets):
 def test_recompile_buttons_step_each_switch_and_keep_the_state(view, widgets):
     """Each button sets its switch to the next choice; the simulation is rebuilt (one rebuild each, every
     one into a World of the same layout from the pool) and continues from the same state: the same frame and launches."""
-    from taichi_rocks.engine.tuning import SWITCH_KEYS
+    from taichi_rocks.app.view import VIEW_SWITCHES
 
     s = view.still(panel=True)
-    keys = list(SWITCH_KEYS)  # the panel's buttons, in order
+    keys = list(VIEW_SWITCHES)  # the panel's buttons, in order
     assert keys == list(s["switches"])
     for k, key in enumerate(keys):
         s = view.status()
-        choices = SWITCH_KEYS[key]
+        choices = VIEW_SWITCHES[key]
         want = choices[(choices.index(s["switches"][key]) + 1) % len(choices)]
         rebuilds, frame, launches = s["rebuilds"], s["frame"], s["launches"]
         y, x = widgets["switches"][k]
@@ -289,7 +289,7 @@ def test_recompile_buttons_step_each_switch_and_keep_the_state(view, widgets):
         assert s["notice"] == ""
     assert {key: view.status()["switches"][key] for key in keys} == {
         "sim.integrator": "heun", "effects.drag": "none", "effects.ground": "none", "effects.gravity": False,
-        "effects.fenders": False}
+        "effects.fenders": False, "effects.impacts": True}
     view.toggle_until("space", lambda s: not s["paused"], "playing")  # the rebuilt simulation runs
     f0 = view.status()["frame"]
     view.wait(lambda s: s["frame"] != f0, "time to move in the rebuilt simulation")

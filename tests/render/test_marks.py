@@ -1,0 +1,198 @@
+"""Hits you can see, host side (render/marks.py), on synthetic events: the state keeps each hit once, forgets
+what lies after a time gone back to, counts by class; a windscreen mark lies where the stone hit, on the glass,
+shaped by its class, and nowhere else; flashes ride with the vehicle and keep a size in pixels."""
+
+import math
+
+import numpy as np
+import pytest
+
+from scenes_util import scene as make_scene
+
+
+def _events(n, **cols):
+    from taichi_rocks.engine.events import EVENT_DTYPE
+
+    ev = np.zeros(n, EVENT_DTYPE)
+    ev["normal"] = (1.0, 0.0, 0.0)
+    ev["thrower"] = -1
+    for k, v in cols.items():
+        ev[k] = v
+    return ev
+
+
+def _car():
+    return make_scene(vehicles=[{"name": "car", "kind": "car", "length": 4.5, "width": 1.8, "height": 1.45,
+                                 "path": {"points": [[0.0, 0.0], [99.0, 0.0]]}}]).vehicles[0]
+
+
+def _windscreen_hit(cab, u=0.5, y=0.1, damage=1, **kw):
+    """An event on the windscreen of ``cab``, ``u`` of the way up from the belt, at ``y``."""
+    z = cab.belt + u * (cab.roof - cab.belt)
+    n = np.array([cab.roof - cab.belt, 0.0, cab.base_x - cab.top_x])
+    return _events(1, point=(cab.windscreen_x(z), y, z), normal=n / np.linalg.norm(n), part=2, damage=damage,
+                   normal_momentum=kw.pop("momentum", 0.02), normal_speed=kw.pop("speed", 20.0), **kw)
+
+
+def test_each_hit_is_kept_once_and_only_those_up_to_the_time_shown_count():
+    from taichi_rocks.render.marks import Hits
+
+    hits = Hits()
+    ev = _events(4, time=[0.1, 0.2, 0.3, 0.4], step=[6, 12, 18, 24], rock=[1, 2, 3, 4], damage=[0, 1, 2, 1])
+    assert hits.update(ev[:2], 0.2) == 2
+    assert hits.update(ev[:3], 0.3) == 1  # the first two again (a restore stepping the same steps): kept once
+    assert list(hits.events["rock"]) == [1, 2, 3]
+    hits.update(ev[3:], 0.45)
+    assert hits.counts(0) == {"mark": 1, "chip": 2, "crack": 1}
+    hits.update(ev[:0], 0.25)  # a scrub back to 0.25 s: the hits after it do not count
+    assert list(hits.shown()["rock"]) == [1, 2] and hits.counts(0) == {"mark": 1, "chip": 1, "crack": 0}
+    assert hits.update(ev[2:], 0.45) == 0  # played again: the same hits, shown again
+    assert list(hits.shown()["rock"]) == [1, 2, 3, 4]
+    hits.update(ev[:0], 0.0)  # round to frame 0: none shown
+    assert len(hits.shown()) == 0 and hits.counts(0) == {"mark": 0, "chip": 0, "crack": 0}
+    hits.update(ev[:0], 0.45)  # a jump forward past a saved state (its steps not stepped again): shown again
+    assert len(hits.shown()) == 4
+    hits.clear_after(0.2)  # the future changed (a rebuild at 0.2 s): forgotten
+    assert list(hits.events["rock"]) == [1, 2]
+    assert hits.update(ev[2:], 0.45) == 2
+
+
+def test_counts_are_per_vehicle_and_flashes_last_their_time():
+    from taichi_rocks.render.marks import FLASH_S, Hits
+
+    hits = Hits()
+    hits.update(_events(3, time=[1.0, 1.0, 1.05], rock=[1, 2, 3], vehicle=[0, 1, 0], damage=[2, 2, 0]), 1.05)
+    assert hits.counts(0) == {"mark": 1, "chip": 0, "crack": 1}
+    assert hits.counts(1)["crack"] == 1
+    ev, age = hits.flashing(1.05)
+    assert list(ev["rock"]) == [1, 2, 3]
+    np.testing.assert_allclose(age, [0.05, 0.05, 0.0], atol=1e-12)
+    ev, _ = hits.flashing(1.0 + FLASH_S + 0.01)
+    assert list(ev["rock"]) == [3]
+    assert len(hits.flashing(2.0)[0]) == 0
+
+
+@pytest.mark.parametrize("damage", [1, 2], ids=("chip", "crack"))
+def test_a_windscreen_mark_lies_where_the_stone_hit_on_the_glass(damage):
+    """The mark's segments lie in the windscreen's plane, inside the glass, around the hit point: a chip within
+    CHIP_R of it, a crack reaching further (up to CRACK_L / 2 per arm, its branches a little more)."""
+    from taichi_rocks.motion.cabin import cabin_of
+    from taichi_rocks.render.marks import CHIP_R, CRACK_L, Hits
+
+    spec = _car()
+    cab = cabin_of(spec)
+    hits = Hits()
+    ev = _windscreen_hit(cab, u=0.45, y=-0.2, damage=damage, rock=7, step=30, time=1.0)
+    hits.update(ev, 1.0)
+    seg = hits.windscreen_segments(0, cab)
+    assert len(seg) >= 8
+    p = seg.reshape(-1, 3)
+    np.testing.assert_allclose(p[:, 0], cab.windscreen_x(p[:, 2]), atol=1e-12)  # on the glass's plane
+    assert np.linalg.norm(p - ev["point"][0], axis=1).min() < 1e-12  # from the hit
+    assert np.all(p[:, 2] >= cab.belt) and np.all(p[:, 2] <= cab.roof)
+    u = (p[:, 2] - cab.belt) / (cab.roof - cab.belt)
+    assert np.all(np.abs(p[:, 1]) <= cab.base_half + u * (cab.top_half - cab.base_half))
+    reach = np.linalg.norm(p - ev["point"][0], axis=1).max()
+    if damage == 1:
+        assert reach <= CHIP_R[1] + 1e-9
+    else:
+        assert 0.5 * CRACK_L[0] * 0.7 <= reach <= CRACK_L[1]
+    assert hits.windscreen_segments(1, cab).shape == (0, 2, 3)  # another vehicle's windscreen: nothing
+
+
+def test_no_mark_from_a_light_hit_or_off_the_glass_and_none_after_a_scrub_back():
+    from taichi_rocks.motion.cabin import cabin_of
+    from taichi_rocks.render.marks import Hits
+
+    cab = cabin_of(_car())
+    hits = Hits()
+    light = _windscreen_hit(cab, damage=0, rock=1, step=6, time=0.5)  # a "mark" class hit: no mark left
+    bonnet = _windscreen_hit(cab, damage=2, rock=2, step=7, time=0.6)
+    bonnet["part"] = 1
+    hits.update(np.concatenate([light, bonnet]), 0.7)
+    assert hits.windscreen_segments(0, cab).shape == (0, 2, 3)
+    chip = _windscreen_hit(cab, damage=1, rock=3, step=60, time=1.0)
+    hits.update(chip, 1.0)
+    assert len(hits.windscreen_segments(0, cab))
+    hits.update(chip[:0], 0.9)  # the viewer goes back before the chip
+    assert hits.windscreen_segments(0, cab).shape == (0, 2, 3)
+    hits.update(chip[:0], 1.0)  # and forward again
+    assert len(hits.windscreen_segments(0, cab))
+
+
+def test_a_mark_is_the_same_every_time_and_grows_with_the_hit():
+    from taichi_rocks.motion.cabin import cabin_of
+    from taichi_rocks.render.marks import mark_segments, severity
+
+    cab = cabin_of(_car())
+    e = _windscreen_hit(cab, damage=2, rock=5, step=9)[0]
+    np.testing.assert_array_equal(mark_segments(e, 0.3, cab), mark_segments(e, 0.3, cab))
+    small, big = (np.linalg.norm(mark_segments(e, s, cab).reshape(-1, 3) - e["point"], axis=1).max() for s in (0, 1))
+    assert big > 1.5 * small
+    th = (0.0055, 0.14)
+    lo = _windscreen_hit(cab, damage=1, momentum=2 * 0.006 / 10.0, speed=10.0)[0]  # 1/2 p u = 0.006 J
+    hi = _windscreen_hit(cab, damage=1, momentum=2 * 0.1 / 10.0, speed=10.0)[0]  # 0.1 J
+    assert 0.0 < severity(lo, th, "energy") < severity(hi, th, "energy") < 1.0
+    assert severity(hi, (0.0011, 0.0055), "momentum") == 1.0  # 0.02 N s: above the chip range, clipped
+
+
+def test_a_mark_near_the_edge_is_clipped_to_the_glass():
+    from taichi_rocks.motion.cabin import cabin_of
+    from taichi_rocks.render.marks import GLASS_MARGIN, Hits
+
+    cab = cabin_of(_car())
+    hits = Hits()
+    hits.update(_windscreen_hit(cab, u=0.1, y=cab.base_half - 0.02, damage=2, rock=4, step=3), 0.1)
+    p = hits.windscreen_segments(0, cab).reshape(-1, 3)
+    u = (p[:, 2] - cab.belt) / (cab.roof - cab.belt)
+    assert np.all(np.abs(p[:, 1]) <= cab.base_half + u * (cab.top_half - cab.base_half) - GLASS_MARGIN + 1e-6)
+    assert np.all(p[:, 2] >= cab.belt + GLASS_MARGIN - 1e-6)
+
+
+def test_body_frame_and_pose_transforms():
+    from taichi_rocks.render.marks import body_to_local, to_body_frame
+
+    ev = _events(2, point=[(1.0, 0.5, 1.2), (-2.0, 0.0, 0.3)])
+    out = to_body_frame(ev, ground_local=0.25)
+    np.testing.assert_allclose(out["point"][:, 2], [0.95, 0.05])
+    np.testing.assert_allclose(ev["point"][:, 2], [1.2, 0.3])  # a copy
+    h = np.array([math.pi / 2, math.pi])
+    got = body_to_local(out["point"], [(10.0, 20.0, 1.0), (0.0, 0.0, 0.0)], h)
+    np.testing.assert_allclose(got, [(10.0 - 0.5, 21.0, 1.95), (2.0, 0.0, 0.05)], atol=1e-12)
+
+
+def test_a_flash_rides_with_the_vehicle_and_keeps_its_size_in_pixels():
+    from taichi_rocks.render.marks import FLASH_M, FLASH_PX, FLASH_S, HOT, RAYS, flash_geometry
+
+    ev = _events(2, point=[(2.0, 0.0, 1.0), (2.0, 0.0, 1.0)], rock=[1, 2])
+    pos = np.array([(0.0, 0.0, 0.0), (100.0, 0.0, 0.0)])
+    c, r, col, seg, seg_col = flash_geometry(ev, [0.0, 0.0], pos, [0.0, 0.0], eye=(0.0, 0.0, 1.0),
+                                             px_per_rad=1000.0)
+    np.testing.assert_allclose(c[:, 1:], [[0.0, 1.0], [0.0, 1.0]], atol=1e-6)
+    assert c[0, 0] > 2.0 and c[1, 0] > 102.0  # at the contact, just off the surface (normal +x)
+    assert r[0] == pytest.approx(FLASH_M)  # near: its size in metres
+    assert r[1] == pytest.approx(FLASH_PX * np.linalg.norm(c[1] - (0, 0, 1)) / 1000.0, rel=0.02)  # far: in pixels
+    assert seg.shape == (2 * RAYS, 2, 3) and seg_col.shape == (2 * RAYS, 3)
+    assert np.all(col <= HOT) and np.all(col > 0.4)
+    _, r_old, col_old, _, _ = flash_geometry(ev[:1], [0.9 * FLASH_S], pos[:1], [0.0], (0.0, 0.0, 1.0), 1000.0)
+    assert r_old[0] < r[0] and np.all(col_old[0] < col[0])  # it fades and shrinks
+
+
+def test_the_hud_counts_the_players_hits_by_class():
+    from types import SimpleNamespace
+
+    from taichi_rocks.render.hits import HitLayer
+    from taichi_rocks.render.panel import hud_lines
+
+    scene = make_scene(vehicles=[{"name": n, "path": {"points": [[x, 0.0], [x + 99.0, 0.0]]}}
+                                 for n, x in (("player", 0.0), ("lead", 8.0))], bed={"follow": "player"})
+    layer = HitLayer(scene)
+    tl = SimpleNamespace(time=1.0, frame=30, frames=60, playing=True, speed=1.0)
+    v = SimpleNamespace(timeline=tl, fps=30.0, in_air=0, sim=SimpleNamespace(launches_total=0), camera_name="chase",
+                        renderer=SimpleNamespace(hits=layer), switches={"effects.impacts": False}, notice="")
+    assert not any("hits" in line for line in hud_lines(v))  # impacts off, nothing seen: no line
+    v.switches["effects.impacts"] = True
+    assert "hits on the player  mark 0   chip 0   crack 0" in hud_lines(v)
+    layer.hits.update(_events(4, time=[0.2, 0.3, 0.4, 0.5], rock=[1, 2, 3, 4], vehicle=[0, 0, 1, 0],
+                              damage=[0, 2, 2, 2]), 1.0)
+    assert "hits on the player  mark 1   chip 0   crack 2" in hud_lines(v)
