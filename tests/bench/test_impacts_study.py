@@ -247,3 +247,26 @@ def test_a_tiny_study_end_to_end(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(impacts_report.OUTPUTS)
     assert len(imp["rows"]) == 2 and all(r["km"] == pytest.approx(0.02, abs=1e-4) for r in imp["rows"])
     assert sum(r["hits"] for r in imp["rows"]) > 0  # a follower 5 m behind a car at 20 m/s is hit
+
+
+@pytest.mark.parametrize("earlier", ["impacts.md", "impacts_damage.png"])
+def test_the_command_refuses_a_folder_holding_results(taichi_cpu, tmp_path, capsys, earlier):
+    from taichi_rocks.cli import main
+
+    (tmp_path / earlier).write_text("earlier")
+    status = main(["bench", "--only", "impacts", "--quick", "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and earlier in err[0] and "--overwrite" in err[0], err
+    assert [p.name for p in tmp_path.iterdir()] == [earlier]
+    status = main(["bench", "--only", "impacts", "--backend", "ray", "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and "impacts study runs on this machine" in err[-1], err
+
+
+def test_the_full_bench_writes_the_section_files_only_with_the_study():
+    from taichi_rocks.bench.config import make_config
+    from taichi_rocks.bench.run import OUTPUTS, outputs
+
+    assert outputs(make_config(tiny=True)) == OUTPUTS  # the tiny and quick runs leave the study out
+    full = outputs(make_config())
+    assert set(full) - set(OUTPUTS) == set(impacts_report.FILES)
