@@ -95,6 +95,8 @@ def _parser() -> argparse.ArgumentParser:
                         "rock of every frame, float64 world (default: light; taichi_rocks.load_run reads both)")
     selection_args(s, "flying", "light layout: write the rocks that changed (flying; the others are unchanged) "
                                 "or every rock every frame (all)")
+    s.add_argument("--impacts", type=Path, metavar="FILE.csv",
+                   help="with [effects] impacts: also write the impact events as CSV (the run file holds them)")
 
     e = sub.add_parser("export", help="write the run for other tools: USD (Houdini, Omniverse, Unreal, Blender) "
                                       "or PLY point files")
@@ -203,9 +205,19 @@ def cmd_simulate(args) -> int:
     from .app.simulate import simulate_scene
 
     info = simulate_scene(scene, out=args.out, frames=args.frames, fps=args.fps, arch=args.arch, seed=args.seed,
-                          overwrite=args.overwrite, layout=args.layout, only=args.only, crop=args.crop)
+                          overwrite=args.overwrite, layout=args.layout, only=args.only, crop=args.crop,
+                          impacts=args.impacts)
     print(f"wrote {info['path']}: {info['frames']} frames of {info['rocks']} rocks, "
           f"{info['launches']} launches, {info['bytes'] / 1e6:.1f} MB")
+    if "impacts" in info:
+        from .output.runs import impacts_summary
+
+        print(impacts_summary(info["impacts"], [v.name for v in scene.vehicles]))
+        if info["impacts_dropped"]:
+            print(f"warning: {info['impacts_dropped']} impact events dropped: more between two drains than "
+                  f"[impacts] capacity holds", file=sys.stderr)
+    if args.impacts is not None:
+        print(f"wrote {args.impacts}: {len(info.get('impacts', ()))} impact events")
     return EXIT_OK
 
 

@@ -1,6 +1,8 @@
 """``taichi-rocks simulate``: run a scene headless and write its run file (.npz), full or light layout
 (output/recording.py, output/runs.py), atomically: a temporary file beside the final name, renamed when
-complete; the folders it created are removed again if the run fails or is interrupted."""
+complete; the folders it created are removed again if the run fails or is interrupted. With impacts the run
+file holds the run's events (``impacts``, drained every frame), ``--impacts FILE.csv`` writes them as CSV too
+(output/runs.py ``impacts_csv``), and the summary counts them."""
 
 from __future__ import annotations
 
@@ -8,38 +10,49 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
+from ..engine.events import EVENT_DTYPE
 from ..engine.simulation import Simulation
 from ..output.atomic import new_folders, remove_stale_temporaries, temp_name, write_atomically
 from ..output.npz import write_npz
 from ..output.recording import record_full
-from ..output.runs import record_light
+from ..output.runs import impacts_csv, record_light
 from .frames import frame_count, frame_states
 
 __all__ = ["simulate_scene", "record"]
 
 
 def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", seed=None, overwrite: bool = False,
-                   layout: str = "light", only=None, crop=None, progress=None) -> dict:
+                   layout: str = "light", only=None, crop=None, progress=None, impacts=None) -> dict:
     """Simulate a validated ``scene`` and write its run file to ``out`` (default
     ``renders/<scene>/<scene>.npz``); ``frames`` and ``fps`` as app/frames.py :func:`frame_count`. Refuses
     (ValueError, FileExistsError) before anything runs: ``only``/``crop`` with the full layout, an existing
     ``out`` without ``overwrite``, a folder named ``out``. ``progress``: a tqdm bar on stderr; None shows it
-    only on a terminal. Returns :func:`record`'s summary with "launches" (rocks launched in the run)."""
+    only on a terminal; ``impacts``: a CSV file for the run's impact events (refused like ``out``). Returns
+    :func:`record`'s summary with "launches" (rocks launched in the run)."""
     out = Path(out) if out is not None else Path("renders") / scene.name / f"{scene.name}.npz"
     if layout == "full" and (only or crop):
         raise ValueError("--only and --crop need --layout light (the full layout holds every rock)")
     if out.is_dir():  # before the overwrite check: --overwrite would not help
         raise ValueError(f"{out}: is a directory, expected an .npz file name")
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out}: exists; pass --overwrite to replace it")
+    csv = Path(impacts) if impacts is not None else None
+    for path in (out, csv) if csv is not None else (out,):
+        if path.is_dir():
+            raise ValueError(f"{path}: is a directory, expected a file name")
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path}: exists; pass --overwrite to replace it")
     frames, fps = frame_count(scene, frames, fps)
     sim = Simulation(scene, arch=arch, seed=seed)
     with tqdm(total=frames, unit="frame", desc=f"simulate {scene.name}", file=sys.stderr,
               disable=None if progress is None else not progress) as bar:
         info = record(sim, out, frames, fps, progress=bar, layout=layout, only=only or "flying", crop=crop)
     info["launches"] = sim.launches_total
+    if csv is not None:
+        events = info.get("impacts", np.empty(0, EVENT_DTYPE))
+        with new_folders(csv.parent):
+            write_atomically(csv, lambda f: impacts_csv(events, f))
     return info
 
 
@@ -61,13 +74,30 @@ def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool =
         work = temp_name(out)
         try:
             work.mkdir(mode=0o700)
-            states = frame_states(sim, frames, fps, guard, progress)
+            chunks = []
+            states = _draining(sim, frame_states(sim, frames, fps, guard, progress), chunks)
             if layout == "full":
                 members = record_full(sim, work, frames, fps, states)
             else:
                 members = record_light(sim, work, frames, fps, states, only=only, crop=crop)
+            if sim.plan.impacts:
+                members["impacts"] = np.concatenate(chunks) if chunks else np.empty(0, EVENT_DTYPE)
             write_atomically(out, lambda f: write_npz(f, members))
         finally:
             shutil.rmtree(work, ignore_errors=True)
-    return {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size,
+    info = {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size,
             "layout": layout}
+    if sim.plan.impacts:
+        info.update(impacts=members["impacts"], impacts_dropped=sim.impacts_dropped)
+    return info
+
+
+def _draining(sim, states, chunks: list):
+    """``states`` passed through, the impact events of each frame's steps appended to ``chunks`` (the host
+    holds no more than a frame's events)."""
+    for item in states:
+        if sim.plan.impacts:
+            ev = sim.impacts()
+            if len(ev):
+                chunks.append(ev)
+        yield item

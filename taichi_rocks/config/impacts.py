@@ -22,27 +22,29 @@ are proxies, not measured thresholds of stones on windscreens:
     glass, and on painted parts they are a coarser proxy.
 A stone is softer and lighter than steel: at equal energy it loads the glass less (Hertz: the peak force grows
 with the stiffness of both bodies), so these thresholds err towards damage.
+
+Recorded: a contact closing faster than ``min_speed`` (normal relative speed). Slower contacts still bounce the
+stone but are not events: a stone resting or sliding on a bonnet touches it every step at about g dt.
+Events wait on the device between drains in a buffer of ``capacity`` events ("auto": sized from the scene,
+engine/impact_pass.py ``event_capacity``); more are counted as dropped, never lost silently.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, model_validator
-from pydantic_core import PydanticCustomError
+from pydantic import Field, model_validator
+
+from .values import Float, TableSize, _raise_problems, _Table
 
 __all__ = ["DAMAGE_CLASSES", "DAMAGE_MEASURES", "Impacts"]
 
 DAMAGE_CLASSES = ("mark", "chip", "crack")
 DAMAGE_MEASURES = ("energy", "momentum")
 
-# the scene's strict number and its table settings (config/scene.py: Float, _Table)
-Float = Annotated[float, Strict()]
 
-
-class Impacts(BaseModel):
+class Impacts(_Table):
     """How flying stones bounce off the vehicles' bodies, and the damage classes of their hits."""
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     restitution: Float = Field(0.5, description="normal restitution of a stone on a body, in [0, 1]", ge=0, le=1)
     friction: Float = Field(0.3, description="Coulomb friction of a stone on a body (tangential impulse <= "
@@ -56,14 +58,17 @@ class Impacts(BaseModel):
     chip_momentum: Float = Field(0.0011, description="N s, > 0: normal momentum from which a hit chips", gt=0)
     crack_momentum: Float = Field(0.0055, description="N s, > chip_momentum: normal momentum from which a hit "
                                                       "cracks", gt=0)
+    min_speed: Float = Field(0.5, description="m/s, >= 0: contacts closing slower than this (normal relative "
+                                              "speed) bounce but are not recorded (a stone resting or sliding on "
+                                              "a body)", ge=0)
+    capacity: TableSize = Field("auto", description='"auto" or the events kept on the device between drains '
+                                                    "(int >= 1); more are counted as dropped")
 
     @model_validator(mode="after")
     def _ordered(self) -> Impacts:
-        problems = [((f"crack_{m}",), f"must be > chip_{m} ({getattr(self, 'chip_' + m):g}), got "
-                                      f"{getattr(self, 'crack_' + m):g}")
-                    for m in DAMAGE_MEASURES if getattr(self, f"crack_{m}") <= getattr(self, f"chip_{m}")]
-        if problems:  # reported like config/scene.py's cross-key checks, one line per key
-            raise PydanticCustomError("scene_checks", "{problems}", {"problems": problems})
+        _raise_problems([((f"crack_{m}",), f"must be > chip_{m} ({getattr(self, 'chip_' + m):g}), got "
+                                          f"{getattr(self, 'crack_' + m):g}")
+                         for m in DAMAGE_MEASURES if getattr(self, f"crack_{m}") <= getattr(self, f"chip_{m}")])
         return self
 
     def thresholds(self) -> tuple[float, float]:

@@ -5,21 +5,16 @@ from __future__ import annotations
 
 from typing import Any, Literal, Optional, Union
 
-from pydantic import (BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator,
-                      model_validator)
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
-                     _f, _follow, _is_list, _raise_problems, _show)
+                     _f, _follow, _is_list, _raise_problems, _show, _Table)
 from .resolution import MIN_SIDE
 from .impacts import Impacts
 from .presets import PRESETS
 
 
 # ---------------------------------------------------------------------------------------------- the models
-class _Table(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
-
-
 class Environment(_Table):
     """Physical constants of the world (Z up)."""
     model_config = ConfigDict(title="World")  # the [world] table; the engine's fields are engine/world.py's World

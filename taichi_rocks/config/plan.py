@@ -28,7 +28,8 @@ class Plan:
     ground: str
     cell_size: float
     active: bool = False  # activity-proportional stepping: resting rocks in ground tiles (engine/active.py)
-    impacts: bool = False  # flying rocks against the vehicles' bodies (engine/impacts.py); see impacts_on
+    impacts: bool = False  # flying rocks against the vehicles' bodies (engine/impact_pass.py); see impacts_on
+    targets: tuple = ()  # with impacts: the vehicles (scene indices) whose bodies stones hit
     spin: bool = False  # each rock's angular velocity and orientation (engine/tumble.py); see spin_on
 
     @classmethod
@@ -48,7 +49,8 @@ class Plan:
                                                                    and sim.stepping == "full") else 0),
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
                    cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0,
-                   impacts=impacts_on(scene, splash), spin=spin_on(scene, tumble))
+                   impacts=impacts_on(scene, splash), targets=impact_targets(scene, splash),
+                   spin=spin_on(scene, tumble))
 
     def passes(self) -> list[str]:
         out = []
@@ -65,6 +67,9 @@ class Plan:
             how = "patch" if self.patch else ("swept" if self.swept else f"ray x{self.substeps}")
             throw = self.throw + (" model, fenders" if self.fenders else " model")
             out.append(f"tire pass ({how}, {throw})")
+        if self.impacts:
+            out.append(f"impacts (stones against {len(self.targets)} "
+                       f"bod{'y' if len(self.targets) == 1 else 'ies'}, swept; events)")
         return out
 
 
@@ -75,6 +80,13 @@ def impacts_on(scene, splash: bool) -> bool:
         return False
     throwers = [i for i, v in enumerate(scene.vehicles) if v.splash]
     return any(v.hit and any(t != i for t in throwers) for i, v in enumerate(scene.vehicles))
+
+
+def impact_targets(scene, splash: bool) -> tuple:
+    """The vehicles stones can hit when impacts run (those with ``hit``), in scene order; () otherwise."""
+    if not impacts_on(scene, splash):
+        return ()
+    return tuple(i for i, v in enumerate(scene.vehicles) if v.hit)
 
 
 def spin_on(scene, tumble: bool) -> bool:

@@ -36,7 +36,8 @@ def summarise(scene, memory_bytes: Optional[int] = None) -> str:
     memory its fields take if ``memory_bytes`` is given (engine/layout.py ``estimate_memory``)."""
     e, sim, h, bed = scene.effects, scene.sim, scene.sim.hash, scene.bed
     on = {True: "on", False: "off"}
-    passes = Plan.from_scene(scene).passes()
+    plan = Plan.from_scene(scene)
+    passes = plan.passes()
     width = max(len(v.name) for v in scene.vehicles)
     lines = [
         f"scene {scene.name!r} ({scene.source}): {scene.duration:g} s, seed {scene.seed}",
@@ -46,7 +47,8 @@ def summarise(scene, memory_bytes: Optional[int] = None) -> str:
         *(f"  {v.name:<{width}}  {v.path.kind:<9}  {_speed(v.path):<14}  {'splash' if v.splash else 'no splash'}"
           for v in scene.vehicles),
         f"effects: splash {on[e.splash]}, recycle {on[e.recycle]}, gravity {on[e.gravity]}, drag {e.drag},"
-        f" ground {e.ground}",
+        f" ground {e.ground}, impacts {on[plan.impacts]}"
+        + (f" ({', '.join(scene.vehicles[i].name for i in plan.targets)} hit)" if plan.impacts else ""),
         "passes per step: " + (", ".join(passes) or "none"),
         f"time: dt {sim.dt:g} s, {math.ceil(round(scene.duration / sim.dt, 6))} steps, integrator {sim.integrator},"
         f" detection {sim.detection} (substeps {sim.substeps}), precision {sim.precision}, origin {sim.origin}",

@@ -1,12 +1,13 @@
-"""The value types of scene files: strict numbers, names, ranges, colours, either-or unions, and how a value
-is shown in a message (:func:`_show`). The scene models (config/models.py) are built from them. No Taichi."""
+"""The value types of scene files: strict numbers, names, ranges, colours, either-or unions, the settings every
+table shares (:class:`_Table`: frozen, unknown keys refused, no inf or nan), and how a value is shown in a message
+(:func:`_show`). The scene models (config/models.py, config/impacts.py) are built from them. No Taichi."""
 
 from __future__ import annotations
 
 import json
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import AfterValidator, Discriminator, Field, Strict, Tag
+from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag
 from pydantic_core import PydanticCustomError
 
 from .resolution import MIN_SIDE, SIDE_MULTIPLE
@@ -61,6 +62,11 @@ Speed = Annotated[float, Strict(), Field(ge=0)]
 CellSize = _either(Literal["auto", "min_radius", "max_diameter"], Annotated[float, Strict(), Field(gt=0)], _is_str)
 TableSize = _either(Literal["auto"], Annotated[int, Strict(), Field(ge=1)], _is_str)
 Pixels = Annotated[int, Strict(), Field(ge=MIN_SIDE, multiple_of=SIDE_MULTIPLE)]
+
+
+class _Table(BaseModel):
+    """What every table of a scene file is: frozen, unknown keys refused, numbers finite."""
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 def _vehicle_name_schema(schema: dict) -> None:

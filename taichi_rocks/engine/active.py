@@ -521,7 +521,11 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     gather(w, c)
     close_tiles(w)
     for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: the last point is unused
+        # no tire mask: g is unused; with impacts the step's poses are in body_rows (ActiveStepper.step)
+        if ti.static(plan.impacts):
+            rock_step(w, plan, i, h, c, m, d, c, step, False, w.body_rows, 0)
+        else:
+            rock_step(w, plan, i, h, c, m, d, c, step, False, None, 0)
 
 
 @ti.kernel

@@ -10,7 +10,9 @@ One step of length dt on the host:
   3. floating origin: once the bed centre is farther than ORIGIN_RANGE from the origin, the shift moves to the
      snapped point nearest it (the kernels then move every rock by the difference, ``StepInput.origin_moved``);
   4. the rear tires now and their rays from the previous step's tires (``ray_rows``), in the kernels' frame
-     (``local_rays``), tires far from the bed parked high above it.
+     (``local_rays``), tires far from the bed parked high above it;
+  5. with impacts, the poses of the vehicles stones hit at the step's start and end, in the kernels' frame
+     after this step's origin move (engine/impact_pass.py ``pose_rows``).
 
 Coordinates: kernels work in a local frame, world = origin + local. With ``origin = "floating"`` the origin is
 anchor + shift: the anchor is the point the followed path is computed from (its first waypoint, where the bed
@@ -44,6 +46,7 @@ import numpy as np
 
 from . import patch
 from ..motion.vehicles import RearTires, TablePoses, tire_fields
+from .impact_pass import pose_rows
 from .world import ACTIVE, BATCH_ROWS, HALF_W, HULL, RAY_FIELDS
 
 __all__ = ["ORIGIN_SNAP", "ORIGIN_RANGE", "LOOKAHEAD", "HostState", "HostSide", "StepInput", "Lookahead", "Frames",
@@ -116,7 +119,8 @@ class StepInput(NamedTuple):
     frame), its move this step (anchor-relative), its leading direction, the origin's shift (XY, m), the rays
     (float64, World.ray layout, kernels' frame) and, if the origin moved before this step, by how much (XY);
     ``frames``: the lookahead batch's Frames this step is row ``row`` of (None: computed alone), which active
-    stepping uploads once per batch (engine/stepdata.py).
+    stepping uploads once per batch (engine/stepdata.py); ``bodies``: with impacts the poses of the vehicles
+    hit at the step's start and end (engine/impact_pass.py ``pose_rows``; None without).
     (A named tuple: made every step, it costs a fraction of a frozen dataclass.)"""
 
     step: int
@@ -129,6 +133,7 @@ class StepInput(NamedTuple):
     origin_moved: np.ndarray | None
     frames: "Frames | None" = None
     row: int = 0
+    bodies: np.ndarray | None = None
 
 
 @dataclass
@@ -156,8 +161,9 @@ class HostSide:
     """The host work of each step for one scene (module docstring): ``advance`` takes a HostState through one
     step and returns the kernels' StepInput. ``lookahead``: steps computed at once (0: step by step)."""
 
-    def __init__(self, scene, fleet, follow: int, n_tires: int, lookahead: int = LOOKAHEAD):
+    def __init__(self, scene, fleet, follow: int, n_tires: int, lookahead: int = LOOKAHEAD, targets=()):
         self.fleet, self.follow, self.n_tires = fleet, int(follow), int(n_tires)
+        self.targets = tuple(targets)  # with impacts: the vehicles stones hit (their poses go to the kernels)
         self.floating = scene.sim.origin == "floating"
         self.ground_z = float(scene.world.ground_z)
         self.dt = float(scene.sim.dt)
@@ -204,8 +210,9 @@ class HostSide:
         tires_now = self.fleet.rear_tires(poses, relative=True)
         rays = self.ray_data(st, st.tires_prev, tires_now, dt) if self.n_tires else self.no_rays
         st.tires_prev = tires_now
+        bodies = pose_rows(st.poses, poses, self.targets, st.shift) if self.targets else None
         st.poses = poses
-        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved)
+        return StepInput(st.step_count, dt, st.local_centre(), move, st.lead, st.shift, rays, moved, bodies=bodies)
 
     def _serve(self, st: HostState, b, k: int, dt: float) -> StepInput:
         """Step ``k`` of batch ``b`` into ``st`` (what _follow, _keep_origin_near and the rays do step by step)."""
@@ -217,9 +224,11 @@ class HostSide:
         if moved is not None:
             st.set_shift(f.shift[k])
         st.tires_prev = b.prev  # the row's tires (take() set them)
-        st.poses = TablePoses(self.fleet, b.table, k)
+        poses = TablePoses(self.fleet, b.table, k)
+        bodies = pose_rows(st.poses, poses, self.targets, st.shift) if self.targets else None
+        st.poses = poses
         rays = self.no_rays if f.rays is None else f.rays[k]
-        return StepInput(st.step_count, dt, f.local[k], f.move[k], f.lead[k], st.shift, rays, moved, f, k)
+        return StepInput(st.step_count, dt, f.local[k], f.move[k], f.lead[k], st.shift, rays, moved, f, k, bodies)
 
     def frames(self, st: HostState, b) -> "Frames":
         """Every step of batch ``b`` from ``st`` (the state before its first step), NumPy over the batch with

@@ -19,6 +19,7 @@ import taichi as ti
 from . import hashgrid, tires, tumble
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
+from .impact_pass import hit_bodies
 from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par, tmp_name
 
 vec2 = ti.types.vector(2, ti.f64)
@@ -58,13 +59,14 @@ class Switches:
 
 # The Plan's switches each kernel reads.
 READS = {
-    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground", "spin"),
-    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground", "spin"),
-    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "spin"),  # also tires.tire_pass
+    "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground", "spin",
+                  "impacts"),
+    "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground", "spin", "impacts"),
+    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts"),  # also tire_pass
     "health": ("recycle", "ground"),
     "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
-                    "ground", "spin"),
-    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin"),
+                    "ground", "spin", "impacts"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts"),
 }
 
 
@@ -74,8 +76,10 @@ def switches(plan) -> dict:
 
 
 # Rows of rock_pass's ``frame`` (2-vectors, float64, local frame): the bed centre, how far it moved this
-# step, its leading direction (unit), and the corner of the tire mask's tiles.
+# step, its leading direction (unit), and the corner of the tire mask's tiles; with impacts, from BODIES on the
+# impacts pass's rows (engine/impact_pass.py: the step's start time, the poses of the vehicles hit).
 CENTRE, MOVE, LEAD, GRID = 0, 1, 2, 3
+BODIES = 4
 
 
 @ti.func
@@ -101,13 +105,33 @@ def recycle(w: ti.template(), plan: ti.template(), i, c, m, d, step):
 
 
 @ti.func
-def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template()):
-    """Pass 1 for rock i: flight, recycling to the leading edge, counting for the hash; ``hash_flying``: count
-    flying rocks too (they are never launched, tires.try_launch; active stepping leaves them out)."""
+def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template(),
+              rows: ti.template(), base: ti.template()):
+    """Pass 1 for rock i: flight, stones against the bodies they hit (``plan.impacts``: engine/impact_pass.py,
+    the poses in ``rows`` from row ``base`` on), recycling to the leading edge, counting for the hash;
+    ``hash_flying``: count flying rocks too (they are never launched, tires.try_launch; active stepping leaves
+    them out)."""
+    ph0 = RESTING
+    x0 = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    v0 = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    if ti.static(plan.impacts):
+        ph0 = w.phase[i]
+        if ph0 == FLYING:  # only a stone flying at the step's start can meet a body (impact_pass docstring)
+            x0 = w.pos[i]
+            v0 = w.vel[i]
     if ti.static(plan.flight):
         fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
+    if ti.static(plan.impacts):
+        # flying at the start (the same rocks at the end: nothing launches in this pass). Testing the phase after
+        # flight too keeps Taichi 1.7.4 from merging this if with flight's own on the same phase, which breaks
+        # its IR ("block->parent != current_container_stmt")
+        if ph0 == FLYING or w.phase[i] == FLYING:
+            hit_bodies(w, plan, i, x0, v0, h, rows, base, step)
     if ti.static(plan.recycle):
         recycle(w, plan, i, c, m, d, step)
+    if ti.static(plan.impacts):
+        if ph0 != RESTING and w.phase[i] == RESTING:  # landed or recycled: a resting rock has no thrower
+            w.thrower[i] = -1
     if ti.static(plan.splash):
         if ti.static(hash_flying):
             hashgrid.count_rock(w, i, plan.center, g)
@@ -119,9 +143,9 @@ def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, has
 @ti.kernel
 def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
               frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32):
-    """Pass 1 fused: flight, recycling, counting for the hash (``plan.splash``), one read of each rock per
-    step; ``frame``: the bed's centre, move and leading direction and the mask's corner (rows above). With
-    the hash it first takes the step's tire rays (take_rays)."""
+    """Pass 1 fused: flight, impacts (``plan.impacts``), recycling, counting for the hash (``plan.splash``), one
+    read of each rock per step; ``frame``: the bed's centre, move and leading direction and the mask's corner
+    (rows above), then the impacts' rows. With the hash it first takes the step's tire rays (take_rays)."""
     take_rays(w, plan, rays)
     h = ti.cast(dt, w.real)
     c = ti.cast(frame[CENTRE], w.real)
@@ -131,7 +155,7 @@ def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtyp
     if ti.static(plan.splash and w.masked):
         hashgrid.mark_tire_tiles(w, g)
     for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, g, step, True)
+        rock_step(w, plan, i, h, c, m, d, g, step, True, frame, BODIES)
 
 
 @ti.kernel
@@ -153,6 +177,8 @@ def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, cen
             if ti.static(plan.recycle):
                 recycle(w, plan, i, c, m, d, step0 + s + 1)
             if w.phase[i] == RESTING:
+                if ti.static(plan.impacts):  # coasting with impacts: no stone flies (Simulation._can_coast)
+                    w.thrower[i] = -1
                 settled = True
                 if ti.static(plan.recycle):
                     settled = not outside_bed(w.pos[i], c, w.par[Par.BED_RADIUS], w.par[Par.GROUND_Z])

@@ -3,7 +3,7 @@ fields of its Plan and stepping mode) and what that costs in memory, from one li
 
 :func:`world_layout` is what Simulation allocates with (engine/world.py ``acquire``); :func:`estimate_memory`
 adds up the same fields (``world.field_specs``: rock fields from engine/rockfields.py, tile store, hash, rays,
-counters), so the estimate is the bytes the World's fields take and cannot go stale when a field is added.
+counters, the bodies and the event buffer of impacts), so the estimate is the bytes the World's fields take and cannot go stale when a field is added.
 Only the hash's entry capacity with AABB insert depends on the rocks' radii: the estimate draws them from the
 scene's seed up to ``EXACT_UP_TO`` rocks and extrapolates from that many evenly spaced radii beyond.
 
@@ -24,6 +24,7 @@ from ..config.plan import Plan
 from ..config.scene import SceneError
 from . import hashgrid
 from .active import store_sizing
+from .impact_pass import body_table, event_capacity
 from .rockfields import present
 from .setup import hash_sizing, initial_rocks
 from .world import field_specs
@@ -52,6 +53,8 @@ def world_layout(scene, plan, radius) -> tuple[dict, object]:
                   ray_capacity=hashgrid.ray_capacity(ray_len, plan.cell_size), reorder=plan.reorder_every > 0,
                   tiles=sizing.tiles, tile_size=sizing.tile, store=store,
                   rocks=present(plan, "active" if plan.active else "full"))
+    if plan.impacts:  # the bodies stones hit and the event buffer (engine/impact_pass.py)
+        layout.update(bodies=body_table(scene, plan).counts, events=event_capacity(scene, plan))
     return layout, sizing
 
 

@@ -22,6 +22,13 @@ Derived constants (the scene's units are SI):
                 its ray (engine/setup.py ``tire_reach``); DILATE the cells a centre-insert query is dilated by
     PATCH_TOL   1e-4 m + 64 f32 spacings at the ground's height: a resting rock's bottom is the ground up to
                 rounding
+    MASS_PER_R3 4/3 pi rho: a stone's mass is MASS_PER_R3 r^3 (from the host: a float literal in a kernel is
+                float32 even in a float64 run)
+    CHIP, CRACK the damage thresholds in the unit of [impacts] damage_by (J or N s); DAMAGE_MOMENTUM 1 when
+                that is the normal momentum, 0 for the normal energy
+    CONTACT_SLOP how far beyond its radius a stone is put from the body it hit: 4 spacings of the precision
+                at 256 m + R, the reach of the kernels' coordinates (the floating origin stays within 2 x
+                128 m of the bed), so that rounding the body frame back to the local one leaves it outside
 """
 
 from __future__ import annotations
@@ -109,6 +116,11 @@ def _patch_tolerance(src: Source) -> float:
     return 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * abs(src.scene.world.ground_z)
 
 
+def _contact_slop(src: Source) -> float:
+    eps = float(np.finfo(np.float64 if src.scene.sim.precision == "f64" else np.float32).eps)
+    return 4.0 * eps * (256.0 + src.scene.bed.radius)
+
+
 def _dilate(src: Source) -> int:
     return dilation_cells(float(src.scene.bed.rock_radius[1]), src.plan.cell_size) if src.plan.center else 0
 
@@ -139,6 +151,15 @@ TABLE = (
     Param("MARGIN", derive=lambda s: s.sizing.margin, what="m: a tire query's reach beyond its ray (XY)"),
     Param("PATCH_TOL", derive=_patch_tolerance, what="m: how far above the tire's bottom a run-over rock's "
                                                      "bottom may be"),
+    # impacts (engine/impact_pass.py): stones against the vehicles' bodies
+    Param("BODY_RESTITUTION", "impacts.restitution", runtime=True, what="normal restitution of a stone on a body"),
+    Param("BODY_FRICTION", "impacts.friction", runtime=True, what="Coulomb friction of a stone on a body"),
+    Param("MIN_SPEED", "impacts.min_speed", runtime=True, what="m/s: slower contacts are not recorded"),
+    Param(("CHIP", "CRACK"), derive=lambda s: s.scene.impacts.thresholds(), what="damage thresholds (docstring)"),
+    Param("DAMAGE_MOMENTUM", derive=lambda s: float(s.scene.impacts.damage_by == "momentum"),
+          what="1: damage classes by normal momentum, 0: by normal energy"),
+    Param("MASS_PER_R3", derive=lambda s: 4.0 / 3.0 * math.pi * s.scene.bed.density, what="kg/m^3 (docstring)"),
+    Param("CONTACT_SLOP", derive=_contact_slop, what="m (docstring)"),
     Param("SPIN_SPREAD", "launch.spin_spread", runtime=True, what="a launched stone's spin scatter, a share of "
                                                                   "its rolling spin (engine/tumble.py)"),
 )

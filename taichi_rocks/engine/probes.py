@@ -62,7 +62,8 @@ def _pass_args(sim) -> tuple:
 def _switches(flight, recycle, count, center, integrator, gravity, drag, ground) -> Switches:
     """rock_pass's switches: which parts run (``count``: the hash count, the plan's ``splash``)."""
     return Switches(SimpleNamespace(splash=count, flight=flight, recycle=recycle, center=center,
-                                    integrator=integrator, gravity=gravity, drag=drag, ground=ground, spin=False),
+                                    integrator=integrator, gravity=gravity, drag=drag, ground=ground, impacts=False,
+                                    spin=False),
                     READS["rock_pass"])
 
 

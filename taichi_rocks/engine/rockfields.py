@@ -75,6 +75,8 @@ ROCK_FIELDS = (
     RockField("phase", "i32", stored=False, rest=RESTING, initial=RESTING, state="phase", state_dtype="int8"),
     RockField("hit_step", "i32", when="splash", initial=-1),  # the step it was last launched at (-1: never)
     RockField("slot", "i32", when="splash", stored=False, carried=False, saved=False),  # its hash slot (centre)
+    # the vehicle whose tire launched it (engine/tires.py try_launch; -1: none): a resting rock has none
+    RockField("thrower", "i32", when="impacts", stored=False, rest=-1, initial=-1, pad=-1),
     # tumbling (engine/tumble.py): angular velocity (rad/s, world axes; none at rest) and orientation (x, y, z, w)
     RockField("spin", "real", 3, when="spin", stored=False, rest=0.0, state="angular_velocities"),
     RockField("orient", "real", 4, when="spin", initial="given", state="orientations"),

@@ -99,8 +99,17 @@ def checkpoint_arrays(w, rock_arrays: dict, n: int) -> dict:
 
 
 def from_checkpoint(w, data: dict) -> dict:
-    """The saved rock fields of a checkpoint (``rock_<name>``), by field name."""
-    return {f.name: np.asarray(data[f"rock_{f.name}"]) for f in saved_fields(w)}
+    """The saved rock fields of a checkpoint (``rock_<name>``), by field name. A field with a rest value that
+    the checkpoint lacks (saved by a simulation without it: a thrower's id before impacts) takes that value."""
+    n = len(data[f"rock_{ID}"])
+    out = {}
+    for f in saved_fields(w):
+        key = f"rock_{f.name}"
+        if key not in data and f.rest is not None:
+            out[f.name] = np.full((n,) + ((f.n,) if f.n > 1 else ()), f.rest, w.np_dtype(f))
+        else:
+            out[f.name] = np.asarray(data[key])
+    return out
 
 
 def state_arrays(w, rock_arrays: dict, origin: np.ndarray) -> dict:

@@ -26,7 +26,9 @@ from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
 from . import rocks
+from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
+from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
 from .kernels import count_flying, shift_origin, switches
 from .layout import check_fits, world_layout
 from .rockfields import ID
@@ -57,6 +59,7 @@ class Simulation:
         if seed is not None:
             scene = scene_with(scene, {"seed": int(seed)})
         check_fits(scene)  # a scene too big for this machine is refused before anything is allocated
+        check_bodies(scene)  # and one whose resting rocks would lie inside a body that stones hit
         self.arch = init_taichi(arch)
         self.scene = scene
         self.real = ti.f64 if scene.sim.precision == "f64" else ti.f32
@@ -71,7 +74,7 @@ class Simulation:
         start = initial_rocks(scene)
         self.world = self._allocate(start.radius)
         self._host = HostState()
-        self._host_side = HostSide(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD)
+        self._host_side = HostSide(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD, plan.targets)
         self._host_side.start(self._host)
         self._stepper = stepper_for(plan)(self.world, plan, self._switches, self._sizing, self._host,
                                           scene.sim.hash.table_size == "auto", timer)
@@ -84,6 +87,11 @@ class Simulation:
             given["orient"] = initial_orientations(scene.seed, self.n_rocks)
         rocks.write(self.world, rocks.initial_arrays(self.world, self.n_rocks, given), self.n_rocks)
         self._put_rays()
+        self._impacts = None  # with impacts: the events' host side (engine/impact_pass.py ImpactLog)
+        if plan.impacts:
+            write_bodies(self.world, body_table(scene, plan, self._par[Par.GROUND_Z]),
+                         [i for i in self.fleet.splashing for _ in range(2)])
+            self._impacts = ImpactLog(self.world.events)
         self._stepper.start()
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
@@ -207,7 +215,8 @@ class Simulation:
         the bed follows, the splashing ones) has stopped for good, so the bed stands and no tire launches."""
         p = self.plan
         return bool(self.coast and self.n_rocks and (p.flight or p.recycle)
-                    and self.time >= self.fleet.still_after(self._matter))
+                    and self.time >= self.fleet.still_after(self._matter)
+                    and not (p.impacts and self.rocks_in_air()))  # a flying stone may still hit a body
 
     def _coast(self, n: int) -> None:
         h = self._host
@@ -228,6 +237,25 @@ class Simulation:
         launched = self._stepper.step(s)
         if self.plan.splash:
             self._host.last_launches = launched
+        if self._impacts is not None:
+            self._impacts.after_step(self._host.step_count, self._host.time)
+
+    # ------------------------------------------------------------------------------------------ impacts
+    def impacts(self) -> np.ndarray:
+        """The impact events since the last call (all of them the first time), a structured array of
+        engine/events.py ``EVENT_DTYPE`` in (step, rock, vehicle) order: time, step, vehicle, part (an index into
+        ``motion.bodies.LABELS``), damage (into ``DAMAGE_CLASSES``), point and normal (the hit vehicle's frame),
+        speed, normal_speed, normal_momentum, energy, radius, rock, thrower. Empty without impacts. A game loop
+        calls it every frame."""
+        if self._impacts is None:
+            return np.empty(0, EVENT_DTYPE)
+        return self._impacts.take(self.time)
+
+    @property
+    def impacts_dropped(self) -> int:
+        """Events lost so far: more between two drains than the device buffer holds ([impacts] capacity), or more
+        than the host keeps waiting for ``impacts()`` (engine/impact_pass.py KEEP)."""
+        return 0 if self._impacts is None else self._impacts.dropped
 
     # ------------------------------------------------------------------------------------------ rocks
     def rock_arrays(self) -> dict:
@@ -275,7 +303,10 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ checkpoints
     def checkpoint(self) -> dict:
         """Everything needed to continue bit-identically: every rock's fields in id order (the same for both
-        stepping modes: a checkpoint of one restores into the other), clock, origin."""
+        stepping modes: a checkpoint of one restores into the other), clock, origin. The events recorded so far
+        are drained first (a checkpoint holds none: a restore records the steps after it again)."""
+        if self._impacts is not None:
+            self._impacts.drain(self.time)
         data = rocks.checkpoint_arrays(self.world, self.rock_arrays(), self.n_rocks)
         data.update(self._host.saved())
         data.update(launches=np.int64(self.launches_total), recycles=np.int64(self.recycles_total),
@@ -302,6 +333,8 @@ class Simulation:
         self._host_side.resume(h)
         if self.plan.splash:
             self._put_rays()
+        if self._impacts is not None:  # the events of the steps after the checkpoint come again
+            self._impacts.restore(h.step_count, h.time)
 
     # ------------------------------------------------------------------------------------------ guard, probes
     def check_health(self) -> None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import active, hashgrid, rocks, stepdata, tires
+from .impact_pass import load_rows, time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
 from .world import IPar, next_prime
 
@@ -67,6 +68,14 @@ class Stepper:
     def grid_origin(self, centre: np.ndarray) -> np.ndarray:
         """The corner of the tire mask's tiles (XY, local frame; full stepping): the mask is centred on the bed."""
         return centre - self.sizing.grid_half
+
+    def with_bodies(self, frame: np.ndarray, s) -> np.ndarray:
+        """The step's frame rows and, with impacts, the impacts pass's rows after them: the step's start time
+        relative to the event buffer's reference time, the poses of the vehicles hit (engine/impact_pass.py)."""
+        if s.bodies is None:
+            return frame
+        t0 = self.host.time - s.dt - self.world.events.t_ref
+        return np.concatenate([frame, time_row(t0), s.bodies])
 
     def put_rays(self, rays: np.ndarray) -> None:
         """The tires' rays (World.ray layout, kernels' frame) into the World, outside a step."""
@@ -129,6 +138,7 @@ class FullStepper(Stepper):
         if self.moves:
             with self.timer("rock pass"):
                 frame = np.array([s.centre, s.move, s.lead, self.grid_origin(s.centre)])  # kernels.CENTRE..GRID
+                frame = self.with_bodies(frame, s)
                 rock_pass(self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
         return self._hash_and_tires(s.step) if self.plan.splash else 0
 
@@ -205,6 +215,9 @@ class ActiveStepper(Stepper):
         if not self.moves:
             return 0
         row = self._upload(s)
+        if s.bodies is not None:  # the step's poses of the bodies stones hit (engine/impact_pass.py)
+            with self.timer("batch upload"):
+                load_rows(self.world, self.with_bodies(np.zeros((0, 2)), s))
         with self.timer("active step"):
             active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
             launched = active.active_finish(self.world, self.switches["active_finish"], row, s.step)

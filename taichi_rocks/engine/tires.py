@@ -87,6 +87,8 @@ def try_launch(w: ti.template(), plan: ti.template(), i, t, step):
         if v.norm() > w.par[Par.REST_SPEED]:
             w.hit_step[i] = step
             w.vel[i] = v
+            if ti.static(plan.impacts):  # who threw it: its own body is not hit (engine/impact_pass.py)
+                w.thrower[i] = w.tire_vehicle[t]
             if ti.static(plan.spin):  # it rolls off the tread (engine/tumble.py)
                 w.spin[i] = tumble.launch_spin(w, t, alpha, v_tread, w.radius[i], w.rock_id[i], step)
             if ti.static(plan.ground == "none"):

@@ -17,8 +17,9 @@ from types import SimpleNamespace
 import numpy as np
 import taichi as ti
 from taichi.lang.field import Field
-from taichi.lang.util import to_numpy_type
 
+from .events import N_INT, N_REAL, EventBuffer
+from .trees import _Trees  # noqa: F401 - also imported from here
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
 
@@ -36,6 +37,8 @@ A0, B0, A1, B1, VEL, FWD, SPIN, ACTIVE = 0, 3, 6, 9, 12, 15, 17, 18
 HALF_W, HALF_L, TIRE_R, FENDER, FLAP, HULL = 19, 20, 21, 22, 23, 24
 HULL_VERTICES = 8
 RAY_FIELDS = HULL + 2 * HULL_VERTICES
+# With impacts, the rows of a step's poses of each vehicle stones hit (engine/impact_pass.py pose_rows)
+POSE_ROWS = 7
 
 # The per-step inputs of active stepping on the device, a lookahead batch of up to BATCH_ROWS steps at a time
 # (engine/stepdata.py): ``step_rays[k, t, :]`` (float64, the layout above, kernels' frame) and
@@ -67,45 +70,6 @@ def next_prime(n: int) -> int:
     return n
 
 
-class _Trees:
-    """Allocates fields in SNode trees of one element size each (a tree per size: 4-byte, 8-byte, ...).
-
-    Why not all in one tree: Taichi's SPIR-V backends (Vulkan) pack the fields of a tree end to end, sorted
-    by size, with no alignment padding, and index a 64-bit element at byte offset o as element o >> 3. A
-    64-bit field landing at 4 mod 8 (after fields of an odd number of 32-bit words) is thus read and
-    written 4 bytes too low, over its neighbour, silently (Taichi 1.7.4; the LLVM backends, CPU and CUDA,
-    align their layouts). The i64 launch counter did: in minimal.toml's layout it shared 8 bytes with the
-    last ``ray_cell_count`` entry, so on Vulkan launches_total read that ray's cell count plus the step's
-    launches, and each launch bumped the count. In a tree whose fields all have one element size every
-    offset is a multiple of that size."""
-
-    def __init__(self):
-        self._builders: dict[int, ti.FieldsBuilder] = {}
-
-    def _place(self, f, dtype, shape):
-        shape = (shape,) if isinstance(shape, int) else tuple(shape)
-        size = np.dtype(to_numpy_type(dtype)).itemsize
-        if size not in self._builders:
-            self._builders[size] = ti.FieldsBuilder()
-        fb = self._builders[size]
-        fb.dense(ti.axes(*range(len(shape))), shape).place(f)
-        return f
-
-    def field(self, dtype, shape):
-        """A scalar field of a Taichi ``dtype`` over ``shape`` (fields outside a World's layout: test buffers)."""
-        return self._place(ti.field(dtype), dtype, shape)
-
-    def place(self, spec, real):
-        """The field of a :class:`FieldSpec` (``real``: the World's Taichi precision)."""
-        dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64, "f64": ti.f64}[spec.dtype]
-        f = ti.field(dtype) if spec.n == 1 else ti.Vector.field(spec.n, dtype)
-        return self._place(f, dtype, spec.shape)
-
-    def finalize(self) -> None:
-        for fb in self._builders.values():
-            fb.finalize()
-
-
 @dataclass(frozen=True)
 class FieldSpec:
     """One Taichi field of a World: ``n`` components (1: a scalar field) of ``dtype`` ("real": the World's
@@ -123,10 +87,11 @@ class FieldSpec:
 
 def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                 substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None, store=None,
-                rocks=None, **_switches) -> list[FieldSpec]:
+                rocks=None, bodies=None, events: int = 0, **_switches) -> list[FieldSpec]:
     """Every field of the World of this layout (``real``: "f32" | "f64"; the arguments are World's), in the
     order they are allocated: the one list both the World and the memory estimate (engine/layout.py) read.
-    ``rocks``: the rock fields (engine/rockfields.py ``present``; default: those of this layout's mode)."""
+    ``rocks``: the rock fields (engine/rockfields.py ``present``; default: those of this layout's mode);
+    ``bodies``: (vehicles hit, their parts) with impacts, and ``events`` the event buffer's capacity."""
     cap = max(n, 1)  # Taichi fields cannot be empty
     hashed = hash_table > 0
     rocks = default_rock_fields(hashed, store is not None) if rocks is None else rocks
@@ -149,6 +114,8 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
         out += [FieldSpec(tmp_name(f), f.dtype, f.n, (cap,)) for f in _distinct_kinds(rocks)]
     if store is not None:
         out += _store_specs(store, cap, n_tires, rocks)
+    if bodies is not None:
+        out += _impact_specs(bodies, n_tires, events)
     out.append(FieldSpec("health_out", "i32", 1, (6,)))  # the runtime guard's counts (Simulation.check_health)
     return out
 
@@ -175,6 +142,25 @@ def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
     return out
 
 
+def _impact_specs(bodies, n_tires: int, events: int) -> list[FieldSpec]:
+    """The impacts pass's fields (engine/impact_pass.py): ``bodies`` = (T vehicles hit, P parts in all); the
+    tires' vehicles (the thrower of what they launch); the event buffer (engine/events.py) of ``events``."""
+    t, p = (max(int(x), 1) for x in bodies)
+    return [FieldSpec("tire_vehicle", "i32", 1, (max(n_tires, 1),)),  # the vehicle of each splashing tire
+            FieldSpec("target_vehicle", "i32", 1, (t,)),  # target k is this vehicle (scene index)
+            FieldSpec("target_parts", "i32", 2, (t,)),  # its parts: first, count
+            FieldSpec("target_box", "real", 6, (t,)),  # its body's box (lo, hi), body frame
+            FieldSpec("part_box", "real", 6, (p,)),  # each part's box (lo, hi), body frame
+            FieldSpec("part_planes", "real", 1, (p, 6, 4)),  # outward face planes (n, d)
+            FieldSpec("part_corners", "real", 1, (p, 8, 3)),
+            FieldSpec("part_labels", "i32", 1, (p, 6, 2)),  # per face: LABELS index ahead of / behind the split
+            FieldSpec("part_split", "real", 1, (p,)),
+            FieldSpec("body_rows", "f64", 2, (1 + POSE_ROWS * t,)),  # a step's time and poses (active stepping)
+            FieldSpec("ev_ints", "i32", 1, (max(int(events), 1), N_INT)),
+            FieldSpec("ev_reals", "real", 1, (max(int(events), 1), N_REAL)),
+            FieldSpec("ev_count", "i32", 1, ())]
+
+
 A_COUNTS = 8  # active stepping's counters (engine/active.py)
 
 
@@ -193,8 +179,8 @@ def _distinct_kinds(rocks) -> list:
 
 def default_rock_fields(hashed: bool, stored: bool) -> tuple:
     """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed,
-    no "spin" ones."""
-    return present(SimpleNamespace(splash=hashed, spin=False), "active" if stored else "full")
+    no "spin" or "impacts" ones."""
+    return present(SimpleNamespace(splash=hashed, spin=False, impacts=False), "active" if stored else "full")
 
 
 @ti.data_oriented
@@ -204,7 +190,7 @@ class World:
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
-                 tile_size: float = 1.0, store=None, rocks=None):
+                 tile_size: float = 1.0, store=None, rocks=None, bodies=None, events: int = 0):
         self.n = n
         self.stored = store is not None  # active stepping's tile store (below)
         self.real = real
@@ -232,13 +218,19 @@ class World:
             tile, grid, capacity, recycle = store
             self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
             self.recycles_rocks = bool(recycle)
+        # impacts (engine/impact_pass.py): the bodies stones hit (compile-time counts) and the event buffer
+        self.impacts = bodies is not None
+        if self.impacts:
+            self.n_targets, self.n_parts = (int(x) for x in bodies)
         trees = _Trees()
         for spec in field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table,
                                 hash_entries=hash_entries, n_tires=n_tires, substeps=substeps,
                                 ray_capacity=ray_capacity, reorder=reorder, tiles=tiles, store=store,
-                                rocks=self.rocks):
+                                rocks=self.rocks, bodies=bodies, events=events):
             setattr(self, spec.name, trees.place(spec, real))
         trees.finalize()
+        if self.impacts:
+            self.events = EventBuffer(max(int(events), 1), real, fields=(self.ev_ints, self.ev_reals, self.ev_count))
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
 
     def fields(self) -> list:

@@ -17,6 +17,10 @@ every rock (``only="all"``), positions relative to the engine's floating origin:
   float32 unless ``precision = "f64"``), ``row_phase`` (M,) int8: a rock's state from that frame on, its
   world position ``origin[f] + row_local``.
 
+With impacts (``[effects] impacts``), both layouts also hold ``impacts``: the run's impact events, a structured
+array of engine/events.py ``EVENT_DTYPE`` in (step, rock, vehicle) order (``load_run`` returns it as it is; a
+run without impacts has none). :func:`impacts_csv` writes them as CSV, :func:`impacts_summary` counts them.
+
 A rock without a row in a frame is unchanged since the previous frame (its simulated position, velocity and
 phase are the same bits), so ``only="flying"`` loses nothing. The engine keeps rock positions in its own
 precision relative to that origin and computes world = float64(local) + origin: a row stores the engine's
@@ -34,10 +38,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config.impacts import DAMAGE_CLASSES
+from ..engine.events import EVENT_FIELDS
+from ..motion.bodies import LABELS
 from .npz import Raw
 
 __all__ = ["LIGHT", "MISSING", "RUN_KEYS", "load_run", "record_light", "RowChanges", "crop_mask", "crop_vehicle",
-           "check_selection"]
+           "check_selection", "impacts_csv", "impacts_summary"]
 
 LIGHT = "taichi-rocks run, light layout 1"
 MISSING = -1  # row_phase of a rock outside the crop: NaN position and velocity until it is back inside
@@ -189,4 +196,48 @@ def _expand(d: dict) -> dict:
         cur_ph[idx] = d["row_phase"][a:b]
         pos[f], vel[f], phase[f] = cur_p, cur_v, cur_ph
     out = {"positions": pos, "velocities": vel, "phase": phase}
-    return {k: out[k] if k in out else d[k] for k in RUN_KEYS}
+    keys = RUN_KEYS + (("impacts",) if "impacts" in d else ())
+    return {k: out[k] if k in out else d[k] for k in keys}
+
+
+def impacts_csv(events: np.ndarray, f) -> None:
+    """Write ``events`` (EVENT_DTYPE) to the binary file ``f`` as CSV: a header of the field names (vectors as
+    name_x, name_y, name_z), one row per event, ``part`` and ``damage`` as names, floats in full precision
+    (repr: they read back to the same bits)."""
+    header, cols = [], []
+    for name, _, shape, _ in EVENT_FIELDS:
+        if shape:
+            header += [f"{name}_{a}" for a in "xyz"]
+            cols += [(name, j) for j in range(3)]
+        else:
+            header.append(name)
+            cols.append((name, None))
+    lines = [",".join(header)]
+    for ev in events:
+        row = []
+        for name, j in cols:
+            v = ev[name] if j is None else ev[name][j]
+            if name == "part":
+                row.append(LABELS[int(v)])
+            elif name == "damage":
+                row.append(DAMAGE_CLASSES[int(v)])
+            elif np.issubdtype(np.asarray(v).dtype, np.integer):
+                row.append(str(int(v)))
+            else:
+                row.append(repr(float(v)))
+        lines.append(",".join(row))
+    f.write(("\n".join(lines) + "\n").encode("ascii"))
+
+
+def impacts_summary(events: np.ndarray, names) -> str:
+    """One line: the hits per vehicle and part, e.g. ``impacts: 12 hits (player 9: windscreen 4, bonnet 5;
+    truck 3: rear 3)``; vehicles without hits are left out."""
+    if len(events) == 0:
+        return "impacts: no hits"
+    parts = []
+    for v in np.unique(events["vehicle"]):
+        mine = events[events["vehicle"] == v]
+        labels, counts = np.unique(mine["part"], return_counts=True)
+        detail = ", ".join(f"{LABELS[int(p)]} {int(c)}" for p, c in zip(labels, counts))
+        parts.append(f"{names[int(v)]} {len(mine)}: {detail}")
+    return f"impacts: {len(events)} hit{'s' if len(events) != 1 else ''} (" + "; ".join(parts) + ")"

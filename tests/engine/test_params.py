@@ -67,12 +67,26 @@ def test_packing_a_scene_gives_each_parameter_its_source(scenes_dir):
     derived = {"GROUND_Z": 1.25, "CELL": plan.cell_size, "R_MAX": r_max, "TIE_EPS": 1e-5, "MARGIN": sizing.margin,
                "LINEAR_DRAG": 4.5 * wd.air_viscosity / bed.density,
                "QUAD_DRAG": 3.0 * wd.air_density * bed.drag_coefficient / (8.0 * bed.density),
-               "PATCH_TOL": 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * 3.0}
+               "PATCH_TOL": 1e-4 + 64.0 * float(np.finfo(np.float32).eps) * 3.0,
+               "CHIP": scene.impacts.chip_energy, "CRACK": scene.impacts.crack_energy, "DAMAGE_MOMENTUM": 0.0,
+               "MASS_PER_R3": 4.0 / 3.0 * math.pi * bed.density,
+               "CONTACT_SLOP": 4.0 * float(np.finfo(np.float32).eps) * (256.0 + bed.radius)}
     int_derived = {"SEED": 5, "TABLE": sizing.table, "DILATE": int(math.floor(r_max / cell * (1 + 1e-6))) + 1}
     for table, cls, out, ref in ((TABLE, Par, par, derived), (INT_TABLE, IPar, ipar, int_derived)):
         assert set(ref) == {n for p in table if p.derive is not None for n in p.names}
         for name, v in ref.items():
             assert out[getattr(cls, name)] == v, name
+
+
+def test_impact_parameters_follow_the_damage_measure(scenes_dir):
+    """By momentum: the momentum thresholds and DAMAGE_MOMENTUM = 1; f64: the contact slop of f64."""
+    scene = scene_with(load_scene(scenes_dir / "minimal.toml"),
+                       {"impacts.damage_by": "momentum", "impacts.chip_momentum": 0.002, "sim.precision": "f64"})
+    plan = Plan.from_scene(scene)
+    sizing = hash_sizing(scene, plan, initial_rocks(scene).radius, 2)
+    par, _ = scene_params(scene, plan, sizing, ground_z=0.0)
+    assert (par[Par.CHIP], par[Par.CRACK], par[Par.DAMAGE_MOMENTUM]) == (0.002, 0.0055, 1.0)
+    assert par[Par.CONTACT_SLOP] == 4.0 * float(np.finfo(np.float64).eps) * (256.0 + scene.bed.radius)
 
 
 def test_pack_by_name_and_unknown_names():
