@@ -75,18 +75,18 @@ class StudyConfig:
     density: float = 70.7  # rocks per m^2 (the shipped convoy: 200,000 on 30 m)
     warm_m: float = 50.0
     min_m: float = 400.0
-    max_m: float = 1500.0
+    max_m: float = 1000.0
     chunk_m: float = 200.0
     enough: int = 20
-    bound_per_km: float = 5.0
+    bound_per_km: float = 10.0
     workers: int = 2  # 0: every run in this process (tests)
     launch: str | None = "quick"  # the launch study's size for its bands' case (None: not run)
     timeout_s: float = 3600.0
 
 
 def make_study_config(mode: str = "full") -> StudyConfig:
-    """"full": the issue's grid (+ 22.5 m/s for the long tail), 96 runs; "quick": 10, 20 and 25 m/s, dry,
-    chippings, 12 runs (the README's figures, ~15 min on 2 shared cores); "tiny": one short run (tests)."""
+    """"full": the issue's grid (+ 22.5 m/s for the long tail), 96 runs (~30-40 min on 2 busy cores); "quick":
+    10, 20 and 25 m/s, dry, chippings, 12 runs (~4 min); "tiny": one short run (tests)."""
     if mode == "full":
         return StudyConfig("full")
     if mode == "quick":

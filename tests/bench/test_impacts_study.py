@@ -270,3 +270,23 @@ def test_the_full_bench_writes_the_section_files_only_with_the_study():
     assert outputs(make_config(tiny=True)) == OUTPUTS  # the tiny and quick runs leave the study out
     full = outputs(make_config())
     assert set(full) - set(OUTPUTS) == set(impacts_report.FILES)
+
+
+def test_the_full_bench_section_and_targets(tmp_path, monkeypatch):
+    """run.py's section 5 on canned events: the plots and events beside the report, the section's markdown in
+    report.md's sections, every target in the benchmark's table."""
+    from taichi_rocks.bench import report, run
+
+    imp = _report_res(_good_study())["impacts"]
+    monkeypatch.setattr(run, "impacts_section", lambda cfg, arch, prog: imp)
+    res = {"errors": []}
+    run._impacts(res, dataclasses.replace(run.make_config(tiny=True), impacts="quick"), "cpu", tmp_path, None)
+    assert not res["errors"], res["errors"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(impacts_report.FILES)
+    assert report._impacts(res, []) == res["_impacts_md"] and "## Impacts" in res["_impacts_md"][0]
+    assert [t["target"] for t in res["_impacts_targets"]] == [t["target"] for t in imp["targets"]]
+    assert all(t["at"] == "impacts study" for t in res["_impacts_targets"])
+    monkeypatch.setattr(run, "impacts_section", lambda cfg, arch, prog: 1 / 0)  # a failed study: an error line
+    res = {"errors": []}
+    run._impacts(res, dataclasses.replace(run.make_config(tiny=True), impacts="quick"), "cpu", tmp_path, None)
+    assert res["errors"] and "impacts study: ZeroDivisionError" in res["errors"][0] and "_impacts_md" not in res
