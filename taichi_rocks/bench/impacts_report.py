@@ -5,18 +5,17 @@ array per run, ``EVENT_DTYPE``). Every file is written atomically (output/atomic
 
 from __future__ import annotations
 
-import io
 import json
-import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ..config.impacts import DAMAGE_CLASSES
-from ..output.atomic import write_atomically
-from .impacts_analysis import CONFIG_KEYS, WINDSCREEN, normal_energy, own_events
+from ..output.atomic import new_folders, write_atomically
+from .impacts_analysis import WINDSCREEN, normal_energy, own_events, summary
 from .plots import TAB10, _plt, _save
-from .report import jsonable
+from .report import check_out_dir, jsonable
 
 PNG = {"hits": "impacts_hits_by_gap.png", "windscreen": "impacts_windscreen_by_gap.png",
        "heights": "impacts_heights.png", "damage": "impacts_damage.png"}
@@ -257,3 +256,26 @@ def write_outputs(res: dict, out: Path) -> dict:
     blob = json.dumps(jsonable(res), indent=1)
     write_atomically(out / "impacts.json", lambda f: f.write(blob.encode()))
     return {"plots": plots, "report": str(out / "impacts.md")}
+
+
+def reanalyse(src, out, overwrite: bool = False) -> dict:
+    """The report of an earlier run again, from its impacts.json and impacts_events.npz in ``src`` (the runs are
+    not run again: the analysis, targets and plots of this code), written to ``out`` like ``bench --only
+    impacts`` writes them (refused if ``out`` holds them, unless ``overwrite``)."""
+    src, out = Path(src), Path(out)
+    res = json.loads((src / "impacts.json").read_text())
+    imp = res["impacts"]
+    with np.load(src / EVENTS) as z:
+        runs = [dict(r, events=z[r["id"]]) if r["id"] in z.files else dict(r) for r in imp["runs"]]
+    check_out_dir(out, OUTPUTS, overwrite)
+    fresh = summary(runs, imp.get("launch"))
+    errors = [e for e in imp.get("errors", []) if not e.startswith("impacts plot")]
+    imp.update(fresh, _runs=runs)
+    imp["errors"] = list(dict.fromkeys(errors + fresh["errors"]))
+    res["errors"] = imp["errors"]
+    with new_folders(out):
+        return write_outputs(res, out)
+
+
+if __name__ == "__main__":  # python -m taichi_rocks.bench.impacts_report SRC OUT [--overwrite]
+    print(reanalyse(sys.argv[1], sys.argv[2], "--overwrite" in sys.argv[3:])["report"])

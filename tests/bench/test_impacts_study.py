@@ -290,3 +290,17 @@ def test_the_full_bench_section_and_targets(tmp_path, monkeypatch):
     res = {"errors": []}
     run._impacts(res, dataclasses.replace(run.make_config(tiny=True), impacts="quick"), "cpu", tmp_path, None)
     assert res["errors"] and "impacts study: ZeroDivisionError" in res["errors"][0] and "_impacts_md" not in res
+
+
+def test_an_earlier_run_is_reanalysed_from_its_files(tmp_path):
+    res = _report_res(_good_study())
+    (tmp_path / "a").mkdir()
+    impacts_report.write_outputs(res, tmp_path / "a")
+    info = impacts_report.reanalyse(tmp_path / "a", tmp_path / "b")
+    again = json.loads((tmp_path / "b" / "impacts.json").read_text())["impacts"]
+    first = json.loads((tmp_path / "a" / "impacts.json").read_text())["impacts"]
+    assert again["targets"] == first["targets"] and again["rows"] == first["rows"]
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == sorted(impacts_report.OUTPUTS)
+    assert info["report"] == str(tmp_path / "b" / "impacts.md")
+    with pytest.raises(FileExistsError):
+        impacts_report.reanalyse(tmp_path / "a", tmp_path / "b")
