@@ -64,7 +64,8 @@ def plot_by_gap(res: dict, out: Path, what: str) -> str:
                 ax.set_xlabel("gap (leader's rear to follower's front), m")
             if j == 0:
                 ax.set_ylabel(f"{'hits' if what == 'hits' else 'windscreen hits'} per km")
-    axes[0][-1].legend(fontsize=7, title="solid: car, dashed: truck; v: zero (95 % bound)", title_fontsize=7)
+    axes[0][-1].legend(fontsize=7, title="solid: car, dashed: truck\nv: none (95 % bound)", title_fontsize=7,
+                       loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle(f"{'Hits' if what == 'hits' else 'Windscreen hits'} on the follower per km driven", fontsize=10)
     return _save(plt, fig, out, PNG[what])
 
