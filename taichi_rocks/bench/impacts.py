@@ -43,14 +43,13 @@ from ..engine.simulation import Simulation
 from ..output.atomic import new_folders
 from ..runner.tasks import Outcome, error_line, run_tasks
 from . import launch as launch_study
-from .impacts_analysis import WINDSCREEN, poisson_upper, summary
+from .impacts_analysis import BIG_RADIUS, GRAVEL, WINDSCREEN, poisson_upper, summary
 from .impacts_report import OUTPUTS, write_outputs
 from .machine import Progress, loadavg, machine
 from .report import check_out_dir
 
 GAPS = (5.0, 10.0, 20.0, 30.0, 40.0)
 LANE_SPACING = 10.0  # m between lanes
-GRAVEL = {"coarse": (0.0075, 0.025), "chippings": (0.002, 0.008)}  # m, rock radius range
 CELL = 0.05  # m: the hash cell of both classes (2 r_max of the coarse gravel): one World layout
 TABLE = 8191  # hash slots, a prime: above "auto" for every leader and gravel (~3,800-4,000), so one layout
 FOLLOWER = {"kind": "car"}  # the scene format's default car (4.5 x 1.8 x 1.4 m)
@@ -60,6 +59,7 @@ LEADERS = {"car": {"kind": "car"},
 PACER = {"kind": "car", "tire_radius": 0.5, "splash": False, "hit": False}  # wheels as the truck's: one layout
 INSIDE = 2.0  # m: the leaders' tires and the followers' windscreens lie this far inside the bed
 SEED = 1  # every run the same seed: comparisons (flaps on / off, dry / wet) see the same bed
+BONNET_Z = 0.95  # m: about the default car's bonnet line (its bonnet's hits are at 0.96 m)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -229,8 +229,22 @@ def launch_case(task: dict, arch: str) -> dict:
     stats = launch_study.launch_stats(launch_study._merge(runs))
     bands = [{"target": what, "value": stats[key], "met": launch_study.band_met(stats, key),
               "shown": f"{stats[key]:.4g}"} for what, key, _, _ in launch_study.BAND_TARGETS]
-    return {"id": task["id"], "kind": "launch", "bands": bands, "stats": stats,
-            "source": f"V 20 dry gravel, {rocks} rocks x {seeds} seed(s), measured in this run"}
+    return {"id": task["id"], "kind": "launch", "bands": bands, "stats": stats, "large": large_releases(
+        rocks, arch, follow_s), "source": f"V 20 dry gravel, {rocks} rocks x {seeds} seed(s), measured in this run"}
+
+
+def large_releases(rocks: int, arch: str, follow_s: float, speed: float = 20.0) -> dict:
+    """Which releases lift stones over 20 mm above a car's bonnet line: the launch study's car through the
+    study's coarse gravel; per such stone its release angle and radius (the events do not carry the launch)."""
+    d = launch_study.follow_throws(launch_study.throw_scene(speed, 0.0, GRAVEL["coarse"], 2 * rocks, 1), speed,
+                                   arch, follow_s)
+    big = d["radius"] > BIG_RADIUS
+    high = big & (d["apex"] > BONNET_Z)
+    order = np.argsort(d["alpha"][high])
+    return {"speed": speed, "launched": int(big.sum()), "high": int(high.sum()), "z": BONNET_Z,
+            "alpha_deg": [round(float(np.degrees(a)), 1) for a in d["alpha"][high][order]],
+            "radius_mm": [round(1e3 * float(r), 1) for r in d["radius"][high][order]],
+            "apex_m": [round(float(z), 2) for z in d["apex"][high][order]]}
 
 
 # --------------------------------------------------------------------------------------------- the runs

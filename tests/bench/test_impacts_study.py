@@ -304,3 +304,16 @@ def test_an_earlier_run_is_reanalysed_from_its_files(tmp_path):
     assert info["report"] == str(tmp_path / "b" / "impacts.md")
     with pytest.raises(FileExistsError):
         impacts_report.reanalyse(tmp_path / "a", tmp_path / "b")
+
+
+def test_large_stones_need_coarse_gravel_and_name_the_releases():
+    runs = [r for r in _good_study() if r["gravel"] == "chippings"]
+    t = _find(_verdicts(runs)[0], "large stones")
+    assert t["met"] is None and "not measured" in t["shown"]  # chippings only: nothing to judge
+    big = _events(1, follower=6, thrower=5, part=WS, z=1.2, radius=0.012)
+    runs.append(_run("v20 coarse", {5.0: 10}, speed=20.0, gravel="coarse", extra=big))
+    launch = {"bands": [], "source": "s", "large": {"speed": 20.0, "launched": 200, "high": 3, "z": 0.95,
+                                                    "alpha_deg": [15.0, 18.0, 22.0], "radius_mm": [10.5, 12.0, 16.0],
+                                                    "apex_m": [1.0, 1.2, 2.0]}}
+    t = _find(_verdicts(runs, launch)[0], "large stones")
+    assert t["met"] is False and "15-22 deg" in t["reason"] and "3 of 200" in t["reason"]
