@@ -14,7 +14,8 @@ lane's follower is hit by its own leader's stones only; events carry their throw
 counted and reported. A run's variables: leader, speed, wetness, gravel class (coarse: r 7.5-25 mm; road
 chippings: r 2-8 mm), mud flaps on the leader; everything else is the scene format's default. The throw's
 settings are those of the launch study (bench/launch.py: accuracy "balanced", detection "patch"), whose bands
-are measured on one case of it here too.
+are measured on its reference case here too (the launch case, one more task), with the same car through the
+coarse gravel: which releases lift stones over 20 mm above a car's bonnet line (the events carry no launch).
 
 Distance (adaptive): the vehicles first drive ``warm_m`` (the stones of the start reach the farthest follower;
 its events are dropped), then ``min_m``, then on in chunks of ``chunk_m`` until every lane has ``enough``
