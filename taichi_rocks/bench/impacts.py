@@ -86,7 +86,7 @@ class StudyConfig:
 
 
 def make_study_config(mode: str = "full") -> StudyConfig:
-    """"full": the issue's grid (+ 22.5 m/s for the long tail), 96 runs (~30-40 min on 2 busy cores); "quick":
+    """"full": the issue's grid (+ 22.5 m/s for the long tail), 96 runs (over 70 min on 2 busy cores); "quick":
     10, 20 and 25 m/s, dry, chippings, 12 runs (~4 min); "tiny": one short run (tests)."""
     if mode == "full":
         return StudyConfig("full")
