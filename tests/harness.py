@@ -40,7 +40,7 @@ def np_segment_sphere(a, b, c, r):
 def tire_switches(center=True, swept=False, patch=False, ground="bounce", throw="uniform", fenders=False):
     """The switches of the tire pass (kernels.READS["hash_and_tires"]) as a Plan would give them."""
     plan = SimpleNamespace(center=center, swept=swept, patch=patch, ground=ground, throw=throw, fenders=fenders,
-                           spin=False)
+                           spin=False, impacts=False)
     return Switches(plan, READS["hash_and_tires"])
 
 

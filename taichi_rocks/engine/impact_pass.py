@@ -196,6 +196,7 @@ class ImpactLog:
         self.chunks: list = []
         self.kept = 0
         self.lost = 0  # dropped on the host: more than KEEP waiting for take()
+        self.every = DRAIN_EVERY  # steps between drains
         buf.reset(0.0)
 
     @property
@@ -203,7 +204,7 @@ class ImpactLog:
         return self.buf.dropped + self.lost
 
     def after_step(self, step: int, time: float) -> None:
-        if step % DRAIN_EVERY == 0:
+        if step % self.every == 0:
             self.drain(time)
 
     def drain(self, time: float) -> None:

@@ -39,7 +39,6 @@ from pathlib import Path
 import numpy as np
 
 from ..config.impacts import DAMAGE_CLASSES
-from ..engine.events import EVENT_FIELDS
 from ..motion.bodies import LABELS
 from .npz import Raw
 
@@ -201,12 +200,12 @@ def _expand(d: dict) -> dict:
 
 
 def impacts_csv(events: np.ndarray, f) -> None:
-    """Write ``events`` (EVENT_DTYPE) to the binary file ``f`` as CSV: a header of the field names (vectors as
-    name_x, name_y, name_z), one row per event, ``part`` and ``damage`` as names, floats in full precision
-    (repr: they read back to the same bits)."""
+    """Write ``events`` (engine/events.py EVENT_DTYPE) to the binary file ``f`` as CSV: a header of the field
+    names in the dtype's order (vectors as name_x, name_y, name_z), one row per event, ``part`` and ``damage``
+    as names, floats in full precision (repr: they read back to the same bits)."""
     header, cols = [], []
-    for name, _, shape, _ in EVENT_FIELDS:
-        if shape:
+    for name in events.dtype.names:
+        if events.dtype[name].shape:
             header += [f"{name}_{a}" for a in "xyz"]
             cols += [(name, j) for j in range(3)]
         else:
