@@ -131,8 +131,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
     b.add_argument("--out", type=Path, default=Path("renders/bench"))
     b.add_argument("--arch", choices=ARCHES, default="cpu")
-    b.add_argument("--only", choices=("launch", "activity"),
-                   help="run one study only: launch (what the tread throws) or activity (cost against activity)")
+    b.add_argument("--only", choices=("launch", "activity", "impacts"),
+                   help="run one study only: launch (what the tread throws), activity (cost against activity) or "
+                        "impacts (stones that hit the vehicle behind)")
     b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     b.add_argument("--backend", choices=BACKENDS, help="where the activity study's processes run: here, "
                                                                 "one at a time (default), or on a Ray cluster")
@@ -312,12 +313,18 @@ def cmd_bench(args) -> int:
     if args.address and backend != "ray":
         raise UsageError("--address is for --backend ray")
     where = dict(backend=backend, address=args.address)
-    if args.only == "launch" and backend != "local":
-        raise UsageError("the launch study runs in this process; --backend is for the activity study's processes")
+    if args.only in ("launch", "impacts") and backend != "local":
+        raise UsageError(f"the {args.only} study runs on this machine; --backend is for the activity study's processes")
     if args.only == "launch":
         from .bench.launch import run_launch_study
         info = run_launch_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
                                 overwrite=args.overwrite)
+        print(f"wrote {info['report']}")
+        return EXIT_OK
+    if args.only == "impacts":
+        from .bench.impacts import run_impacts_study
+        info = run_impacts_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
+                                 overwrite=args.overwrite)
         print(f"wrote {info['report']}")
         return EXIT_OK
     if args.only == "activity":
@@ -367,7 +374,7 @@ _PRELOAD = {
                "imageio.plugins.pillow", "PIL.Image"),  # pillow: a dependency of imageio
     "view": ("taichi_rocks.config.scene", "taichi_rocks.render.display"),  # the rest once a display is found
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
-              "taichi_rocks.bench.launch", "taichi_rocks.bench.activity"),
+              "taichi_rocks.bench.launch", "taichi_rocks.bench.activity", "taichi_rocks.bench.impacts"),
     "sweep": ("taichi_rocks.config.sweep", "taichi_rocks.app.sweep.sweep", "tqdm"),
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")

@@ -4,6 +4,7 @@ settings compared, the integrators and drag laws swept, and the presets' targets
 from __future__ import annotations
 
 import dataclasses
+from typing import Optional
 
 from ..config.keys import choices
 
@@ -76,6 +77,8 @@ class Config:
     act_steps: int = 25
     act_balanced: bool = True
     act_profile_n: tuple = (100_000, 1_000_000)  # N profiled (kernel profiler, host side, launches), series (a)
+    # 5. impacts (impacts.py): the study's mode ("full", "quick"), None: not run
+    impacts: Optional[str] = "full"
 
 
 HASH_SETTINGS = {  # name -> scene overrides (the default scene: centre insert, cell 2 r_max, auto table)
@@ -110,7 +113,7 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                       use_warp=True, substeps_mode=False, effects=("drag none",), effects_all_flying=False,
                       act_n=(10_000, 30_000), act_full_max=30_000, act_full_min=30_000, act_radius=8.0, act_ref_n=30_000, act_t=2,
                       act_fixed_n=30_000, act_tires=(2, 6), act_speeds=(10.0,), act_warm_s=0.2, act_rounds=3,
-                      act_steps=10, act_profile_n=(10_000,))
+                      act_steps=10, act_profile_n=(10_000,), impacts=None)
     if quick:
         return Config(mode="quick", grid_n=(10_000, 100_000), grid_t=(2, 20), bed_radius=30.0,
                       main=(100_000, 20), k_hits=20, warm=3, reps=10, pass_reps=4, numpy_reps=2, kdtree_reps=2,
@@ -121,7 +124,7 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                       hash_settings=(DEFAULT_HASH, DESIGN_HASH, "scope all"),
                       hash_n=100_000, integ_cost=tuple((i, "quadratic") for i in INTEGRATORS),
                       validate_presets=False, passes_all=False, act_n=(100_000, 1_000_000),
-                      act_full_max=1_000_000, act_tires=(2, 20), act_rounds=5, act_steps=20)
+                      act_full_max=1_000_000, act_tires=(2, 20), act_rounds=5, act_steps=20, impacts=None)
     return Config(mode="full", grid_n=(10_000, 100_000, 1_000_000), grid_t=(2, 20, 64), bed_radius=30.0,
                   main=(1_000_000, 20), k_hits=30, warm=5, reps=20, pass_reps=8, numpy_reps=3, kdtree_reps=3,
                   warp_reps=10, probe_n=200_000, probe_radius=16.0,

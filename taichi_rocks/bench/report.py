@@ -408,6 +408,10 @@ def _activity(res: dict, plots: list) -> list:
     return L
 
 
+def _impacts(res: dict, plots: list) -> list:
+    return list(res.get("_impacts_md", []))  # run.py: the study's section (impacts_report.section_lines)
+
+
 def _tail(res: dict, plots: list) -> list:
     L = []
     L.append("## Build (compile) time per simulation\n")
@@ -420,7 +424,7 @@ def _tail(res: dict, plots: list) -> list:
     return L
 
 _SECTIONS = (_header, _targets, _presets, _integrators, _detection, _precision, _hash, _grid, _passes, _effects,
-             _activity, _tail)
+             _activity, _impacts, _tail)
 
 
 def check_out_dir(out, names, overwrite: bool) -> None:

@@ -1,11 +1,13 @@
 """``run_bench``: the whole benchmark in order, and its outputs (:data:`OUTPUTS`: report.md, results.json,
-seven PNG plots; written atomically, an out folder holding them is refused unless ``overwrite``).
+seven PNG plots, and with the impacts study its plots and events, :func:`outputs`; written atomically, an out
+folder holding them is refused unless ``overwrite``).
 
 Order: the lanes scenes (detection, in lockstep), then direct flights on their fields (integrator x dt,
 precision); the speed grid; the hash settings (on the grid's default simulation, before anything changes its
 state); effects and preset costs (the main scene rebuilt from changed scenes); launch overheads; last the flight
 cost with every rock flying (it leaves the main scene's rocks all flying); the cost against activity (its
-points in processes of their own); then presets and targets.
+points in processes of their own); the impacts study (impacts.py, its runs on two processes of their own); then
+presets and targets.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ from .machine import Progress, loadavg, machine, pin_sources
 from .measure import Built
 from .peers import Floor, start_warp
 from .activity import activity_section, count_jobs
+from .impacts import count_runs, impacts_section, make_study_config
+from .impacts_report import FILES as IMPACTS_FILES, section_lines, write_section_files
 from .plots import (PNG, plot_activity, plot_detection, plot_hash, plot_integrators, plot_passes, plot_peers,
                     plot_precision)
 from .precision import precision_runs
@@ -45,7 +49,13 @@ def count_tasks(cfg: Config) -> int:
     n_grid = len(cfg.grid_n) * len(cfg.grid_t)
     acc = (2 if cfg.acc_f64 else 1) * len(DRAGS) * len(INTEGRATORS)  # the accuracy study: drag x integrator
     return (4 + acc + 2 + len(cfg.integ_cost) + n_grid * 5 + len(cfg.hash_settings) - 1 + 6 + 6
-            + (3 if cfg.validate_presets else 0) + 3 + count_jobs(cfg))
+            + (3 if cfg.validate_presets else 0) + 3 + count_jobs(cfg)
+            + (count_runs(make_study_config(cfg.impacts)) if cfg.impacts else 0))
+
+
+def outputs(cfg: Config) -> tuple:
+    """What a run of this configuration writes: OUTPUTS, and the impacts section's plots and events."""
+    return OUTPUTS + (IMPACTS_FILES if cfg.impacts else ())
 
 
 def _accuracy(res: dict, cfg: Config, arch: str, prog) -> dict:
@@ -90,6 +100,22 @@ def _main_scene_studies(res: dict, cfg: Config, arch: str, main: Built, det: dic
                                                  effects=cfg.effects_all_flying)
 
 
+def _impacts(res: dict, cfg: Config, arch: str, out: Path, prog) -> None:
+    """5. The impacts study (impacts.py), its plots and events beside the report, its section and targets."""
+    try:
+        imp = res["impacts"] = impacts_section(make_study_config(cfg.impacts), arch, prog)
+        plots, errors = write_section_files(imp, out)
+        imp["errors"] += errors
+        res["errors"] += imp["errors"]
+        res["_impacts_md"] = section_lines(imp, plots)
+        res["_impacts_targets"] = [{"target": t["target"], "value": t["value"], "limit": None, "met": t["met"],
+                                    "detail": t["shown"] + (f"; {t['reason']}" if t["reason"] else ""),
+                                    "at": "impacts study"} for t in imp["targets"]]
+    except Exception as exc:
+        res["errors"].append(f"impacts study: {type(exc).__name__}: {exc}")
+        traceback.print_exc()
+
+
 def _plots(res: dict, out: Path, prog) -> list:
     plots = []
     for fn in PLOTS:
@@ -118,9 +144,10 @@ def run_bench(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", p
     ``backend``, ``address``: where the cost-against-activity section runs its processes (activity.py run_jobs).
     """
     out = Path(out_dir)
-    check_out_dir(out, OUTPUTS, overwrite)
+    cfg = config or make_config(quick=quick, tiny=tiny)
+    check_out_dir(out, outputs(cfg), overwrite)
     with new_folders(out):
-        return _run_bench(out, config or make_config(quick=quick, tiny=tiny), arch, progress, backend, address)
+        return _run_bench(out, cfg, arch, progress, backend, address)
 
 
 def _run_bench(out: Path, cfg: "Config", arch: str, progress, backend: str = "local", address=None) -> dict:
@@ -146,13 +173,16 @@ def _run_bench(out: Path, cfg: "Config", arch: str, progress, backend: str = "lo
         res["activity"] = activity_section(cfg, used, prog, backend, address)
         res["errors"] += res["activity"]["errors"]
 
+    if cfg.impacts:
+        _impacts(res, cfg, used, out, prog)
+
     res["accuracy"]["presets"] = choose_presets(res)
     if cfg.validate_presets:
         try:
             validate_presets(res["accuracy"]["presets"], cfg, used, prog)
         except Exception as exc:
             res["errors"].append(f"preset validation: {type(exc).__name__}: {exc}")
-    res["targets"] = evaluate_targets(res, cfg)
+    res["targets"] = evaluate_targets(res, cfg) + res.pop("_impacts_targets", [])
 
     res["elapsed_s"] = time.perf_counter() - t_start
     res["load_average_end"] = loadavg()

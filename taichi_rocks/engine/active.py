@@ -50,7 +50,7 @@ import taichi as ti
 
 from . import hashgrid, stepdata, tires
 from .bed import outside_bed
-from .kernels import rock_step
+from .kernels import impacts_loop, rock_step
 from .patch import footprint_box
 from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RESTING, TILES, IPar, Par
 
@@ -520,12 +520,12 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     classify(w, plan, c, m, st, check_all)
     gather(w, c)
     close_tiles(w)
+    if ti.static(plan.impacts):
+        w.fly_count[None] = 0
     for i in range(w.ipar[IPar.N_ROCKS]):
-        # no tire mask: g is unused; with impacts the step's poses are in body_rows (ActiveStepper.step)
-        if ti.static(plan.impacts):
-            rock_step(w, plan, i, h, c, m, d, c, step, False, w.body_rows, 0)
-        else:
-            rock_step(w, plan, i, h, c, m, d, c, step, False, None, 0)
+        rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: g is unused
+    if ti.static(plan.impacts):  # the step's poses are in body_rows (ActiveStepper.step)
+        impacts_loop(w, plan, h, c, m, d, c, step, False, w.body_rows, 0)
 
 
 @ti.kernel

@@ -105,28 +105,9 @@ def recycle(w: ti.template(), plan: ti.template(), i, c, m, d, step):
 
 
 @ti.func
-def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template(),
-              rows: ti.template(), base: ti.template()):
-    """Pass 1 for rock i: flight, stones against the bodies they hit (``plan.impacts``: engine/impact_pass.py,
-    the poses in ``rows`` from row ``base`` on), recycling to the leading edge, counting for the hash;
-    ``hash_flying``: count flying rocks too (they are never launched, tires.try_launch; active stepping leaves
-    them out)."""
-    ph0 = RESTING
-    x0 = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
-    v0 = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
-    if ti.static(plan.impacts):
-        ph0 = w.phase[i]
-        if ph0 == FLYING:  # only a stone flying at the step's start can meet a body (impact_pass docstring)
-            x0 = w.pos[i]
-            v0 = w.vel[i]
-    if ti.static(plan.flight):
-        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
-    if ti.static(plan.impacts):
-        # flying at the start (the same rocks at the end: nothing launches in this pass). Testing the phase after
-        # flight too keeps Taichi 1.7.4 from merging this if with flight's own on the same phase, which breaks
-        # its IR ("block->parent != current_container_stmt")
-        if ph0 == FLYING or w.phase[i] == FLYING:
-            hit_bodies(w, plan, i, x0, v0, h, rows, base, step)
+def rock_tail(w: ti.template(), plan: ti.template(), i, ph0, c, m, d, g, step, hash_flying: ti.template()):
+    """Pass 1 for rock i after its flight and impacts (``ph0``: its phase at the step's start): recycling to the
+    leading edge, counting for the hash."""
     if ti.static(plan.recycle):
         recycle(w, plan, i, c, m, d, step)
     if ti.static(plan.impacts):
@@ -138,6 +119,52 @@ def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, has
         else:
             if w.phase[i] != FLYING:
                 hashgrid.count_rock(w, i, plan.center, g)
+
+
+@ti.func
+def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template()):
+    """Pass 1 for rock i: flight, recycling to the leading edge, counting for the hash; ``hash_flying``: count
+    flying rocks too (they are never launched, tires.try_launch; active stepping leaves them out). With
+    ``plan.impacts`` a rock that flew is listed instead (its index and its state before the flight step,
+    ``w.fly_*``) and its recycling and counting wait for the impacts loop (:func:`impacts_loop`), so that they
+    see where a body sent it."""
+    ph0 = RESTING
+    x0 = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    v0 = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    if ti.static(plan.impacts):
+        ph0 = w.phase[i]
+        if ph0 == FLYING:  # only a stone flying at the step's start can meet a body (impact_pass docstring)
+            x0 = w.pos[i]
+            v0 = w.vel[i]
+    if ti.static(plan.flight):
+        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
+    listed = 0
+    if ti.static(plan.impacts):
+        # flying at the start (the same rocks at the end: nothing launches in this pass). Testing the phase after
+        # flight too keeps Taichi 1.7.4 from merging this if with flight's own on the same phase, which breaks
+        # its IR ("block->parent != current_container_stmt")
+        if ph0 == FLYING or w.phase[i] == FLYING:
+            k = ti.atomic_add(w.fly_count[None], 1)  # room for every rock: the list cannot overflow
+            w.fly_index[k] = i
+            w.fly_x0[k] = x0
+            w.fly_v0[k] = v0
+            listed = 1
+    if listed == 0:
+        rock_tail(w, plan, i, ph0, c, m, d, g, step, hash_flying)
+
+
+@ti.func
+def impacts_loop(w: ti.template(), plan: ti.template(), h, c, m, d, g, step, hash_flying: ti.template(),
+                 rows: ti.template(), base: ti.template()):
+    """The listed rocks of the rock loop (:func:`rock_step`), a top-level loop of its own after it (a task of the
+    same kernel, no launch): stones against the bodies they hit (engine/impact_pass.py, the poses in ``rows``
+    from row ``base`` on), then their recycling and counting. Kept out of the rock loop's body, the swept test
+    compiles once, the rock loop stays as lean as without impacts, and only the few rocks in flight pay for
+    it. Each listed rock flew at the step's start or is flying (``rock_tail``'s ``ph0`` is not RESTING)."""
+    for k in range(w.fly_count[None]):
+        i = w.fly_index[k]
+        hit_bodies(w, plan, i, w.fly_x0[k], w.fly_v0[k], h, rows, base, step)
+        rock_tail(w, plan, i, FLYING, c, m, d, g, step, hash_flying)
 
 
 @ti.kernel
@@ -154,8 +181,12 @@ def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtyp
     g = ti.cast(frame[GRID], w.real)
     if ti.static(plan.splash and w.masked):
         hashgrid.mark_tire_tiles(w, g)
+    if ti.static(plan.impacts):
+        w.fly_count[None] = 0
     for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, g, step, True, frame, BODIES)
+        rock_step(w, plan, i, h, c, m, d, g, step, True)
+    if ti.static(plan.impacts):
+        impacts_loop(w, plan, h, c, m, d, g, step, True, frame, BODIES)
 
 
 @ti.kernel

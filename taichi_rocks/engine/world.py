@@ -115,7 +115,7 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
     if store is not None:
         out += _store_specs(store, cap, n_tires, rocks)
     if bodies is not None:
-        out += _impact_specs(bodies, n_tires, events)
+        out += _impact_specs(bodies, n_tires, events, cap)
     out.append(FieldSpec("health_out", "i32", 1, (6,)))  # the runtime guard's counts (Simulation.check_health)
     return out
 
@@ -142,9 +142,10 @@ def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
     return out
 
 
-def _impact_specs(bodies, n_tires: int, events: int) -> list[FieldSpec]:
+def _impact_specs(bodies, n_tires: int, events: int, cap: int) -> list[FieldSpec]:
     """The impacts pass's fields (engine/impact_pass.py): ``bodies`` = (T vehicles hit, P parts in all); the
-    tires' vehicles (the thrower of what they launch); the event buffer (engine/events.py) of ``events``."""
+    tires' vehicles (the thrower of what they launch); the event buffer (engine/events.py) of ``events``; the
+    list of the rocks that flew in a step (engine/kernels.py impacts_loop), room for all ``cap``."""
     t, p = (max(int(x), 1) for x in bodies)
     return [FieldSpec("tire_vehicle", "i32", 1, (max(n_tires, 1),)),  # the vehicle of each splashing tire
             FieldSpec("target_vehicle", "i32", 1, (t,)),  # target k is this vehicle (scene index)
@@ -158,7 +159,11 @@ def _impact_specs(bodies, n_tires: int, events: int) -> list[FieldSpec]:
             FieldSpec("body_rows", "f64", 2, (1 + POSE_ROWS * t,)),  # a step's time and poses (active stepping)
             FieldSpec("ev_ints", "i32", 1, (max(int(events), 1), N_INT)),
             FieldSpec("ev_reals", "real", 1, (max(int(events), 1), N_REAL)),
-            FieldSpec("ev_count", "i32", 1, ())]
+            FieldSpec("ev_count", "i32", 1, ()),
+            FieldSpec("fly_index", "i32", 1, (cap,)),  # a rock that flew this step
+            FieldSpec("fly_x0", "real", 3, (cap,)),  # its position and velocity at the step's start
+            FieldSpec("fly_v0", "real", 3, (cap,)),
+            FieldSpec("fly_count", "i32", 1, ())]
 
 
 A_COUNTS = 8  # active stepping's counters (engine/active.py)
