@@ -1,10 +1,12 @@
-"""Running the command line in a subprocess, as a user would."""
+"""Running the command line in a subprocess, as a user would, or in this process (``cli_here``: for tests about
+what a command does rather than about the process around it)."""
 
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,6 +19,21 @@ def cli(*args, cwd=None, timeout=300):
     """Run ``taichi-rocks ARGS`` to completion; a CompletedProcess with text stdout/stderr."""
     return subprocess.run([sys.executable, "-m", "taichi_rocks", *map(str, args)], cwd=cwd, env=_env(),
                           capture_output=True, text=True, timeout=timeout)
+
+
+def cli_here(capsys, *args):
+    """Run ``taichi-rocks ARGS`` in this process (``taichi_rocks.cli.main``; Taichi already started on the CPU by
+    the ``taichi_cpu`` fixture, pooled Worlds reused): like :func:`cli`, an object with ``returncode``, ``stdout``
+    and ``stderr`` (text), from ``capsys``. argparse's own refusals (it exits) give their status too."""
+    from taichi_rocks.cli import main
+
+    capsys.readouterr()  # what earlier code printed is not this command's
+    try:
+        status = main([str(a) for a in args])
+    except SystemExit as e:
+        status = e.code
+    out, err = capsys.readouterr()
+    return SimpleNamespace(returncode=status, stdout=out, stderr=err, args=args)
 
 
 def start_cli(*args, env=None):
