@@ -1,10 +1,14 @@
-"""Running the command line in a subprocess, as a user would."""
+"""Running the command line in a subprocess, as a user would, or in this process (``cli_here``: for tests about
+what a command does rather than about the process around it)."""
 
+import contextlib
+import io
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -17,6 +21,39 @@ def cli(*args, cwd=None, timeout=300):
     """Run ``taichi-rocks ARGS`` to completion; a CompletedProcess with text stdout/stderr."""
     return subprocess.run([sys.executable, "-m", "taichi_rocks", *map(str, args)], cwd=cwd, env=_env(),
                           capture_output=True, text=True, timeout=timeout)
+
+
+def cli_here(capsys, *args):
+    """Run ``taichi-rocks ARGS`` in this process (``taichi_rocks.cli.main``; Taichi already started on the CPU by
+    the ``taichi_cpu`` fixture, pooled Worlds reused): like :func:`cli`, an object with ``returncode``, ``stdout``
+    and ``stderr`` (text), read from ``capsys``, or with ``capsys=None`` (module fixtures) from the redirected
+    ``sys.stdout`` and ``sys.stderr``. argparse's own refusals (it exits) give their status too."""
+    from taichi_rocks.cli import main
+
+    def call():
+        try:
+            return main([str(a) for a in args])
+        except SystemExit as e:
+            return e.code
+
+    if capsys is None:
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            status = call()
+        out, err = out.getvalue(), err.getvalue()
+    else:
+        capsys.readouterr()  # what earlier code printed is not this command's
+        status = call()
+        out, err = capsys.readouterr()
+    return SimpleNamespace(returncode=status, stdout=out, stderr=err, args=args)
+
+
+def run_here(*commands):
+    """Run several ``taichi-rocks`` commands (argument tuples) in this process, one after the other (their
+    Worlds pooled); fail naming the command if one fails."""
+    for c in commands:
+        r = cli_here(None, *c)
+        assert r.returncode == 0, f"{' '.join(map(str, c))}: status {r.returncode}\n{r.stderr}"
 
 
 def start_cli(*args, env=None):

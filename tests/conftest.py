@@ -1,5 +1,6 @@
 """Taichi is initialised once per test session (CPU backend)."""
 
+import gc
 import os
 import sys
 from pathlib import Path
@@ -21,3 +22,11 @@ def taichi_cpu():
 @pytest.fixture(scope="session")
 def scenes_dir():
     return ROOT / "scenes"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _release_worlds():
+    """After each test module, collect what its tests and fixtures left in reference cycles: their Simulations'
+    Worlds go back to the pool (engine/world.py ``acquire``) for the next modules instead of a new compile."""
+    yield
+    gc.collect()

@@ -10,7 +10,7 @@ from taichi_rocks.engine import hashgrid, tires
 from taichi_rocks.engine.kernels import READS, Switches
 from taichi_rocks.engine.params import dilation_cells, pack
 from taichi_rocks.engine.setup import entry_capacity
-from taichi_rocks.engine.world import HALF_W, RAY_FIELDS, World, next_prime
+from taichi_rocks.engine.world import HALF_W, RAY_FIELDS, acquire, next_prime
 
 P = np.array([73856093, 19349663, 83492791], dtype=np.uint64)
 
@@ -59,8 +59,9 @@ class Probe:
         rays = np.asarray(rays, np.float64).reshape(-1, 2, 3)
         self.swept = swept
         ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
-        self.w = w = World(n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
-                           ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
+        # from the World pool: a released probe's World of the same layout, zeroed, runs its compiled kernels
+        self.w = w = acquire(self, n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
+                             ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
         self.switches = tire_switches(self.center, swept, patch, "bounce", throw, fenders)
         par, ipar = pack({"N_ROCKS": n, "CELL": cell, "R_MAX": r_max, "REST_SPEED": rest_speed, "GRAVITY": 9.81,
                           "ANGLE_MIN": np.radians(30.0), "ANGLE_MAX": np.radians(30.0), "TIE_EPS": 1e-5,

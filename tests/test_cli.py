@@ -14,13 +14,13 @@ import zipfile
 import numpy as np
 import pytest
 
-from cli_util import ROOT, cli, refused, start_cli, start_held_writer, wait_for
+from cli_util import ROOT, cli, cli_here, refused, start_cli, start_held_writer, wait_for
 
 BAD = sorted((ROOT / "tests" / "bad_scenes").glob("*.toml"))
 
 
-def test_check_good_scenes():
-    r = cli("check", *sorted((ROOT / "scenes").glob("*.toml")))
+def test_check_good_scenes(capsys):
+    r = cli_here(capsys, "check", *sorted((ROOT / "scenes").glob("*.toml")))
     assert r.returncode == 0, r.stderr
     assert "passes per step" in r.stdout and "convoy" in r.stdout
 
@@ -44,10 +44,10 @@ def test_simulate_bad_scene_creates_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_scene_too_big_for_the_machine_is_refused_by_simulate_in_one_line(tmp_path):
+def test_a_scene_too_big_for_the_machine_is_refused_by_simulate_in_one_line(taichi_cpu, capsys, tmp_path):
     """The engine's memory check (engine/layout.py) refuses it before allocating: exit 2, nothing written."""
     huge = ROOT / "tests" / "bad_scenes" / "too_many_rocks.toml"
-    r = cli("simulate", huge, "--out", tmp_path / "x.npz")
+    r = cli_here(capsys, "simulate", huge, "--out", tmp_path / "x.npz")
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     [line] = r.stderr.strip().splitlines()
     assert line.startswith(f"{huge}: bed.rocks: needs about ") and "more than this machine has" in line
@@ -55,11 +55,11 @@ def test_a_scene_too_big_for_the_machine_is_refused_by_simulate_in_one_line(tmp_
 
 
 @pytest.mark.parametrize("command", ["check", "simulate", "render"])
-def test_deeply_nested_scene_is_bad_input_for_every_command(tmp_path, command):
+def test_deeply_nested_scene_is_bad_input_for_every_command(taichi_cpu, capsys, tmp_path, command):
     """5,000 levels of arrays once ended in a RecursionError (exit 1); it is bad input: one line with the place."""
     deep = ROOT / "tests" / "bad_scenes" / "deep_nesting.toml"
     out = tmp_path / "out"
-    r = cli(command, deep, *([] if command == "check" else ["--out", out / "x.npz" if command == "simulate" else out]))
+    r = cli_here(capsys, command, deep, *([] if command == "check" else ["--out", out / "x.npz" if command == "simulate" else out]))
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.strip().splitlines() == [f"{deep}: line 2, column 37: arrays and inline tables nested deeper "
                                              "than 32 levels in the value of a"]
@@ -67,15 +67,15 @@ def test_deeply_nested_scene_is_bad_input_for_every_command(tmp_path, command):
 
 
 @pytest.mark.parametrize("args", [["--frames", "0"], ["--frames", "-3"], ["--fps", "nan"], ["--arch", "tpu"]])
-def test_usage_errors(tmp_path, args):
-    r = cli("simulate", ROOT / "scenes" / "minimal.toml", "--out", tmp_path / "x.npz", *args)
+def test_usage_errors(taichi_cpu, capsys, tmp_path, args):
+    r = cli_here(capsys, "simulate", ROOT / "scenes" / "minimal.toml", "--out", tmp_path / "x.npz", *args)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert list(tmp_path.iterdir()) == []
 
 
-def test_missing_file_and_directory(tmp_path):
+def test_missing_file_and_directory(capsys, tmp_path):
     for target in (tmp_path / "nope.toml", tmp_path):
-        r = cli("check", target)
+        r = cli_here(capsys, "check", target)
         assert r.returncode == 2 and "Traceback" not in r.stderr
         assert r.stderr.startswith(str(target)) and "cannot read scene" in r.stderr
 
@@ -87,12 +87,13 @@ def test_schema_is_json_with_the_enums():
     assert "rk4" in json.dumps(schema) and "quadratic" in json.dumps(schema)
 
 
-def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(tmp_path):
+def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(taichi_cpu, capsys, tmp_path):
+    """``a`` from a process of its own, ``b`` and the rest in this one: the same bytes across processes."""
     scene = ROOT / "scenes" / "minimal.toml"
     a, b = tmp_path / "a.npz", tmp_path / "b.npz"
     r = cli("simulate", scene, "--out", a, "--frames", "12")
     assert r.returncode == 0, r.stderr
-    assert cli("simulate", scene, "--out", b, "--frames", "12").returncode == 0
+    assert cli_here(capsys, "simulate", scene, "--out", b, "--frames", "12").returncode == 0
     from taichi_rocks import load_run
 
     da, db = np.load(a), np.load(b)
@@ -111,10 +112,10 @@ def test_simulate_writes_reproducible_npz_and_refuses_to_overwrite(tmp_path):
         assert m.date_time == (1980, 1, 1, 0, 0, 0) and m.compress_type == zipfile.ZIP_STORED, m
         assert m.external_attr >> 16 == 0o100644, m
     before = a.read_bytes()
-    r = cli("simulate", scene, "--out", a, "--frames", "3")
+    r = cli_here(capsys, "simulate", scene, "--out", a, "--frames", "3")
     assert r.returncode == 2 and "--overwrite" in r.stderr and "Traceback" not in r.stderr
     assert a.read_bytes() == before
-    assert cli("simulate", scene, "--out", a, "--frames", "3", "--overwrite").returncode == 0
+    assert cli_here(capsys, "simulate", scene, "--out", a, "--frames", "3", "--overwrite").returncode == 0
     assert load_run(a)["positions"].shape[0] == 3
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "b.npz"]  # no temporaries left
 
@@ -220,7 +221,7 @@ def test_ctrl_c_before_the_first_frame_removes_the_render_folder(tmp_path, until
     assert list(tmp_path.iterdir()) == [], sorted(str(q) for q in tmp_path.rglob("*"))
 
 
-def test_ctrl_c_after_frames_keeps_the_render_folder_and_resumes(tmp_path):
+def test_ctrl_c_after_frames_keeps_the_render_folder_and_resumes(taichi_cpu, capsys, tmp_path):
     """Ctrl-C after frames are finished: the folder the render made stays, with its frames and its saved
     states; `--resume` continues from them."""
     from taichi_rocks.output.video import finished_frames
@@ -232,8 +233,8 @@ def test_ctrl_c_after_frames_keeps_the_render_folder_and_resumes(tmp_path):
     n = finished_frames(out / "frames")
     assert sorted(os.listdir(out)) == [".resume", "frames"]
     assert (out / ".resume" / "render.json").is_file() and list((out / ".resume").glob("frame_*.npz"))
-    r = cli("render", ROOT / "scenes" / "minimal.toml", "--out", out, "--resolution", "160x96", "--frames", n + 2,
-            "--checkpoint-every", 2, "--resume")
+    r = cli_here(capsys, "render", ROOT / "scenes" / "minimal.toml", "--out", out, "--resolution", "160x96",
+                 "--frames", n + 2, "--checkpoint-every", 2, "--resume")  # the resume, in this process
     assert r.returncode == 0, r.stderr
     assert f"resumed at frame {n} (restored the state saved after frame " in r.stdout, r.stdout
     assert sorted(os.listdir(out)) == ["frames", "minimal.mp4"] and finished_frames(out / "frames") == n + 2

@@ -200,14 +200,16 @@ def test_ground_stop_and_rest():
 
 # ------------------------------------------------------------------------------------------ effects
 def run_states(sc, steps=150):
+    """(the simulation, its state after ``steps``); ``run_states(...)[1]`` lets the simulation go at once, so that
+    the next one of the same layout takes its World from the pool."""
     sim = Simulation(sc)
     sim.step(steps)
     return sim, sim.state()
 
 
 def test_disabled_drag_equals_zero_drag():
-    _, a = run_states(scene(rocks=6000, effects={"drag": "none"}))
-    _, b = run_states(scene(rocks=6000, effects={"drag": "quadratic"}, world={"air_density": 0.0}))
+    a = run_states(scene(rocks=6000, effects={"drag": "none"}))[1]
+    b = run_states(scene(rocks=6000, effects={"drag": "quadratic"}, world={"air_density": 0.0}))[1]
     assert (a["phase"] == FLYING).sum() > 5
     np.testing.assert_array_equal(a["positions"], b["positions"])
     np.testing.assert_array_equal(a["velocities"], b["velocities"])
@@ -222,14 +224,14 @@ def test_splash_off_allocates_and_runs_nothing_of_it():
 
 def test_reproducible_and_independent_of_memory_order_and_hash_settings():
     sc = scene(rocks=6000)
-    _, a = run_states(sc)
-    _, b = run_states(sc)
+    a = run_states(sc)[1]
+    b = run_states(sc)[1]
     from taichi_rocks.config.scene import scene_with
 
-    _, c = run_states(scene_with(sc, {"sim.hash.reorder_every": 0}))
-    _, d = run_states(scene_with(sc, {"sim.hash.insert": "aabb"}))
-    _, e = run_states(scene_with(sc, {"sim.hash.scope": "all"}))
-    _, f = run_states(scene_with(sc, {"sim.hash.scope": "all", "sim.hash.insert": "aabb", "sim.hash.table_size": 97}))
+    c = run_states(scene_with(sc, {"sim.hash.reorder_every": 0}))[1]
+    d = run_states(scene_with(sc, {"sim.hash.insert": "aabb"}))[1]
+    e = run_states(scene_with(sc, {"sim.hash.scope": "all"}))[1]
+    f = run_states(scene_with(sc, {"sim.hash.scope": "all", "sim.hash.insert": "aabb", "sim.hash.table_size": 97}))[1]
     assert a["launches_total"] > 5
     for other in (b, c, d, e, f):
         np.testing.assert_array_equal(a["positions"], other["positions"])
@@ -239,8 +241,8 @@ def test_reproducible_and_independent_of_memory_order_and_hash_settings():
 def test_far_from_origin_same_relative_motion():
     base = {"name": "car", "path": {"points": [[0.0, 0.0], [400.0, 0.0]], "speed": 10.0}}
     far = {"name": "car", "path": {"points": [[100_000.0, 0.0], [100_400.0, 0.0]], "speed": 10.0}}
-    _, a = run_states(scene(rocks=6000, vehicles=[base]))
-    _, b = run_states(scene(rocks=6000, vehicles=[far]))
+    a = run_states(scene(rocks=6000, vehicles=[base]))[1]
+    b = run_states(scene(rocks=6000, vehicles=[far]))[1]
     rel_a = a["positions"] - a["vehicle_positions"][0]
     rel_b = b["positions"] - b["vehicle_positions"][0]
     assert a["launches_total"] > 5

@@ -1,6 +1,7 @@
 """Export for other tools (USD, PLY) and the light run files: read back as those tools would, compared with
 what `simulate` writes for the same scene."""
 
+import gc
 import math
 import os
 import signal
@@ -10,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from cli_util import ROOT, _env, cli, refused, run_all, start_cli, wait_for
+from cli_util import ROOT, _env, cli_here, refused, run_here, start_cli, wait_for
 from taichi_rocks import load_run
 
 MINIMAL = ROOT / "scenes" / "minimal.toml"
@@ -44,13 +45,13 @@ def _ok(r):
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, taichi_cpu):
     """USD exports (every rock, only the flying ones), a PLY export and the full .npz of the same frames,
-    for the minimal scene and for it 100 km away."""
+    for the minimal scene and for it 100 km away (the commands run in this process: one pooled World)."""
     d = tmp_path_factory.mktemp("export")
     far, fast = _far_scene(d), _fast_scene(d)
     common = ("--frames", FRAMES, "--fps", FPS)
-    run_all(("export", MINIMAL, "--out", d / "all.usdc", *common),
+    run_here(("export", MINIMAL, "--out", d / "all.usdc", *common),
              ("simulate", MINIMAL, "--out", d / "run.npz", "--layout", "full", *common),
              ("export", MINIMAL, "--out", d / "flying.usdc", "--only", "flying", *common),
              ("export", MINIMAL, "--format", "ply", "--out", d / "ply", "--crop", "5", *common),
@@ -245,7 +246,11 @@ def test_ply_frames_read_back_with_numpy(runs):
         np.testing.assert_array_equal(np.sort(rock), np.flatnonzero(_within(run, f, 5.0)))
 
 
-def test_export_refuses_to_overwrite_and_bad_input(tmp_path):
+def test_export_refuses_to_overwrite_and_bad_input(taichi_cpu, capsys, tmp_path):
+    """In this process (export's exit statuses from a process of its own: the two tests below)."""
+    def cli(*args):
+        return cli_here(capsys, *args)
+
     out = tmp_path / "x.usdc"
     out.write_bytes(b"mine")
     refused(cli("export", MINIMAL, "--out", out, "--frames", 2), "--overwrite")
@@ -419,7 +424,7 @@ def test_usd_orientations_and_angular_velocities_are_the_engines(runs, taichi_cp
     assert spinning > 20 and turned > 5  # stones were thrown, spun and turned
 
 
-def test_every_registered_format_is_a_writer_named_as_its_key():
+def test_every_registered_format_is_a_writer_named_as_its_key(capsys):
     """The registry (output/formats.py FORMATS) is what `export --format` lists; each entry names its writer."""
     from taichi_rocks.output.formats import FORMATS, ExportWriter, writer_class
 
@@ -429,8 +434,8 @@ def test_every_registered_format_is_a_writer_named_as_its_key():
         assert issubclass(cls, ExportWriter) and cls.name == name and cls.default_name
     with pytest.raises(ValueError, match="format must be one of usd, ply"):
         writer_class("obj")
-    r = cli("export", "--help")
-    assert "{usd,ply}" in r.stdout
+    r = cli_here(capsys, "export", "--help")
+    assert r.returncode == 0 and "{usd,ply}" in r.stdout
 
 
 class _Landings:
@@ -500,6 +505,8 @@ def test_a_new_format_is_one_module_and_one_registry_line(taichi_cpu, tmp_path, 
             with pytest.raises(RuntimeError, match="disk full"):
                 export_run(sim, out, 10, 30.0, fmt="landings")
             assert cls.calls == [0, 1, 2, "abort"] and not out.parent.exists()
+        del sim  # its World goes back to the pool: the second export runs on it
+        gc.collect()
 
 
 # ---------------------------------------------------------------------------------------------- colours

@@ -3,7 +3,7 @@ arrays (the same bits), and the full layout on request."""
 
 import numpy as np
 
-from cli_util import ROOT, cli, refused, run_all
+from cli_util import ROOT, cli_here, refused, run_here
 from taichi_rocks import load_run
 
 MINIMAL = ROOT / "scenes" / "minimal.toml"
@@ -15,13 +15,13 @@ def _within(run, f, radius):
     return d[:, 0] ** 2 + d[:, 1] ** 2 <= radius ** 2
 
 
-def test_load_run_gives_the_same_arrays_from_both_layouts(tmp_path):
+def test_load_run_gives_the_same_arrays_from_both_layouts(taichi_cpu, tmp_path):
     """The light layout (default) through load_run equals the full layout bit for bit: every array, under the
     same names; --only all too; with --crop, the same where kept and NaN / -1 (missing) elsewhere. And it is
-    the lighter file, without a raw `positions` member."""
+    the lighter file, without a raw `positions` member. (The four runs in this process: one pooled World.)"""
     common = ("--frames", 30, "--fps", 15)
     names = {"full": ("--layout", "full"), "light": (), "all": ("--only", "all"), "crop": ("--crop", "4")}
-    run_all(*(("simulate", MINIMAL, "--out", tmp_path / f"{k}.npz", *v, *common) for k, v in names.items()))
+    run_here(*(("simulate", MINIMAL, "--out", tmp_path / f"{k}.npz", *v, *common) for k, v in names.items()))
     full = load_run(tmp_path / "full.npz")
     assert full["positions"].shape == (30, 2000, 3) and full["positions"].dtype == np.float64
     for name in ("light", "all", "crop"):
@@ -45,7 +45,7 @@ def test_load_run_gives_the_same_arrays_from_both_layouts(tmp_path):
     assert np.isnan(crop["positions"][~inside]).all() and (crop["phase"][~inside] == -1).all()
 
 
-def test_simulate_full_layout_rejects_only_and_crop(tmp_path):
-    refused(cli("simulate", MINIMAL, "--out", tmp_path / "x.npz", "--layout", "full", "--only", "all"),
+def test_simulate_full_layout_rejects_only_and_crop(taichi_cpu, capsys, tmp_path):
+    refused(cli_here(capsys, "simulate", MINIMAL, "--out", tmp_path / "x.npz", "--layout", "full", "--only", "all"),
             "--layout light")
     assert list(tmp_path.iterdir()) == []
