@@ -1,9 +1,11 @@
 """The impacts pass: flying stones against the bodies of the vehicles they can hit, inside the step, as events.
 
-Runs in the per-rock function both stepping modes share (engine/kernels.py ``rock_step``) between flight and
-recycling, compiled in only with the Plan's ``impacts`` (a scene's ``[effects] impacts`` with a body to hit),
-for rocks that flew at the step's start (a resting or sliding stone lies below every body's underside,
-``check_bodies``, and only a launch, after the rock pass, makes one fly).
+Runs in the step kernel of both stepping modes, compiled in only with the Plan's ``impacts`` (a scene's
+``[effects] impacts`` with a body to hit), as a loop of its own after the rock loop (engine/kernels.py
+``impacts_loop``): the rock loop (``rock_step``) lists every rock that flew at the step's start with its state
+then (a resting or sliding stone lies below every body's underside, ``check_bodies``, and only a launch, after
+the rock pass, makes one fly); the loop over that list tests them, then recycles and counts them for the hash,
+so that both see where a body sent a stone. The list has room for every rock: it cannot overflow.
 
 Per stone, per vehicle hit (``target``; not the one that threw it, whose own body is left to the fenders and
 mud flaps of the launch model), in registers:
