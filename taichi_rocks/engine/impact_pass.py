@@ -1,9 +1,11 @@
 """The impacts pass: flying stones against the bodies of the vehicles they can hit, inside the step, as events.
 
-Runs in the per-rock function both stepping modes share (engine/kernels.py ``rock_step``) between flight and
-recycling, compiled in only with the Plan's ``impacts`` (a scene's ``[effects] impacts`` with a body to hit),
-for rocks that flew at the step's start (a resting or sliding stone lies below every body's underside,
-``check_bodies``, and only a launch, after the rock pass, makes one fly).
+Runs in the step kernel of both stepping modes, compiled in only with the Plan's ``impacts`` (a scene's
+``[effects] impacts`` with a body to hit), as a loop of its own after the rock loop (engine/kernels.py
+``impacts_loop``): the rock loop (``rock_step``) lists every rock that flew at the step's start with its state
+then (a resting or sliding stone lies below every body's underside, ``check_bodies``, and only a launch, after
+the rock pass, makes one fly); the loop over that list tests them, then recycles and counts them for the hash,
+so that both see where a body sent a stone. The list has room for every rock: it cannot overflow.
 
 Per stone, per vehicle hit (``target``; not the one that threw it, whose own body is left to the fenders and
 mud flaps of the launch model), in registers:
@@ -307,6 +309,20 @@ def _record(w: ti.template(), i, k, part, face, point, normal, u, un, r, t_rel, 
 
 
 @ti.func
+def _write_back(w: ti.template(), i, frame: ti.template(), b, end, u):
+    """Rock i's state at the step's end from its end point ``end`` and velocity ``u`` in the body frame of the
+    target whose pose rows start at row ``b``: back to the local frame with the end pose. Written after each
+    contact (the last one's stands), not once after the loop over the legs: on Vulkan (lavapipe) a store after
+    that loop was lost."""
+    h1 = _row(w, frame, b + H1)
+    arm = _rot(h1, end)
+    w.pos[i] = _lift(w, _row(w, frame, b + C1)) + arm
+    w.vel[i] = (_rot(h1, u) + _lift(w, _row(w, frame, b + V1))
+                + _row(w, frame, b + YAW)[1] * ti.Vector([-arm[1], arm[0], 0.0 * arm[2]]))
+    w.phase[i] = FLYING
+
+
+@ti.func
 def hit_bodies(w: ti.template(), plan: ti.template(), i, x0, v0, h, frame: ti.template(), base: ti.template(),
                step):
     """Rock i flew from (x0, v0) to its state now over the step of h seconds: the impacts pass (module
@@ -365,11 +381,4 @@ def hit_bodies(w: ti.template(), plan: ti.template(), i, x0, v0, h, frame: ti.te
                     end = point + (r + slop) * normal
                     u = u * 0.0
                     live = 0
-    if hit_k >= 0:  # back to the local frame with the end pose
-        b = base + 1 + POSE_ROWS * hit_k
-        h1 = _row(w, frame, b + H1)
-        arm = _rot(h1, end)
-        w.pos[i] = _lift(w, _row(w, frame, b + C1)) + arm
-        w.vel[i] = (_rot(h1, u) + _lift(w, _row(w, frame, b + V1))
-                    + _row(w, frame, b + YAW)[1] * ti.Vector([-arm[1], arm[0], 0.0 * arm[2]]))
-        w.phase[i] = FLYING
+                _write_back(w, i, frame, base + 1 + POSE_ROWS * hit_k, end, u)

@@ -170,9 +170,10 @@ def impacts_loop(w: ti.template(), plan: ti.template(), h, c, m, d, g, step, has
 @ti.kernel
 def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
               frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32):
-    """Pass 1 fused: flight, impacts (``plan.impacts``), recycling, counting for the hash (``plan.splash``), one
-    read of each rock per step; ``frame``: the bed's centre, move and leading direction and the mask's corner
-    (rows above), then the impacts' rows. With the hash it first takes the step's tire rays (take_rays)."""
+    """Pass 1 fused: flight, recycling, counting for the hash (``plan.splash``), one read of each rock per step;
+    with ``plan.impacts`` the impacts loop over the rocks that flew after it (:func:`impacts_loop`); ``frame``:
+    the bed's centre, move and leading direction and the mask's corner (rows above), then the impacts' rows.
+    With the hash it first takes the step's tire rays (take_rays)."""
     take_rays(w, plan, rays)
     h = ti.cast(dt, w.real)
     c = ti.cast(frame[CENTRE], w.real)
