@@ -116,9 +116,16 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--checkpoint-every", type=_positive_int, default=30, metavar="N",
                    help="save the simulation state every N frames, for --resume (default: 30)")
 
+    _view_parser(sub, ARCHES)
+    _bench_parser(sub, ARCHES, BACKENDS)
+    _sweep_parser(sub, ARCHES, BACKENDS)
+    return p
+
+
+def _view_parser(sub, arches) -> None:
     v = sub.add_parser("view", help="the simulation in a window: look, scrub and tweak (keys: README)")
     v.add_argument("scene", metavar="SCENE")
-    v.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend (gpu falls back to cpu)")
+    v.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend (gpu falls back to cpu)")
     v.add_argument("--seed", type=int, help="override the scene's seed")
     v.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
     v.add_argument("--record", type=Path, metavar="DIR", help="write every frame shown (panel included) as "
@@ -127,23 +134,27 @@ def _parser() -> argparse.ArgumentParser:
     v.add_argument("--quit-after", type=_positive_float, metavar="SECONDS",
                    help="close the window SECONDS after the first frame (automation, memory measurements)")
 
+
+def _bench_parser(sub, arches, backends) -> None:
     b = sub.add_parser("bench", help="measure accuracy against cost and speed against peers")
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
     b.add_argument("--out", type=Path, default=Path("renders/bench"))
-    b.add_argument("--arch", choices=ARCHES, default="cpu")
+    b.add_argument("--arch", choices=arches, default="cpu")
     b.add_argument("--only", choices=("launch", "activity", "impacts"),
                    help="run one study only: launch (what the tread throws), activity (cost against activity) or "
                         "impacts (stones that hit the vehicle behind)")
     b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
-    b.add_argument("--backend", choices=BACKENDS, help="where the activity study's processes run: here, "
+    b.add_argument("--backend", choices=backends, help="where the activity study's processes run: here, "
                                                                 "one at a time (default), or on a Ray cluster")
     b.add_argument("--address", metavar="ADDR", help="the Ray cluster to join (host:port; implies --backend ray)")
 
+
+def _sweep_parser(sub, arches, backends) -> None:
     w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
                                      "cluster, into results.csv, sweep.json, runs/ and plots/")
     w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; README, \"Sweeps\")")
     w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
-    w.add_argument("--backend", choices=BACKENDS, help="local processes (default) or a Ray cluster "
+    w.add_argument("--backend", choices=backends, help="local processes (default) or a Ray cluster "
                                                                 "(default with --address)")
     w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
                                                                       "one per core, at most one per run)")
@@ -151,10 +162,9 @@ def _parser() -> argparse.ArgumentParser:
                                                                       "cores / workers)")
     w.add_argument("--address", metavar="ADDR", help="join the Ray cluster at ADDR (host:port of `ray start "
                                                       "--head`); without it the ray backend starts a local one")
-    w.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend of the runs")
+    w.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend of the runs")
     w.add_argument("--resume", action="store_true", help="continue: run only the runs without a row in DIR")
     w.add_argument("--overwrite", action="store_true", help="replace the results in DIR")
-    return p
 
 
 def _err(msg: str) -> None:
