@@ -23,6 +23,8 @@ import re
 import sys
 from pathlib import Path
 
+from taichi_rocks.bench.machine import was_busy
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 RESULTS = ROOT / "docs" / "results"
@@ -69,7 +71,7 @@ def run_line(res: dict) -> str:
     load, busy = "", ""
     if la0 and la1:
         load = f"; load average {la0[0]:.1f} at the start, {la1[0]:.1f} at the end"
-        if max(la0[0], la1[0]) > 0.75 * (m["usable_cores"] or 1):  # the report's own rule (bench/report.py)
+        if was_busy(la0, la1, m["usable_cores"]):  # the report's own rule
             busy = (" **The machine was busy with other work during this run: its timings are noisy and "
                     "pessimistic.**")
     return (f"*Run of {res['started']} ({res['config']['mode']}, {res['elapsed_s'] / 60:.0f} min): {m['cpu_model']}, "
@@ -255,10 +257,19 @@ def activity_breakdown(launch: dict, bench: dict) -> list:
                     f"{p['tasks_per_step'] - p['parallel_tasks_per_step']:.0f} |")
     rows.append("")
     for p in prof:
-        top = sorted(p["tasks"], key=lambda t: -t["median_ms"])[:5]
-        rows.append(f"- Costliest tasks at N = {p['n']:,} (median ms): " + "; ".join(
-            f"{t['what']} {t['median_ms']:.3f}" for t in top) + ".")
+        top = sorted(p["tasks"], key=lambda t: -t["ms_per_step"])[:5]
+        rows.append(f"- Costliest tasks at N = {p['n']:,} (ms per step, with the profiler on): " + "; ".join(
+            f"{_task_name(t)} {t['ms_per_step']:.3f}" for t in top) + ".")
+    rows.append("- The profiler's run is slower than the timed one (its own cost per task), so \"the rest\" can "
+                "come out negative: read the columns as shares, not as a sum.")
     return rows
+
+
+def _task_name(t: dict) -> str:
+    """A task's description; the batch upload's tasks by their kernel (runs of the study before they were named)."""
+    if t["what"].startswith("task ") and t["kernel"] == "load_batch":
+        return f"batch upload ({t['kind']}, once per lookahead batch)"
+    return t["what"]
 
 
 BLOCKS = {"launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,

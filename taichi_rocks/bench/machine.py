@@ -52,6 +52,14 @@ def loadavg():
         return None
 
 
+def was_busy(load_start, load_end, cores) -> bool:
+    """Whether other work shared the machine during a run, from the 1-minute load averages at its start and
+    end: at the start more than 3/4 of the cores busy, or at the end more than that on top of the run's own
+    processes (which keep up to every core busy)."""
+    cores = cores or 1
+    return load_start[0] > 0.75 * cores or load_end[0] > 1.75 * cores
+
+
 def machine(arch: str) -> dict:
     model = "unknown"
     try:

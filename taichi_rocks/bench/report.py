@@ -16,6 +16,7 @@ import numpy as np
 from ..config.keys import choices
 from ..output.atomic import write_atomically
 from .config import CASE_OF_DRAG, DRAGS, INTEGRATORS, PRESET_SPEED, TAU_LINEAR, V_LAUNCH_MAX
+from .machine import was_busy
 
 
 def _fmt(x, unit="", digits=3):
@@ -54,7 +55,7 @@ def _header(res: dict, plots: list) -> list:
              f"Warp {res['warp'].get('version') or 'not available'}.\n")
     la0, la1 = res.get("load_average_start"), res.get("load_average_end")
     if la0 and la1:
-        busy = max(la0[0], la1[0]) > 0.75 * (m["usable_cores"] or 1)
+        busy = was_busy(la0, la1, m["usable_cores"])
         L.append(f"Load average (1, 5, 15 min) at the start {la0}, at the end {la1}"
                  + (": **the machine was busy with other work; timings are noisy**." if busy else ".") + "\n")
     if not res["warp"]["available"]:

@@ -249,5 +249,6 @@ def launch_costs(sim, reps: int = 2000) -> dict:
 
 
 def task_labels() -> dict:
-    """Kernel name -> what each of its offloaded tasks does, in order (active stepping's step kernels)."""
-    return dict(active.TASKS)
+    """Kernel name -> what each of its offloaded tasks does, in order (active stepping's step kernels and the
+    batch upload)."""
+    return {**active.TASKS, **stepdata.TASKS}

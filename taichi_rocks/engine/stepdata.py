@@ -41,6 +41,11 @@ def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays) -> tupl
     return data, frame
 
 
+# What each offloaded task of load_batch does (the kernel profiler names tasks by index; see active.TASKS)
+TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames", "(serial: bounds)",
+                        "batch upload: tire rays")}
+
+
 @ti.kernel
 def load_batch(w: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=3),
                frame: ti.types.ndarray(dtype=vec2, ndim=2)):
