@@ -512,6 +512,8 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     loaded). Two kernels, not one: Taichi 1.7.4 compiles the two in about two thirds of the time it takes for
     them fused (measured by ``bench --only activity``: compile times), for one more launch of three scalars."""
     stepdata.take_rays(w, plan, k)
+    if ti.static(plan.impacts):
+        stepdata.take_bodies(w, k)
     c = stepdata.frame_row(w, k, CENTRE)
     m = stepdata.frame_row(w, k, MOVE)
     d = stepdata.frame_row(w, k, LEAD)
@@ -524,7 +526,7 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
         w.fly_count[None] = 0
     for i in range(w.ipar[IPar.N_ROCKS]):
         rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: g is unused
-    if ti.static(plan.impacts):  # the step's poses are in body_rows (ActiveStepper.step)
+    if ti.static(plan.impacts):  # the step's time and poses from its batch row (engine/stepdata.py)
         impacts_loop(w, plan, h, c, m, d, c, step, False, w.body_rows, 0)
 
 

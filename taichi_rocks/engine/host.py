@@ -12,7 +12,8 @@ One step of length dt on the host:
   4. the rear tires now and their rays from the previous step's tires (``ray_rows``), in the kernels' frame
      (``local_rays``), tires far from the bed parked high above it;
   5. with impacts, the poses of the vehicles stones hit at the step's start and end, in the kernels' frame
-     after this step's origin move (engine/impact_pass.py ``pose_rows``).
+     after this step's origin move (engine/impact_pass.py ``pose_rows``; a lookahead batch's at once,
+     ``batch_pose_rows``).
 
 Coordinates: kernels work in a local frame, world = origin + local. With ``origin = "floating"`` the origin is
 anchor + shift: the anchor is the point the followed path is computed from (its first waypoint, where the bed
@@ -46,7 +47,7 @@ import numpy as np
 
 from . import patch
 from ..motion.vehicles import RearTires, TablePoses, tire_fields
-from .impact_pass import pose_rows
+from .impact_pass import batch_pose_rows, pose_rows
 from .world import ACTIVE, BATCH_ROWS, HALF_W, HULL, RAY_FIELDS
 
 __all__ = ["ORIGIN_SNAP", "ORIGIN_RANGE", "LOOKAHEAD", "HostState", "HostSide", "StepInput", "Lookahead", "Frames",
@@ -142,8 +143,9 @@ class Frames:
     as step by step): per step k the followed vehicle's world XY (``world``) and anchor-relative XY
     (``rel``: the bed centre), the bed's move, its leading direction, the origin's shift, its move before the
     step (``moved[k]``, None if it stayed), the bed centre in the kernels' frame (``local``) and the rays
-    ((K, T, RAY_FIELDS) in the kernels' frame, or None without tires). ``device``: set by the stepper that
-    uploaded them."""
+    ((K, T, RAY_FIELDS) in the kernels' frame, or None without tires); with impacts the pose rows of the
+    vehicles hit (``bodies``: (K, 7 T, 2), engine/impact_pass.py ``batch_pose_rows``) and each step's start
+    time (``start``: (K,), the clock before the step). ``device``: set by the stepper that uploaded them."""
 
     world: np.ndarray
     rel: np.ndarray
@@ -154,6 +156,8 @@ class Frames:
     local: np.ndarray
     rays: np.ndarray | None
     dt: float
+    bodies: np.ndarray | None = None
+    start: np.ndarray | None = None
     device: object = None
 
 
@@ -224,9 +228,8 @@ class HostSide:
         if moved is not None:
             st.set_shift(f.shift[k])
         st.tires_prev = b.prev  # the row's tires (take() set them)
-        poses = TablePoses(self.fleet, b.table, k)
-        bodies = pose_rows(st.poses, poses, self.targets, st.shift) if self.targets else None
-        st.poses = poses
+        st.poses = TablePoses(self.fleet, b.table, k)
+        bodies = None if f.bodies is None else f.bodies[k]
         rays = self.no_rays if f.rays is None else f.rays[k]
         return StepInput(st.step_count, dt, f.local[k], f.move[k], f.lead[k], st.shift, rays, moved, f, k, bodies)
 
@@ -250,7 +253,11 @@ class HostSide:
         if self.n_tires and b.rows is not None:
             park_z = st.bed_center[2] - st.origin[2] + 1000.0
             rays = batch_local_rays(b.rows, b.far, shift, local, park_z)
-        return Frames(world, rel, move, lead, shift, moved, local, rays, b.dt)
+        bodies = start = None
+        if self.targets:  # st.poses: the poses before the batch's first step
+            bodies = batch_pose_rows(st.poses, t, self.targets, shift)
+            start = np.array(b.times) - b.dt  # the clock before each step: time - dt, as step by step
+        return Frames(world, rel, move, lead, shift, moved, local, rays, b.dt, bodies, start)
 
     def _shifts(self, shift0: np.ndarray, rel: np.ndarray) -> tuple:
         """The origin's shift at each step of a batch from ``shift0`` (_keep_origin_near step by step): (K, 2)

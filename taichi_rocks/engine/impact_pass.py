@@ -37,7 +37,8 @@ after a hit are those the flight step already took (an error of O(g dt), as the 
 
 Host side (no kernels): the bodies of the scene (:func:`body_table`, from motion/bodies.py, the shapes the
 renderer draws), the fields they are written to (:func:`write_bodies`), the event buffer's capacity
-(:func:`event_capacity`), the pose rows of a step (:func:`pose_rows`) and the scene check that a resting rock
+(:func:`event_capacity`), the pose rows of a step (:func:`pose_rows`) or of every step of a lookahead batch
+(:func:`batch_pose_rows`: active stepping uploads them with the batch, engine/stepdata.py) and the scene check that a resting rock
 passes under every body (:func:`check_bodies`). Events: engine/events.py; the Simulation drains the buffer
 every ``DRAIN_EVERY`` steps and at ``impacts()`` (:class:`ImpactLog`).
 """
@@ -59,7 +60,7 @@ from .rockfields import FLYING
 from .world import POSE_ROWS, Par
 
 __all__ = ["DRAIN_EVERY", "LEGS", "POSE_ROWS", "Bodies", "body_table", "event_capacity", "body_problem",
-           "check_bodies", "write_bodies", "pose_rows", "time_row", "load_rows", "hit_bodies", "ImpactLog"]
+           "check_bodies", "write_bodies", "pose_rows", "batch_pose_rows", "time_row", "hit_bodies", "ImpactLog"]
 
 DRAIN_EVERY = 64  # steps between drains of the device buffer into the host's list
 LEGS = 3  # contacts a stone can have with one body in one step
@@ -183,6 +184,31 @@ def pose_rows(prev, cur, targets, shift) -> np.ndarray:
     return out.reshape(-1, 2)
 
 
+def batch_pose_rows(prev, table, targets, shift) -> np.ndarray:
+    """:func:`pose_rows` of every step of a lookahead batch at once, NumPy over the batch (the same bits):
+    ``prev`` the poses before its first step (VehiclePose list), ``table`` the batch's PoseTable (K, V) of
+    motion/vehicles.py, ``shift`` the origin's shift at each step (K, 2). Returns (K, 7 T, 2) float64."""
+    tg = list(targets)
+    k = len(shift)
+
+    def column(name, attr):  # (K + 1, T): the poses before the batch, then at each of its steps
+        first = [attr(prev[i]) for i in tg]
+        return np.vstack([np.array(first, np.float64)[None], getattr(table, name)[:, tg]])
+
+    rx, ry = column("rx", lambda p: p.rel[0]), column("ry", lambda p: p.rel[1])
+    h = column("heading", lambda p: p.heading)
+    vx, vy = column("vx", lambda p: p.velocity[0]), column("vy", lambda p: p.velocity[1])
+    yaw = column("yaw_rate", lambda p: p.yaw_rate)
+    cos, sin = np.cos(h), np.sin(h)
+    sx, sy = np.asarray(shift, np.float64)[:, 0, None], np.asarray(shift, np.float64)[:, 1, None]
+    out = np.empty((k, len(tg), POSE_ROWS, 2))
+    for row, (a, b) in ((C0, (rx[:-1] - sx, ry[:-1] - sy)), (C1, (rx[1:] - sx, ry[1:] - sy)),
+                        (H0, (cos[:-1], sin[:-1])), (H1, (cos[1:], sin[1:])), (V0, (vx[:-1], vy[:-1])),
+                        (V1, (vx[1:], vy[1:])), (YAW, (yaw[:-1], yaw[1:]))):
+        out[:, :, row, 0], out[:, :, row, 1] = a, b
+    return out.reshape(k, -1, 2)
+
+
 def time_row(t0_rel: float) -> np.ndarray:
     """The first row of the impacts' part of the frame: the step's start time relative to the event buffer's
     reference time (engine/events.py ``t_ref``)."""
@@ -236,14 +262,6 @@ class ImpactLog:
 
 
 # ------------------------------------------------------------------------------------------------ device side
-@ti.kernel
-def load_rows(w: ti.template(), rows: ti.types.ndarray(dtype=vec2, ndim=1)):
-    """A step's impacts rows (:func:`time_row`, :func:`pose_rows`) into ``w.body_rows`` (active stepping: its
-    step kernel takes no arrays, engine/stepdata.py)."""
-    for r in range(rows.shape[0]):
-        w.body_rows[r] = rows[r]
-
-
 @ti.func
 def _rot(cs, v):
     """R(h) v about z, ``cs`` = (cos h, sin h)."""

@@ -6,30 +6,39 @@ against ~40 us for three integers, measured by ``bench --only activity``'s launc
 
 Device fields (engine/world.py ``field_specs``): ``step_rays[k, t, :]`` (float64, the World.ray layout, the
 kernels' frame) and ``step_frame[k, r]`` (2-vectors, float64; rows CENTRE, MOVE, LEAD, GRID, TILES, CLOCK of
-engine/world.py). A step's kernel copies its rays into ``World.ray`` (one serial task: ``n_tires`` rows) and
-reads its frame row.
+engine/world.py; CLOCK is (dt, the step's start time)) and, with impacts, ``step_bodies[k, r]`` (2-vectors,
+float64: the step's pose rows of the vehicles stones hit, engine/impact_pass.py ``batch_pose_rows``, computed
+with NumPy over the batch). A step's kernel copies its rays into ``World.ray`` (one serial task: ``n_tires``
+rows), with impacts its pose rows into ``World.body_rows`` after the row of its start time relative to the
+event buffer's reference time (:func:`take_bodies`), and reads its frame row.
 
 ``launch_empty``, ``launch_ints`` and ``launch_arrays`` do nothing: engine/probes.py ``launch_costs`` times
 what launching with a step's arguments costs in Python.
 
-Other per-step inputs (the vehicle bodies' poses for stones hitting them): one more field over (k, ...) in
-``field_specs`` beside these, one more array built by :func:`batch_arrays` from the batch, one more argument
-of :func:`load_batch`, read by the step's kernel at row ``k`` like ``step_frame``.
+Other per-step inputs go the way of the pose rows: one more field over (k, ...) in ``field_specs`` beside
+these, one more array built by :func:`batch_arrays` from the batch, one more argument of :func:`load_batch`,
+read by the step's kernel at row ``k`` like ``step_frame``.
+
+The reference time (engine/events.py ``t_ref``) changes at a drain, in the middle of a batch too: the host
+keeps it in ``body_rows[0][1]`` (:func:`put_t_ref`, when it changed) and the kernel subtracts it from the
+step's start time in float64, the operation the host does for full stepping (engine/steppers.py
+``with_bodies``: (time - dt) - t_ref), so the row has the same bits.
 """
 
 import numpy as np
 import taichi as ti
 
-from .world import BATCH_ROWS, FRAME_ROWS, RAY_FIELDS, IPar
+from .world import BATCH_ROWS, CLOCK, FRAME_ROWS, RAY_FIELDS, IPar
 
 vec2 = ti.types.vector(2, ti.f64)
 
 
-def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays) -> tuple:
-    """The batch's device rows as NumPy: (rays (K, T, RAY_FIELDS) or a dummy, frame (K, FRAME_ROWS, 2)), from
-    (K, 2) arrays of the bed centre (local), its move, its lead, the tire mask's corner and the origin's shift
-    (m; stored in tiles: whole numbers), the steps' length ``dt`` (K,) and their rays (K, T, RAY_FIELDS) or
-    None without tires."""
+def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays, start=None, bodies=None) -> tuple:
+    """The batch's device rows as NumPy: (rays (K, T, RAY_FIELDS) or a dummy, frame (K, FRAME_ROWS, 2), bodies
+    (K, 7 T, 2) or a dummy), from (K, 2) arrays of the bed centre (local), its move, its lead, the tire mask's
+    corner and the origin's shift (m; stored in tiles: whole numbers), the steps' length ``dt`` (K,), their
+    rays (K, T, RAY_FIELDS) or None without tires and, with impacts, their start times ``start`` (K,) and pose
+    rows ``bodies`` (K, 7 T, 2; engine/impact_pass.py)."""
     k = len(centre)
     if k > BATCH_ROWS:
         raise ValueError(f"a batch holds at most {BATCH_ROWS} steps, got {k}")
@@ -37,8 +46,11 @@ def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays) -> tupl
     frame[:, 0], frame[:, 1], frame[:, 2], frame[:, 3] = centre, move, lead, grid
     frame[:, 4] = np.asarray(shift, np.float64) / tile
     frame[:, 5, 0] = dt
+    if start is not None:
+        frame[:, 5, 1] = start
     data = np.zeros((1, 1, RAY_FIELDS)) if rays is None else np.ascontiguousarray(rays, np.float64)
-    return data, frame
+    poses = np.zeros((1, 1, 2)) if bodies is None else np.ascontiguousarray(bodies, np.float64)
+    return data, frame, poses
 
 
 # What each offloaded task of load_batch does (the kernel profiler names tasks by index; see active.TASKS)
@@ -48,13 +60,21 @@ TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames", "(serial: bo
 
 @ti.kernel
 def load_batch(w: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=3),
-               frame: ti.types.ndarray(dtype=vec2, ndim=2)):
-    """A batch's rows into ``step_frame`` and ``step_rays`` (one launch per batch)."""
+               frame: ti.types.ndarray(dtype=vec2, ndim=2), bodies: ti.types.ndarray(dtype=vec2, ndim=2)):
+    """A batch's rows into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per batch)."""
     for k, r in ti.ndrange(frame.shape[0], FRAME_ROWS):
         w.step_frame[k, r] = frame[k, r]
     if ti.static(w.n_tires > 0):
         for k, t, f in ti.ndrange(rays.shape[0], w.n_tires, RAY_FIELDS):
             w.step_rays[k, t, f] = rays[k, t, f]
+    if ti.static(w.impacts):
+        for k, r in ti.ndrange(bodies.shape[0], bodies.shape[1]):
+            w.step_bodies[k, r] = bodies[k, r]
+
+
+def put_t_ref(w, t_ref: float) -> None:
+    """The event buffer's reference time into ``body_rows[0][1]`` (module docstring), outside a step."""
+    w.body_rows[0] = [0.0, float(t_ref)]
 
 
 @ti.func
@@ -65,6 +85,20 @@ def take_rays(w: ti.template(), plan: ti.template(), k):
         ti.loop_config(serialize=True)
         for t, f in ti.ndrange(w.n_tires, RAY_FIELDS):
             w.ray[t, f] = ti.cast(w.step_rays[k, t, f], w.real)
+
+
+@ti.func
+def take_bodies(w: ti.template(), k):
+    """Step row ``k``'s impacts rows into ``World.body_rows`` (the layout engine/impact_pass.py ``hit_bodies``
+    reads): its start time relative to the reference time (float64: the host's subtraction), then its pose
+    rows; one serial task (1 + 7 T rows)."""
+    ti.loop_config(serialize=True)
+    for r in range(w.body_rows.shape[0]):
+        if r == 0:
+            t_ref = w.body_rows[0][1]
+            w.body_rows[0] = ti.Vector([w.step_frame[k, CLOCK][1] - t_ref, t_ref])
+        else:
+            w.body_rows[r] = w.step_bodies[k, r - 1]
 
 
 @ti.func

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import active, hashgrid, rocks, stepdata, tires
-from .impact_pass import load_rows, time_row
+from .impact_pass import time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
 from .world import IPar, next_prime
 
@@ -174,6 +174,7 @@ class ActiveStepper(Stepper):
         super().__init__(*args)
         self.check_all = True  # the next step tests every rim tile's rocks (rocks were just loaded)
         self._on_device = None  # the Frames (engine/host.py) whose rows step_frame and step_rays hold
+        self._t_ref = None  # the event buffer's reference time body_rows holds (engine/stepdata.py)
 
     def tile_shift(self) -> np.ndarray:
         return self.host.shift / self.world.store_tile
@@ -215,9 +216,9 @@ class ActiveStepper(Stepper):
         if not self.moves:
             return 0
         row = self._upload(s)
-        if s.bodies is not None:  # the step's poses of the bodies stones hit (engine/impact_pass.py)
-            with self.timer("batch upload"):
-                load_rows(self.world, self.with_bodies(np.zeros((0, 2)), s))
+        if s.bodies is not None and self._t_ref != self.world.events.t_ref:  # changed by a drain or a reset
+            self._t_ref = self.world.events.t_ref
+            stepdata.put_t_ref(self.world, self._t_ref)
         with self.timer("active step"):
             active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
             launched = active.active_finish(self.world, self.switches["active_finish"], row, s.step)
@@ -228,20 +229,23 @@ class ActiveStepper(Stepper):
 
     def _upload(self, s) -> int:
         """The step's inputs on the device (engine/stepdata.py): its lookahead batch's rows, uploaded with the
-        batch's first step, or this step alone into row 0; returns the step's row."""
+        batch's first step, or this step alone into row 0 (with impacts: its start time and pose rows too);
+        returns the step's row."""
         f = s.frames
         if f is not None and self._on_device is f:
             return s.row
         with self.timer("batch upload"):
             if f is None:
+                start = None if s.bodies is None else np.array([self.host.time - s.dt])
                 rows = (s.centre[None], s.move[None], s.lead[None], np.asarray(s.shift)[None], np.array([s.dt]),
-                        s.rays[None] if self.world.n_tires else None)
+                        s.rays[None] if self.world.n_tires else None, start,
+                        None if s.bodies is None else s.bodies[None])
             else:
-                rows = (f.local, f.move, f.lead, f.shift, np.full(len(f.local), f.dt), f.rays)
-            centre, move, lead, shift, dt, rays = rows
-            data, frame = stepdata.batch_arrays(centre, move, lead, centre - self.sizing.grid_half, shift, dt,
-                                                self.world.store_tile, rays)
-            stepdata.load_batch(self.world, data, frame)
+                rows = (f.local, f.move, f.lead, f.shift, np.full(len(f.local), f.dt), f.rays, f.start, f.bodies)
+            centre, move, lead, shift, dt, rays, start, bodies = rows
+            data, frame, poses = stepdata.batch_arrays(centre, move, lead, centre - self.sizing.grid_half, shift,
+                                                       dt, self.world.store_tile, rays, start, bodies)
+            stepdata.load_batch(self.world, data, frame, poses)
         self._on_device = f
         return 0 if f is None else s.row
 

@@ -43,7 +43,8 @@ POSE_ROWS = 7
 # The per-step inputs of active stepping on the device, a lookahead batch of up to BATCH_ROWS steps at a time
 # (engine/stepdata.py): ``step_rays[k, t, :]`` (float64, the layout above, kernels' frame) and
 # ``step_frame[k, r]`` (2-vectors, float64), rows CENTRE, MOVE, LEAD, GRID, TILES (the origin's shift in tiles)
-# and CLOCK (dt, 0).
+# and CLOCK (dt, and with impacts the step's start time); with impacts ``step_bodies[k, r]`` (2-vectors, float64:
+# the pose rows of the step, engine/impact_pass.py batch_pose_rows).
 BATCH_ROWS = 64
 CENTRE, MOVE, LEAD, GRID, TILES, CLOCK = range(6)
 FRAME_ROWS = 6
@@ -116,6 +117,8 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
         out += _store_specs(store, cap, n_tires, rocks)
     if bodies is not None:
         out += _impact_specs(bodies, n_tires, events, cap)
+        if store is not None:  # active stepping: the batch's pose rows beside its step_frame
+            out.append(FieldSpec("step_bodies", "f64", 2, (BATCH_ROWS, POSE_ROWS * max(int(bodies[0]), 1))))
     out.append(FieldSpec("health_out", "i32", 1, (6,)))  # the runtime guard's counts (Simulation.check_health)
     return out
 

@@ -7,7 +7,8 @@
   again, draining every step keeps the host's list and the device buffer empty;
 - an overflow (a buffer of 32 events, drained only at the end) is counted: kept + dropped = every event;
 - an elastic, frictionless hit (e = 1, mu = 0) keeps the speed relative to the body and reverses its normal part;
-- ``simulate``'s run file and CSV hold the same events; Vulkan (a subprocess) gives the same events as the CPU.
+- ``simulate``'s run file and CSV hold the same events; Vulkan (a subprocess) gives the same events as the CPU;
+- active stepping's rows on the device, taken from its lookahead batch, have the bits full stepping is given.
 
 One World layout for every case (the pool compiles once per stepping mode): the restitution and friction are
 runtime parameters, the drain interval a host setting.
@@ -27,6 +28,7 @@ from taichi_rocks.app.simulate import simulate_scene
 from taichi_rocks.config.impacts import DAMAGE_CLASSES
 from taichi_rocks.config.scene import load_scene, scene_with
 from taichi_rocks.engine.events import EVENT_DTYPE
+from taichi_rocks.engine.impact_pass import pose_rows, time_row
 from taichi_rocks.engine.simulation import Simulation
 from taichi_rocks.motion.bodies import LABELS, body_parts
 
@@ -243,3 +245,28 @@ def test_a_restore_records_the_steps_after_it_again(full_run, scene):
     again = sim.impacts()
     want = full_run["events"][(full_run["events"]["step"] > 200) & (full_run["events"]["step"] <= 350)]
     assert len(want) > 5 and _same(again, want) and _same(first, full_run["events"][full_run["events"]["step"] <= 350])
+
+
+def test_active_steps_read_the_rows_full_stepping_gets(scene):
+    """Active stepping takes each step's impacts rows from its lookahead batch on the device (engine/stepdata.py
+    ``take_bodies``): after every step ``body_rows`` holds the bits of the rows full stepping is given (the
+    start time relative to the events' reference time, which a drain moves in the middle of a batch, and
+    ``pose_rows``), over batches, drains every 64 steps and a restore."""
+    sim = Simulation(scene_with(scene, {"sim.stepping": "active"}))
+    targets = sim.plan.targets
+    bad, checked = [], 0
+    for j in range(230):
+        if j == 150:
+            sim.restore(saved)
+        if j == 100:
+            saved = sim.checkpoint()
+        prev, t_ref = sim._host.poses, sim.world.events.t_ref
+        sim.step()
+        want = np.concatenate([time_row(sim._host.time - sim.dt - t_ref),
+                               pose_rows(prev, sim._host.poses, targets, sim._host.shift)])
+        got = sim.world.body_rows.to_numpy()  # row 0: (the start time, the reference time it is relative to)
+        checked += 1
+        if got[0, 0].tobytes() != want[0, 0].tobytes() or got[1:].tobytes() != want[1:].tobytes():
+            bad.append(sim.step_count)
+    assert sim._host_side.ahead.batches >= 3 and sim._impacts.buf.t_ref > 0.0
+    assert not bad, f"steps {bad[:5]} differ ({len(bad)} of {checked})"
