@@ -57,7 +57,7 @@ from .hits import HitLayer
 from .interior import interior_of
 from .meshes import merge, pose_mesh
 from .overlays import Overlays
-from .tumbling import MeshBucket, Prototypes, expand
+from .tumbling import MeshBucket, Prototypes, expand, host_buffer
 from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
 
@@ -226,7 +226,8 @@ class Renderer:
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
         self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
         self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
-        self._identity = np.eye(4, dtype=np.float32)[None]  # the same, as GGUI's wrapper hands it over
+        self._identity = host_buffer((1, 4, 4))  # the same, as GGUI's wrapper hands it over (never freed)
+        self._identity[0] = np.eye(4, dtype=np.float32)
 
     def _triangles(self, inside) -> np.ndarray:
         """The merged mesh's indices drawn from outside (``inside`` None) or from the cabin of vehicle

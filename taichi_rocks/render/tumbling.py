@@ -34,7 +34,7 @@ from ..motion.rockshapes import flat_triangles
 from .rocklook import _unit
 
 __all__ = ["MESH_PX", "FINE_PX", "PROTOTYPES", "VERTICES", "LODS", "MeshBucket", "Prototypes", "prototype_of",
-           "rotate", "expand"]
+           "rotate", "expand", "host_buffer"]
 
 MESH_PX = 1.5  # flying rocks at least this many pixels in radius are meshes, smaller ones particles
 FINE_PX = 5.0  # from this many pixels on, the 80-triangle prototype; below it the 20-triangle one
@@ -61,6 +61,21 @@ class Prototypes:
                 out.append(f)
 
 
+# Host memory handed to GGUI lives as long as the process, as GGUI's own wrapper keeps its vertex buffers
+# (taichi/ui/staging_buffer.py caches them for good): GGUI may hold the address of a buffer past the frame
+# that drew it, so a buffer freed with its Renderer could be read or written after it was reused. Buffers are
+# kept per shape and handed to the next bucket of that shape (each frame writes its buffer before GGUI reads
+# it, so buckets that share one never see each other's vertices).
+_HOST_BUFFERS: dict = {}
+
+
+def host_buffer(shape: tuple) -> np.ndarray:
+    """A float32 array of ``shape`` that is never freed (see above); zeroed when first made."""
+    if shape not in _HOST_BUFFERS:
+        _HOST_BUFFERS[shape] = np.zeros(shape, np.float32)
+    return _HOST_BUFFERS[shape]
+
+
 @ti.data_oriented
 class MeshBucket:
     """At most ``cap`` rocks per level of detail drawn as meshes: their centres, radii, orientations, colours and
@@ -78,7 +93,7 @@ class MeshBucket:
         self.quat = ti.Vector.field(4, ti.f32, n)
         self.col = ti.Vector.field(3, ti.f32, n)
         self.proto = ti.field(ti.i32, n)
-        self.vbo = [np.zeros((cap * v, VBO_STRIDE), np.float32) for v in VERTICES]
+        self.vbo = [host_buffer((cap * v, VBO_STRIDE)) for v in VERTICES]
 
     def vertices(self, lod: int, n: int) -> np.ndarray:
         """The vertex buffer of level ``lod``'s first ``n`` rocks (a view)."""
