@@ -57,7 +57,7 @@ from .hits import HitLayer
 from .interior import interior_of
 from .meshes import merge, pose_mesh
 from .overlays import Overlays
-from .tumbling import MeshBucket, Prototypes, expand, host_buffer
+from .tumbling import MeshBucket, expand, host_buffer, shared_prototypes
 from .wheels import Odometer, wheel_angles
 from .window import HiddenWindow, ggui
 
@@ -130,7 +130,7 @@ class Renderer:
         self._buckets = {}
         self._mesh_buckets = {}
         self._mesh_cap = MIN_MESHES
-        self._protos = Prototypes() if drawing.has_orientations(sim.world) else None
+        self._protos = shared_prototypes() if drawing.has_orientations(sim.world) else None
         self._drawn = None
         self.last_meshes = 0
         w, h = self.resolution
@@ -359,7 +359,7 @@ class Renderer:
                 K.clear_buffers(self._buf)
         if any(n_meshes):
             if self._protos is None:
-                self._protos = Prototypes()
+                self._protos = shared_prototypes()
             expand(meshes, self._protos, *n_meshes, *meshes.vbo)
         self.last_count, self.last_meshes = count, max(n_meshes)
         self.tiles_in_view = int(self._visible.count[None]) if drawing.has_tiles(self.sim.world) else 0

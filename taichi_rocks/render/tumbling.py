@@ -34,7 +34,7 @@ from ..motion.rockshapes import flat_triangles
 from .rocklook import _unit
 
 __all__ = ["MESH_PX", "FINE_PX", "PROTOTYPES", "VERTICES", "LODS", "MeshBucket", "Prototypes", "prototype_of",
-           "rotate", "expand", "host_buffer"]
+           "rotate", "expand", "host_buffer", "shared_prototypes"]
 
 MESH_PX = 1.5  # flying rocks at least this many pixels in radius are meshes, smaller ones particles
 FINE_PX = 5.0  # from this many pixels on, the 80-triangle prototype; below it the 20-triangle one
@@ -74,6 +74,19 @@ def host_buffer(shape: tuple) -> np.ndarray:
     if shape not in _HOST_BUFFERS:
         _HOST_BUFFERS[shape] = np.zeros(shape, np.float32)
     return _HOST_BUFFERS[shape]
+
+
+_SHARED: dict = {}
+
+
+def shared_prototypes() -> "Prototypes":
+    """The process's one :class:`Prototypes` for the running Taichi runtime: the triangles never change, and
+    building their fields again for every Renderer (from_numpy into new fields) crashed Taichi 1.7.4 after
+    many Renderers and Worlds in one process (a segfault in the copy's kernel launch)."""
+    prog = id(ti.lang.impl.get_runtime().prog)
+    if _SHARED.get("prog") != prog:
+        _SHARED.update(prog=prog, protos=Prototypes())
+    return _SHARED["protos"]
 
 
 @ti.data_oriented
