@@ -3,7 +3,7 @@ device buffer appended atomically from kernels (:class:`EventBuffer`), and its d
 
 The device layout derives from the declaration: integer fields are columns of one int32 matrix, float fields
 (vectors: one column per component) columns of one matrix in the simulation's precision, placed in trees of one
-element size each (engine/trees.py, _Trees: Vulkan packs a tree without alignment). A kernel builds an
+element size each (engine/trees.py, FieldTrees: Vulkan packs a tree without alignment). A kernel builds an
 :meth:`EventBuffer.record` struct by field name and appends it with :func:`append`: a slot from an atomic
 counter; past the capacity the counter still counts, so an overflow is counted and reported by the drain
 (``dropped``), never lost silently. Which events an overflow drops depends on thread timing.
@@ -19,7 +19,7 @@ import taichi as ti
 
 from ..config.impacts import DAMAGE_CLASSES
 from ..motion.bodies import LABELS
-from .trees import _Trees
+from .trees import FieldTrees
 
 __all__ = ["EVENT_FIELDS", "EVENT_DTYPE", "EventBuffer", "append", "LABELS", "DAMAGE_CLASSES"]
 
@@ -63,7 +63,7 @@ COLUMNS, N_INT, N_REAL = _columns()
 
 @ti.data_oriented
 class EventBuffer:
-    """``capacity`` events on the device, in precision ``real``; ``trees``: the _Trees to place the fields in
+    """``capacity`` events on the device, in precision ``real``; ``trees``: the FieldTrees to place the fields in
     (finalized by their owner), or None for trees of its own; ``fields``: (ints, reals, count), fields already
     allocated for it (a World's ``ev_ints``, ``ev_reals``, ``ev_count``: engine/world.py field_specs)."""
 
@@ -76,7 +76,7 @@ class EventBuffer:
             self.ints, self.reals, self.count = fields
         else:
             own = trees is None
-            trees = _Trees() if own else trees
+            trees = FieldTrees() if own else trees
             self.ints = trees.field(ti.i32, (self.capacity, N_INT))
             self.reals = trees.field(real, (self.capacity, N_REAL))
             self.count = trees.field(ti.i32, ())  # events appended since the last drain, kept or not

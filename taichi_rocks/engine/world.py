@@ -19,7 +19,7 @@ import taichi as ti
 from taichi.lang.field import Field
 
 from .events import N_INT, N_REAL, EventBuffer
-from .trees import _Trees  # noqa: F401 - also imported from here
+from .trees import FieldTrees, on_pressure  # noqa: F401 - FieldTrees also imported from here
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
 
@@ -230,13 +230,14 @@ class World:
         self.impacts = bodies is not None
         if self.impacts:
             self.n_targets, self.n_parts = (int(x) for x in bodies)
-        trees = _Trees()
+        trees = FieldTrees()
         for spec in field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table,
                                 hash_entries=hash_entries, n_tires=n_tires, substeps=substeps,
                                 ray_capacity=ray_capacity, reorder=reorder, tiles=tiles, store=store,
                                 rocks=self.rocks, bodies=bodies, events=events):
             setattr(self, spec.name, trees.place(spec, real))
         trees.finalize()
+        self.trees = trees  # destroyed by the pool when it needs the room (see acquire)
         if self.impacts:
             self.events = EventBuffer(max(int(events), 1), real, fields=(self.ev_ints, self.ev_reals, self.ev_count))
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
@@ -271,19 +272,41 @@ def acquire(owner, n: int, real, **layout) -> World:
     """A World for ``owner`` (a Simulation): one of the same layout that its previous owner released (was
     garbage-collected), with every field zeroed, or else a new one.
 
-    Taichi never frees fields, and every new World compiles every kernel again (its fields are template
-    arguments: ~2-4 s on a 2-core CPU). Re-using released Worlds keeps memory bounded and makes the second
-    and later Simulations of a layout start at once: notebooks re-running a cell, parameter sweeps, tests.
-    Two live Simulations never share a World."""
+    Every new World compiles every kernel again (its fields are template arguments: ~2-4 s on a 2-core CPU).
+    Re-using released Worlds makes the second and later Simulations of a layout start at once: notebooks
+    re-running a cell, parameter sweeps, tests. Two live Simulations never share a World. Released Worlds
+    stay until the process runs short of SNode trees (engine/trees.py): then :func:`_evict` destroys them."""
     key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
     for w in _POOL.get(key, ()):
-        if w.owner is None or w.owner() is None:
+        if _released(w):
             with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
                 warnings.simplefilter("ignore", SyntaxWarning)
                 _zero_fields(w)
             w.owner = weakref.ref(owner)
+            _POOL[key].remove(w)
+            _POOL[key].append(w)  # most recently used last
             return w
     w = World(n, real, **layout)
     w.owner = weakref.ref(owner)
     _POOL.setdefault(key, []).append(w)
     return w
+
+
+def _released(w: World) -> bool:
+    return w.owner is None or w.owner() is None
+
+
+def _evict() -> None:
+    """Destroy every released World's trees (engine/trees.py calls this when live trees run high)."""
+    for key in list(_POOL):
+        keep = [w for w in _POOL[key] if not _released(w)]
+        for w in _POOL[key]:
+            if _released(w):
+                w.trees.destroy()
+        if keep:
+            _POOL[key] = keep
+        else:
+            del _POOL[key]
+
+
+on_pressure(_evict)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import taichi as ti
 
+from ..engine.trees import FieldTrees
 from .marks import Hits, body_to_local, cabin_for, flash_geometry, glass_side, to_body_frame
 
 __all__ = ["HitLayer", "MARK_COLOR", "MARK_PX", "SPARK_PX", "MAX_SEGMENTS"]
@@ -32,6 +33,7 @@ class _Buffer:
 
     def __init__(self):
         self.pos = self.col = self.rad = None
+        self._trees = FieldTrees(owner=self)  # replaced (the old fields destroyed) each time the buffer grows
         self._colours = None  # the key of the colours uploaded, if the caller gave one
 
     def put(self, pos: np.ndarray, col: np.ndarray, rad: np.ndarray = None, colour_key=None) -> int:
@@ -43,8 +45,9 @@ class _Buffer:
             cap = 64
             while cap < n:
                 cap *= 2
-            self.pos, self.col = ti.Vector.field(3, ti.f32, cap), ti.Vector.field(3, ti.f32, cap)
-            self.rad = ti.field(ti.f32, cap) if rad is not None else None
+            self._trees.destroy()
+            self.pos, self.col = self._trees.vector(3, ti.f32, cap), self._trees.vector(3, ti.f32, cap)
+            self.rad = self._trees.scalar(ti.f32, cap) if rad is not None else None
         cap = self.pos.shape[0]
         pad = lambda a, shape: np.concatenate([a, np.zeros((cap - n,) + shape, np.float32)]).astype(np.float32)
         self.pos.from_numpy(pad(pos, (3,)))
@@ -54,6 +57,10 @@ class _Buffer:
         if rad is not None:
             self.rad.from_numpy(pad(rad, ()))
         return n
+
+    def close(self) -> None:
+        self._trees.destroy()
+        self.pos = self.col = self.rad = None
 
 
 class HitLayer:
@@ -66,6 +73,11 @@ class HitLayer:
         self._specs = scene.vehicles
         self._cabins = {}
         self._cores, self._sparks, self._marks = _Buffer(), _Buffer(), _Buffer()
+
+    def close(self) -> None:
+        """Free the GGUI buffers' fields."""
+        for b in (self._cores, self._sparks, self._marks):
+            b.close()
 
     def update(self, sim) -> int:
         """Take ``sim``'s impacts since the last frame (none without impacts); the clock is ``sim.time``."""

@@ -20,6 +20,7 @@ import taichi as ti
 
 from ..config.streams import LOOK_THIN
 from ..engine import drawing
+from ..engine.trees import FieldTrees
 from ..engine.world import FLYING
 from .looks import KEY
 from .rocklook import _rock_color, _unit, rock_color, rock_shape
@@ -63,44 +64,43 @@ class Buffers:
     the splatted rocks (1 x 1 placeholders unless ``splat``), the rows they touch, the vehicles' shadows, and
     three counters (rocks compacted for GGUI particles and for meshes, pixels GGUI drew)."""
 
-    def __init__(self, width: int, height: int, splat: bool, max_cars: int, shadows: bool = False):
+    def __init__(self, width: int, height: int, splat: bool, max_cars: int, shadows: bool = False,
+                 trees: FieldTrees = None):
         self.splat = bool(splat)  # read at compile time
         self.shadows = bool(shadows)  # read at compile time
-        self.count = ti.field(ti.i32, shape=())
-        self.mesh_count = ti.field(ti.i32, shape=2)  # flying rocks compacted for meshes, per level of detail
+        t = trees if trees is not None else FieldTrees(owner=self)
+        self.count = t.scalar(ti.i32)
+        self.mesh_count = t.scalar(ti.i32, 2)  # flying rocks compacted for meshes, per level of detail
         # (render/tumbling.py)
-        self.sky = ti.Vector.field(4, ti.u8)
-        ti.root.dense(ti.j, height).dense(ti.i, width).place(self.sky)  # rows contiguous: written row by row
+        self.sky = t.image(width, height, (4, ti.u8))  # rows contiguous: written row by row
         bw, bh = (width, height) if splat else (1, 1)
-        self.zbuf = ti.field(ti.i64)  # (depth bits << 24) | rgb8 of the nearest opaque rock
-        self.acc = ti.Vector.field(2, ti.i64)  # packed premultiplied rgb, weight (COVERAGE_ONE = 1 pixel)
-        # a tree of their own: next to 32-bit fields Vulkan can misalign 64-bit ones (see world._Trees); here
+        # a tree of their own: next to 32-bit fields Vulkan can misalign 64-bit ones (see engine/trees.py); here
         # the buffers landed at 4 mod 8 after the sky, and zbuf[0] overwrote the sky's last pixel each frame
-        tree = ti.FieldsBuilder()
-        tree.dense(ti.j, bh).dense(ti.i, bw).place(self.zbuf, self.acc)
-        tree.finalize()
+        # zbuf: (depth bits << 24) | rgb8 of the nearest opaque rock; acc: packed premultiplied rgb, weight
+        # (COVERAGE_ONE = 1 pixel)
+        self.zbuf, self.acc = t.image(bw, bh, (1, ti.i64), (2, ti.i64))
         # shadows cast on the ground, SHADE_ONE = full: by flying rocks (on everything), by resting rocks (on the
         # ground only: a rock does not shade itself)
         sw, sh = (width, height) if shadows else (1, 1)
-        self.shade = ti.Vector.field(2, ti.i32)
-        ti.root.dense(ti.j, sh).dense(ti.i, sw).place(self.shade)
-        self.rows = ti.field(ti.i32, shape=4)  # lowest and highest row a splat touched, and a shadow
+        self.shade = t.image(sw, sh, (2, ti.i32))
+        self.rows = t.scalar(ti.i32, 4)  # lowest and highest row a splat touched, and a shadow
         clear_buffers(self)
         # x, y, cos, sin, half length, half width, contact shadow softness, height of the top, and the centre
         # (x, y) and squared radius of a circle holding the sun's shadow (local, m)
-        self.cars = ti.Vector.field(11, ti.f32, shape=max_cars)
-        self.drawn_px = ti.field(ti.i32, shape=())
+        self.cars = t.vector(11, ti.f32, max_cars)
+        self.drawn_px = t.scalar(ti.i32)
 
 
 @ti.data_oriented
 class Bucket:
     """Compacted rocks for GGUI particles: positions, radii and colours of at most ``cap`` rocks."""
 
-    def __init__(self, cap: int):
+    def __init__(self, cap: int, trees: FieldTrees = None):
         self.cap = int(cap)  # read at compile time
-        self.pos = ti.Vector.field(3, ti.f32, cap)
-        self.rad = ti.field(ti.f32, cap)
-        self.col = ti.Vector.field(3, ti.f32, cap)
+        t = trees if trees is not None else FieldTrees(owner=self)
+        self.pos = t.vector(3, ti.f32, cap)
+        self.rad = t.scalar(ti.f32, cap)
+        self.col = t.vector(3, ti.f32, cap)
 
 
 # ------------------------------------------------------------------------------------------------ splatting

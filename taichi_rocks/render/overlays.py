@@ -9,6 +9,7 @@ overlay is drawn."""
 import numpy as np
 import taichi as ti
 
+from ..engine.trees import FieldTrees
 from .looks import BED_EDGE_COLOR, CELL_COLOR, PATCH_COLOR, RAY_COLOR
 
 __all__ = ["MAX_RAYS", "MAX_CELLS", "Overlays"]
@@ -24,8 +25,9 @@ _SIZES = {"bed_edge": 2 * _RING, "tire_rays": 2 * MAX_RAYS, "hash_cells": 24 * M
 class Overlays:
     """The line buffers of the overlays ``flags`` (bed_edge, tire_rays, hash_cells, tread_patch) asks for."""
 
-    def __init__(self, flags):
+    def __init__(self, flags, trees: FieldTrees = None):
         self.flags = flags
+        self._trees = trees if trees is not None else FieldTrees(owner=self)
         self._lines = {}
         for name in _SIZES:
             if getattr(flags, name, False):
@@ -33,7 +35,7 @@ class Overlays:
 
     def _buffer(self, name: str):
         if name not in self._lines:
-            self._lines[name] = ti.Vector.field(3, ti.f32, _SIZES[name])
+            self._lines[name] = self._trees.vector(3, ti.f32, _SIZES[name])
         return self._lines[name]
 
     def draw(self, scene, sim, origin, ground_z: float) -> None:

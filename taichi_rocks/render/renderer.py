@@ -49,6 +49,7 @@ from taichi.ui.utils import get_field_info
 
 from ..config.resolution import check_resolution
 from ..engine import drawing
+from ..engine.trees import FieldTrees
 from . import kernels as K
 from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
@@ -119,6 +120,8 @@ class Renderer:
         self.last_count = 0
         self.tiles_in_view = 0  # tiles of the store the last rock pass visited (active stepping)
         self.timings = {"cull": 0.0, "draw": 0.0}
+        # the fields of this renderer, freed by close() (or after it is garbage-collected: engine/trees.py)
+        self._trees, self._v_trees = FieldTrees(owner=self), FieldTrees(owner=self)
         self._ggui_camera = ggui(ti.ui.Camera)  # GGUI's camera of the 3D layer, set from the view each frame
         self._ggui_camera.up(*GL_UP)
         self._ggui_camera.fov(self.fov)
@@ -135,14 +138,14 @@ class Renderer:
         self.last_meshes = 0
         w, h = self.resolution
         # background image, splat buffers, shadows
-        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows)
+        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows, self._trees)
         # active stepping: the tile store's slots in view, listed by the rock pass
-        self._visible = K.Visible(drawing.slot_total(sim.world))
+        self._visible = K.Visible(drawing.slot_total(sim.world), self._trees)
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
         self._vehicle_fields()
-        self._overlays = Overlays(self.flags)
+        self._overlays = Overlays(self.flags, self._trees)
         self.hits = HitLayer(sim.scene)  # the impacts' flashes and windscreen marks (render/hits.py)
         self._raw = None
         self._win = HiddenWindow(self.resolution) if target is None else target
@@ -217,14 +220,16 @@ class Renderer:
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
         self._inside = None  # the vehicle whose cabin the camera looks out of this frame
         self._odometer = Odometer(self.sim.fleet.paths)
-        self._v_verts = ti.Vector.field(3, ti.f32, len(vs))
-        self._v_norms = ti.Vector.field(3, ti.f32, len(vs))
-        self._v_cols = ti.Vector.field(3, ti.f32, len(vs))
+        vt = self._v_trees  # the vehicles' fields of the last call, destroyed now
+        vt.destroy()
+        self._v_verts = vt.vector(3, ti.f32, len(vs))
+        self._v_norms = vt.vector(3, ti.f32, len(vs))
+        self._v_cols = vt.vector(3, ti.f32, len(vs))
         self._v_cols.from_numpy(cs.astype(np.float32))
-        self._v_idx = ti.field(ti.i32, max(len(t) for t in self._layouts.values()))
+        self._v_idx = vt.scalar(ti.i32, max(len(tri) for tri in self._layouts.values()))
         self._upload_layout(None)
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
-        self._v_model = ti.Matrix.field(4, 4, ti.f32, shape=1)
+        self._v_model = vt.matrix(4, 4, ti.f32, 1)
         self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
         self._identity = host_buffer((1, 4, 4))  # the same, as GGUI's wrapper hands it over (never freed)
         self._identity[0] = np.eye(4, dtype=np.float32)
@@ -261,8 +266,12 @@ class Renderer:
                 for m, p, a in zip(self._meshes, poses, self.wheel_angles(t))]
 
     def close(self) -> None:
-        """Release the window (the fields stay until Taichi is reset) and the imgui.ini GGUI left behind."""
+        """Release the window and the imgui.ini GGUI left behind, and free the renderer's fields (it draws no
+        more frames after this; the Simulation stays usable)."""
         self._win.release()
+        for t in (self._trees, self._v_trees):
+            t.destroy()
+        self.hits.close()
 
     def __enter__(self):
         return self
@@ -287,7 +296,7 @@ class Renderer:
             cap *= 2
         cap = min(cap, max(self.n_rocks, 1))
         if cap not in self._buckets:
-            self._buckets[cap] = K.Bucket(cap)
+            self._buckets[cap] = K.Bucket(cap, self._trees)
         return self._buckets[cap]
 
     def _mesh_bucket(self, need: int) -> MeshBucket:
@@ -295,14 +304,14 @@ class Renderer:
         one-rock bucket that the rock pass compiles out: flying rocks stay particles."""
         if not drawing.has_orientations(self.sim.world):
             if 0 not in self._mesh_buckets:
-                self._mesh_buckets[0] = MeshBucket(1, on=False)
+                self._mesh_buckets[0] = MeshBucket(1, on=False, trees=self._trees)
             return self._mesh_buckets[0]
         cap = self._mesh_cap  # only ever grows: each capacity compiles the rock pass anew (seconds)
         while cap < need:
             cap *= 2
         self._mesh_cap = cap = min(cap, max(self.n_rocks, 1))
         if cap not in self._mesh_buckets:
-            self._mesh_buckets[cap] = MeshBucket(cap)
+            self._mesh_buckets[cap] = MeshBucket(cap, trees=self._trees)
         return self._mesh_buckets[cap]
 
     def _frustum(self):

@@ -15,6 +15,8 @@ holds no rock that passes them, and skipping it changes no pixel. The rounding m
 
 import taichi as ti
 
+from ..engine.trees import FieldTrees
+
 __all__ = ["Visible", "tile_in_view"]
 
 
@@ -23,9 +25,10 @@ class Visible:
     """The tile store's slots in view in the last rock pass: ``slots[:count]`` (``slots`` has one entry per
     slot of the store, at least one)."""
 
-    def __init__(self, n_slots: int):
-        self.slots = ti.field(ti.i32, max(int(n_slots), 1))
-        self.count = ti.field(ti.i32, shape=())
+    def __init__(self, n_slots: int, trees: FieldTrees = None):
+        t = trees if trees is not None else FieldTrees(owner=self)
+        self.slots = t.scalar(ti.i32, max(int(n_slots), 1))
+        self.count = t.scalar(ti.i32)
 
 
 @ti.func

@@ -30,6 +30,7 @@ import numpy as np
 import taichi as ti
 
 from ..config.streams import LOOK_PROTOTYPE
+from ..engine.trees import FieldTrees
 from ..motion.rockshapes import flat_triangles
 from .rocklook import _unit
 
@@ -52,11 +53,12 @@ class Prototypes:
 
     def __init__(self):
         self.pos, self.nrm = [], []
+        self._trees = FieldTrees(owner=self)
         for lod in range(LODS):
             pos, nrm = zip(*(flat_triangles(k, coarse=lod == COARSE) for k in range(PROTOTYPES)))
             assert all(len(p) == VERTICES[lod] for p in pos)
             for out, data in ((self.pos, pos), (self.nrm, nrm)):
-                f = ti.Vector.field(3, ti.f32, PROTOTYPES * VERTICES[lod])
+                f = self._trees.vector(3, ti.f32, PROTOTYPES * VERTICES[lod])
                 f.from_numpy(np.concatenate(data))
                 out.append(f)
 
@@ -97,15 +99,16 @@ class MeshBucket:
     normal, texture coordinates, colour RGBA), host memory that GGUI reads without a copy of its own.
     ``on=False``: a placeholder for a simulation without orientations (the rock pass compiles the meshes out)."""
 
-    def __init__(self, cap: int, on: bool = True):
+    def __init__(self, cap: int, on: bool = True, trees: FieldTrees = None):
         self.cap = int(cap)  # read at compile time
         self.on = bool(on)  # read at compile time: False, a placeholder the rock pass never writes
         n = LODS * cap
-        self.pos = ti.Vector.field(3, ti.f32, n)
-        self.rad = ti.field(ti.f32, n)
-        self.quat = ti.Vector.field(4, ti.f32, n)
-        self.col = ti.Vector.field(3, ti.f32, n)
-        self.proto = ti.field(ti.i32, n)
+        t = trees if trees is not None else FieldTrees(owner=self)
+        self.pos = t.vector(3, ti.f32, n)
+        self.rad = t.scalar(ti.f32, n)
+        self.quat = t.vector(4, ti.f32, n)
+        self.col = t.vector(3, ti.f32, n)
+        self.proto = t.scalar(ti.i32, n)
         self.vbo = [host_buffer((cap * v, VBO_STRIDE)) for v in VERTICES]
 
     def vertices(self, lod: int, n: int) -> np.ndarray:

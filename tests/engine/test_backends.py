@@ -167,7 +167,7 @@ def test_render_same_on_cpu_and_vulkan(vulkan, scenes_dir, tmp_path):
 
 @pytest.mark.parametrize("real", ["f32", "f64"])
 def test_world_trees_hold_one_element_size(taichi_cpu, real):
-    """Each SNode tree of a World holds fields of one element size (world._Trees): in a tree mixing 4- and
+    """Each SNode tree of a World holds fields of one element size (world.FieldTrees): in a tree mixing 4- and
     8-byte fields, Vulkan can place a 64-bit field at 4 mod 8 and read and write it over its neighbour.
     Checked on the CPU, whose layout would hide the problem, with every optional field allocated."""
     import taichi as ti
