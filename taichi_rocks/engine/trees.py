@@ -23,6 +23,7 @@ Two limits of Taichi 1.7.4 shape this module:
 
 from __future__ import annotations
 
+import gc
 import weakref
 
 import numpy as np
@@ -59,11 +60,17 @@ def on_pressure(evict) -> None:
         _state["evictors"].append(evict)
 
 
-def _before_allocation(new: int) -> None:
-    st = _runtime_state()
+def _drain(st: dict) -> None:
     while st["retired"]:
         st["retired"].pop().destroy()
+
+
+def _before_allocation(new: int) -> None:
+    st = _runtime_state()
+    _drain(st)
     if st["live"] + new > SOFT_LIMIT:
+        gc.collect()  # owners (Renderers, Simulations) held only by reference cycles go now: their trees retire
+        _drain(st)
         for evict in st["evictors"]:
             evict()
     if st["live"] + new > HARD_LIMIT:

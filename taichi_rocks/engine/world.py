@@ -283,8 +283,6 @@ def acquire(owner, n: int, real, **layout) -> World:
                 warnings.simplefilter("ignore", SyntaxWarning)
                 _zero_fields(w)
             w.owner = weakref.ref(owner)
-            _POOL[key].remove(w)
-            _POOL[key].append(w)  # most recently used last
             return w
     w = World(n, real, **layout)
     w.owner = weakref.ref(owner)
