@@ -15,8 +15,12 @@ $(STAMP): pyproject.toml tools/setup.sh
 demo: setup
 	$(VENV)/bin/taichi-rocks render $(SCENE) --overwrite
 
+# the suite on TEST_WORKERS processes (pytest-xdist), a test file per process at a time (its module fixtures and
+# pooled Worlds stay together); each process holds one Taichi runtime. 2 suits a 2-core machine.
+TEST_WORKERS ?= 2
+
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 bench: setup
 	$(VENV)/bin/pip install -q -e '.[bench]'

@@ -154,9 +154,13 @@ def test_a_placed_rock_is_turned_and_drawn_where_it_projects(tumbling_sim, q):
 
 
 def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
-    """A simulation that does not tumble (no orientations) draws no mesh: the rock pass compiles them out."""
+    """A simulation that does not tumble (no orientations) draws no mesh: the rock pass compiles them out. The
+    renderer gives back every SNode tree it made when it closes (engine/trees.py: Taichi allows 512 a process)."""
+    from taichi_rocks.engine.trees import live_trees
+
     sim = Simulation(load_scene(scenes_dir / "minimal.toml"), arch="cpu")
     assert not drawing.has_orientations(sim.world)
+    before = live_trees()
     with Renderer(sim, resolution=(W, H), window_every=0) as r:
         sim.advance_to(0.6)
         view = r.view()
@@ -166,6 +170,8 @@ def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
         _, count, meshes, counts = r._drawn
         assert not meshes.on and counts == (0, 0) and count == n > 0
         assert r._protos is None
+        assert live_trees() > before + 5  # buffers, buckets, vehicles: each a tree of its own
+    assert live_trees() == before
 
 
 class _Stop(Exception):
