@@ -2,7 +2,8 @@
 
 No timing is asserted (the machine may be busy); only that every number that should be a positive finite ratio
 is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores, and its cost-against-activity section
-(tests/bench/test_activity.py) about 90 s more: each of its points compiles in a process of its own.
+about 90 s more: each of its points compiles in a process of its own. Its tests are all in this file, so that
+the run is made once per test process (the suite runs a file per process at a time).
 """
 
 import json
@@ -254,3 +255,65 @@ def test_rebuild_across_layouts_carries_on():
     assert b.layout_switches == 2 and b.sim.step_count == 7 and b.sim.plan.recycle
     b.sim.step(2)
     b.sim.check_health()
+
+
+# ------------------------------------------------------------------------------- cost against activity
+# The section of bench/activity.py in the tiny run: the report, the results and the plot carry it with numbers,
+# the points are what they say (their scenes, rocks in the air, the stepping used), and the targets have a
+# verdict. No timing is asserted: a loaded machine may reorder any two times; only that times are positive and
+# finite.
+ACTIVITY_TARGETS = ("0.5x the streaming floor", "series (a)", "series (b)", "balanced preset")
+
+
+def test_the_section_in_results_and_report(bench_run):
+    out, res = bench_run
+    data = json.loads((out / "results.json").read_text())
+    act = data["activity"]
+    assert data["errors"] == [] and act["errors"] == []
+    from taichi_rocks.bench.config import make_config
+
+    cfg = make_config(tiny=True)
+    for series in ("a", "b"):
+        rows = act["series"][series]
+        assert [r["n"] for r in rows] == list(cfg.act_n)
+        for r in rows:
+            a = r["active"]
+            assert a["stepping_plan"] == "active" and a["warm_steps"] == round(cfg.act_warm_s / a["dt"])
+            assert _positive_finite(a["step_ms"]) and _positive_finite(r["floor_ms"])
+            assert all(_positive_finite(x) for x in a["step_rounds_ms"]) and len(a["step_rounds_ms"]) == cfg.act_rounds
+            assert 0 < a["in_air"] <= a["active_count"] < r["n"]  # rocks thrown; most rest in their tiles
+            m = a["memory"]
+            assert m["hwm_mb"] >= m["rss_mb"] > m["baseline_rss_mb"] > 0
+            assert 0 < m["field_mb"] < m["hwm_mb"] and _positive_finite(m["field_bytes_per_rock"])
+            if r["full"]:
+                f = r["full"]
+                assert f["stepping_plan"] == "full" and f["active_count"] == r["n"] and _positive_finite(f["step_ms"])
+                assert f["in_air"] > 0 and f["memory"]["field_bytes_per_rock"] > 0
+    assert act["series"]["a"][-1]["full"] is not None  # the largest tiny N is timed both ways
+    for per in act["memory"].values():
+        assert set(per) == {"active", "full"}
+        assert all(_positive_finite(m["peak_10m_gb"]) for m in per.values())
+    sweep = {p["label"]: p for p in act["sweep"]}
+    parked = sweep["parked fleet (0 m/s)"]
+    assert parked["in_air"] == 0 and parked["launches_total"] == 0 and parked["steps_coasted"] > 0
+    bal = sweep["balanced preset"]
+    assert (bal["integrator"], bal["detection"], bal["dt"]) == ("heun", "swept", 0.002)
+    tires = [p for p in act["sweep"] if p["group"] == "tires"]
+    assert [p["t_rear"] for p in tires] == list(cfg.act_tires)
+    assert tires[-1]["in_air"] > tires[0]["in_air"] > 0  # more vehicles throw more rocks
+    assert all(_positive_finite(p["step_ms"]) and _positive_finite(p["sim_s_per_wall_s"]) for p in act["sweep"])
+    report = (out / "report.md").read_text()
+    section = report.split("## 4. Cost against activity", 1)[1].split("\n## ", 1)[0]
+    assert "](activity.png)" in section and (out / "activity.png").stat().st_size > 10_000
+    assert f"| (a) | {cfg.act_n[-1]:,} | {cfg.act_radius:.1f} | {act['series']['a'][-1]['active']['in_air']:,} |" in section
+    assert f"| parked | parked fleet (0 m/s) | {cfg.act_t} | 0 |" in section
+    assert "GB** peak" in section
+
+
+def test_the_targets_have_verdicts(bench_run):
+    _, res = bench_run
+    rows = [t for t in res["targets"] if any(k in t["target"] for k in ACTIVITY_TARGETS)]
+    assert len(rows) == 4
+    for t in rows:
+        assert _positive_finite(t["value"]) and isinstance(t["met"], bool)
+        assert t["detail"].startswith("PASS, " if t["met"] else "MISS, ")
