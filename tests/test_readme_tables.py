@@ -1,5 +1,6 @@
 """README.md's measured tables are what tools/readme_tables.py makes of the committed results (docs/results/
-bench.json from ``taichi-rocks bench``, launch.json from ``taichi-rocks bench --only launch``): every number in
+bench.json from ``taichi-rocks bench``, launch.json from ``taichi-rocks bench --only launch``, impacts.json from
+``taichi-rocks bench --only impacts``): every number in
 them traces to an artefact. After a new run: copy its results there and run ``python tools/readme_tables.py``."""
 
 import copy
@@ -29,6 +30,10 @@ def test_every_target_of_the_results_is_in_the_readme():
     assert len(judged) >= 8
     for t in judged:
         assert f"| {t['target']} |" in text, t["target"]
+    impacts = bench["impacts_run"]["impacts"]["targets"]
+    assert len(impacts) >= 7
+    for t in impacts:
+        assert f"| {t['target']} | {t['shown']} |" in text, t["target"]
 
 
 def test_a_changed_result_changes_the_readme():
@@ -41,3 +46,6 @@ def test_a_changed_result_changes_the_readme():
     changed = copy.deepcopy(launch)
     changed["stats"]["V20 dry gravel"]["launches"] += 1
     assert tables.rewrite(text, tables.blocks(changed, bench)) != text
+    changed = copy.deepcopy(bench)
+    changed["impacts_run"]["impacts"]["targets"][0]["met"] = not changed["impacts_run"]["impacts"]["targets"][0]["met"]
+    assert tables.rewrite(text, tables.blocks(launch, changed)) != text

@@ -4,6 +4,8 @@
     docs/results/activity.json ``taichi-rocks bench --only activity`` (its activity.json): when present, the
                                activity blocks (targets, notes, where a step's time goes) come from it
     docs/results/launch.json   ``taichi-rocks bench --only launch`` (its launch_study.json): what the tread throws
+    docs/results/impacts.json  ``taichi-rocks bench --only impacts [--quick]`` (its impacts.json): the impacts
+                               study's targets (its plots and impacts.md sit beside it)
 
     python tools/readme_tables.py            # rewrite the marked blocks of README.md from those files
     python tools/readme_tables.py --check    # exit 1 (and say which) if README.md differs from them
@@ -272,9 +274,29 @@ def _task_name(t: dict) -> str:
     return t["what"]
 
 
+# ------------------------------------------------------------------------------------------------ impacts
+def impacts_targets(launch: dict, bench: dict) -> list:
+    """The impacts study's run and its targets, each with its measured value (bench/impacts_analysis.py)."""
+    res = bench["impacts_run"]
+    imp, m = res["impacts"], res["machine"]
+    cross = imp["cross_lane"]
+    rows = [f"*Run of {res['started']} (`--only impacts`, {res['mode']}: {len(imp['runs'])} runs, "
+            f"{imp['elapsed_s'] / 60:.0f} min on {imp['placement']['workers']} processes): {m['cpu_model']}, "
+            f"{m['usable_cores']} cores, Taichi {m['taichi']} ({m['taichi_arch']}). {imp['events_total']:,} hits "
+            f"on the followers, {cross['cross']} across lanes.*", "",
+            "| target | measured | met | detail, and why where missed |", "|---|---|---|---|"]
+    for t in imp["targets"]:
+        met = {True: "yes", False: "**NO**", None: "-"}[t["met"]]
+        repeated = t["reason"].split(": ", 1)[-1] in t["detail"]  # a reason that only repeats the detail
+        why = "; ".join(x for x in (t["detail"], "" if repeated else t["reason"]) if x)
+        rows.append(f"| {t['target']} | {t['shown']} | {met} | {why} |")
+    return rows
+
+
 BLOCKS = {"launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
           "speed-notes": speed_notes, "presets": presets, "activity-targets": activity_targets,
-          "activity-notes": activity_notes, "activity-breakdown": activity_breakdown}
+          "activity-notes": activity_notes, "activity-breakdown": activity_breakdown,
+          "impacts-targets": impacts_targets}
 
 
 def load(results: Path = RESULTS) -> tuple:
@@ -285,6 +307,7 @@ def load(results: Path = RESULTS) -> tuple:
         act = json.loads((results / "activity.json").read_text())
         speed = [t for t in bench["targets"] if t["target"].startswith(SPEED_TARGETS)]
         bench = dict(bench, activity=act["activity"], targets=speed + act["targets"], activity_run=act)
+    bench = dict(bench, impacts_run=json.loads((results / "impacts.json").read_text()))
     return launch, bench
 
 
