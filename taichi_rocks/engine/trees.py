@@ -1,5 +1,5 @@
 """SNode trees for every field the package allocates (World, event buffers, the renderer's buffers), each tree
-owned by a :class:`FieldTrees` that destroys it when its owner is done.
+owned by a :class:`FieldTrees` that gives it back when its owner is done.
 
 Two limits of Taichi 1.7.4 shape this module:
 
@@ -10,15 +10,22 @@ Two limits of Taichi 1.7.4 shape this module:
   makes a tree of its own at the next launch. Past the limit the next kernel launch writes outside the
   runtime's table of roots and the process dies of a segfault, with no error (measured here: the 501st
   ``ti.field`` + ``from_numpy`` pair crashed). Long-lived processes build many Worlds and Renderers: a sweep
-  worker (runner/tasks.py), the viewer's rebuilds, a notebook, the test suite. So every tree is owned:
+  worker (runner/tasks.py), the viewer's rebuilds, a notebook, the test suite.
+- **Destroying a tree throws away every compiled kernel of the process** (``SNodeTree.destroy`` calls
+  ``clear_compiled_functions``: fields hold pointers into their tree), so each kernel used afterwards compiles
+  again: the rock and tire passes alone take 3-4 s each. Destroying a renderer's buffer as it grew cost the
+  default scene's render five recompiles of everything in 90 frames (3.4 frames/s instead of 5.7).
 
-  - a :class:`FieldTrees` records the trees it finalized and :meth:`FieldTrees.destroy` frees them (Taichi then reuses
-    the tree ids);
-  - given an ``owner``, its trees are retired when the owner is garbage-collected, and destroyed at the next
-    allocation (a safe point: never from inside a garbage collection that may run during a kernel launch);
-  - before each allocation, if the package's live trees pass :data:`SOFT_LIMIT`, the registered evictors run
-    (the World pool, engine/world.py, destroys the Worlds no Simulation holds); past :data:`HARD_LIMIT` the
-    allocation fails with a clear error instead of a crash.
+So every tree is owned, and trees are destroyed rarely and together:
+
+- a :class:`FieldTrees` records the trees it finalized; :meth:`FieldTrees.release` retires them (their owner
+  is done with them) and :meth:`FieldTrees.destroy` frees them at once (Taichi then reuses the tree ids);
+- given an ``owner``, its trees are retired when the owner is garbage-collected;
+- retired trees are destroyed only when the package's live trees pass :data:`SOFT_LIMIT` at an allocation (a
+  safe point: never from inside a garbage collection that may run during a kernel launch), all in one go and
+  with the registered evictors (the World pool, engine/world.py, destroys the Worlds no Simulation holds); a
+  render, a simulation or the viewer never get there, a long sweep worker seldom. Past :data:`HARD_LIMIT` an
+  allocation fails with a clear error instead of a crash.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang.util import to_numpy_type
 
-__all__ = ["FieldTrees", "live_trees", "on_pressure", "SOFT_LIMIT", "HARD_LIMIT"]
+__all__ = ["FieldTrees", "live_trees", "retired_trees", "on_pressure", "SOFT_LIMIT", "HARD_LIMIT"]
 
 TAICHI_LIMIT = 512  # SNode trees per process on the LLVM backends (Taichi 1.7.4, kMaxNumSnodeTreesLlvm)
 SOFT_LIMIT = 256  # live trees of the package from which evictors run before an allocation
@@ -53,6 +60,11 @@ def live_trees() -> int:
     return _runtime_state()["live"]
 
 
+def retired_trees() -> int:
+    """Of :func:`live_trees`, those whose owners are done with them (destroyed at the next pressure)."""
+    return sum(t.count for t in _runtime_state()["retired"])
+
+
 def on_pressure(evict) -> None:
     """Register ``evict()``: called before an allocation when the live trees pass :data:`SOFT_LIMIT`; it
     destroys what it can spare (once per function)."""
@@ -67,8 +79,7 @@ def _drain(st: dict) -> None:
 
 def _before_allocation(new: int) -> None:
     st = _runtime_state()
-    _drain(st)
-    if st["live"] + new > SOFT_LIMIT:
+    if st["live"] + new > SOFT_LIMIT:  # rare: every kernel compiles again after this (module docstring)
         gc.collect()  # owners (Renderers, Simulations) held only by reference cycles go now: their trees retire
         _drain(st)
         for evict in st["evictors"]:
@@ -87,7 +98,7 @@ def _settle() -> None:
 
 
 def _retire(trees: "FieldTrees") -> None:
-    if _state["prog"] == trees._prog and trees._trees:
+    if _state["prog"] == trees._prog and trees._trees and trees not in _state["retired"]:
         _state["retired"].append(trees)
 
 
@@ -110,13 +121,14 @@ class FieldTrees:
     launches, and each launch bumped the count. In a tree whose fields all have one element size every
     offset is a multiple of that size.
 
-    ``owner``: when it is garbage-collected, the trees are destroyed at the next allocation (module docstring).
+    ``owner``: when it is garbage-collected, the trees are retired (module docstring).
     """
 
     def __init__(self, owner=None):
         self._builders: dict[int, ti.FieldsBuilder] = {}
         self._trees: list = []
         self._prog = _runtime_state()["prog"]
+        self._owner = None if owner is None else weakref.ref(owner)
         if owner is not None:
             weakref.finalize(owner, _retire, self)
 
@@ -196,11 +208,20 @@ class FieldTrees:
         """The trees this owns now."""
         return len(self._trees)
 
+    def release(self) -> "FieldTrees":
+        """Retire the trees this owns (their fields must not be used again): destroyed with the others the next
+        time the live trees run high. Returns a new, empty FieldTrees for the owner's next fields."""
+        _retire(self)
+        owner = self._owner() if self._owner is not None else None
+        return FieldTrees(owner=owner)
+
     def destroy(self) -> None:
         """Free every tree this owns (their fields must not be used again). Idempotent; a tree of an earlier
         Taichi runtime is dropped, not destroyed."""
         st = _runtime_state()
         same = st["prog"] == self._prog
+        if self in st["retired"]:
+            st["retired"].remove(self)
         for tree in self._trees:
             if same:
                 tree.destroy()

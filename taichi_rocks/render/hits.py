@@ -33,7 +33,7 @@ class _Buffer:
 
     def __init__(self):
         self.pos = self.col = self.rad = None
-        self._trees = FieldTrees(owner=self)  # replaced (the old fields destroyed) each time the buffer grows
+        self._trees = FieldTrees(owner=self)  # replaced (the old fields retired) each time the buffer grows
         self._colours = None  # the key of the colours uploaded, if the caller gave one
 
     def put(self, pos: np.ndarray, col: np.ndarray, rad: np.ndarray = None, colour_key=None) -> int:
@@ -45,7 +45,7 @@ class _Buffer:
             cap = 64
             while cap < n:
                 cap *= 2
-            self._trees.destroy()
+            self._trees = self._trees.release()
             self.pos, self.col = self._trees.vector(3, ti.f32, cap), self._trees.vector(3, ti.f32, cap)
             self.rad = self._trees.scalar(ti.f32, cap) if rad is not None else None
         cap = self.pos.shape[0]
@@ -59,7 +59,7 @@ class _Buffer:
         return n
 
     def close(self) -> None:
-        self._trees.destroy()
+        self._trees = self._trees.release()
         self.pos = self.col = self.rad = None
 
 
@@ -75,7 +75,7 @@ class HitLayer:
         self._cores, self._sparks, self._marks = _Buffer(), _Buffer(), _Buffer()
 
     def close(self) -> None:
-        """Free the GGUI buffers' fields."""
+        """Retire the GGUI buffers' fields (engine/trees.py)."""
         for b in (self._cores, self._sparks, self._marks):
             b.close()
 

@@ -120,7 +120,7 @@ class Renderer:
         self.last_count = 0
         self.tiles_in_view = 0  # tiles of the store the last rock pass visited (active stepping)
         self.timings = {"cull": 0.0, "draw": 0.0}
-        # the fields of this renderer, freed by close() (or after it is garbage-collected: engine/trees.py)
+        # the fields of this renderer, retired by close() or when it is garbage-collected (engine/trees.py)
         self._trees, self._v_trees = FieldTrees(owner=self), FieldTrees(owner=self)
         self._ggui_camera = ggui(ti.ui.Camera)  # GGUI's camera of the 3D layer, set from the view each frame
         self._ggui_camera.up(*GL_UP)
@@ -220,8 +220,7 @@ class Renderer:
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
         self._inside = None  # the vehicle whose cabin the camera looks out of this frame
         self._odometer = Odometer(self.sim.fleet.paths)
-        vt = self._v_trees  # the vehicles' fields of the last call, destroyed now
-        vt.destroy()
+        vt = self._v_trees = self._v_trees.release()  # the vehicles' fields of the last call retire
         self._v_verts = vt.vector(3, ti.f32, len(vs))
         self._v_norms = vt.vector(3, ti.f32, len(vs))
         self._v_cols = vt.vector(3, ti.f32, len(vs))
@@ -266,11 +265,11 @@ class Renderer:
                 for m, p, a in zip(self._meshes, poses, self.wheel_angles(t))]
 
     def close(self) -> None:
-        """Release the window and the imgui.ini GGUI left behind, and free the renderer's fields (it draws no
-        more frames after this; the Simulation stays usable)."""
+        """Release the window and the imgui.ini GGUI left behind, and retire the renderer's fields (destroyed
+        with others once the process runs short of SNode trees: engine/trees.py). It draws no more frames after
+        this; the Simulation stays usable."""
         self._win.release()
-        for t in (self._trees, self._v_trees):
-            t.destroy()
+        self._trees, self._v_trees = self._trees.release(), self._v_trees.release()
         self.hits.close()
 
     def __enter__(self):
