@@ -286,10 +286,9 @@ def impacts_targets(launch: dict, bench: dict) -> list:
             f"on the followers, {cross['cross']} across lanes.*", "",
             "| target | measured | met | detail, and why where missed |", "|---|---|---|---|"]
     for t in imp["targets"]:
-        met = {True: "yes", False: "**NO**", None: "-"}[t["met"]]
         repeated = t["reason"].split(": ", 1)[-1] in t["detail"]  # a reason that only repeats the detail
         why = "; ".join(x for x in (t["detail"], "" if repeated else t["reason"]) if x)
-        rows.append(f"| {t['target']} | {t['shown']} | {met} | {why} |")
+        rows.append(f"| {t['target']} | {t['shown']} | {_met(t['met'])} | {why} |")
     return rows
 
 

@@ -132,6 +132,11 @@ class FieldTrees:
         if owner is not None:
             weakref.finalize(owner, _retire, self)
 
+    @classmethod
+    def given(cls, trees: "FieldTrees | None", owner) -> "FieldTrees":
+        """``trees`` if given (the fields then belong to its owner), or new trees owned by ``owner``."""
+        return trees if trees is not None else cls(owner=owner)
+
     # ---------------------------------------------------------------------------------------------- batched
     def _place(self, make, dtype, shape):
         shape = (shape,) if isinstance(shape, int) else tuple(shape)

@@ -237,7 +237,7 @@ class World:
                                 rocks=self.rocks, bodies=bodies, events=events):
             setattr(self, spec.name, trees.place(spec, real))
         trees.finalize()
-        self.trees = trees  # destroyed by the pool when it needs the room (see acquire)
+        self.trees = trees  # destroyed by the pool when the process runs short of trees (_evict)
         if self.impacts:
             self.events = EventBuffer(max(int(events), 1), real, fields=(self.ev_ints, self.ev_reals, self.ev_count))
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)

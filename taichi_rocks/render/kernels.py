@@ -68,7 +68,7 @@ class Buffers:
                  trees: FieldTrees = None):
         self.splat = bool(splat)  # read at compile time
         self.shadows = bool(shadows)  # read at compile time
-        t = trees if trees is not None else FieldTrees(owner=self)
+        t = FieldTrees.given(trees, self)
         self.count = t.scalar(ti.i32)
         self.mesh_count = t.scalar(ti.i32, 2)  # flying rocks compacted for meshes, per level of detail
         # (render/tumbling.py)
@@ -97,7 +97,7 @@ class Bucket:
 
     def __init__(self, cap: int, trees: FieldTrees = None):
         self.cap = int(cap)  # read at compile time
-        t = trees if trees is not None else FieldTrees(owner=self)
+        t = FieldTrees.given(trees, self)
         self.pos = t.vector(3, ti.f32, cap)
         self.rad = t.scalar(ti.f32, cap)
         self.col = t.vector(3, ti.f32, cap)

@@ -27,7 +27,7 @@ class Overlays:
 
     def __init__(self, flags, trees: FieldTrees = None):
         self.flags = flags
-        self._trees = trees if trees is not None else FieldTrees(owner=self)
+        self._trees = FieldTrees.given(trees, self)
         self._lines = {}
         for name in _SIZES:
             if getattr(flags, name, False):

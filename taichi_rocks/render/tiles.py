@@ -26,7 +26,7 @@ class Visible:
     slot of the store, at least one)."""
 
     def __init__(self, n_slots: int, trees: FieldTrees = None):
-        t = trees if trees is not None else FieldTrees(owner=self)
+        t = FieldTrees.given(trees, self)
         self.slots = t.scalar(ti.i32, max(int(n_slots), 1))
         self.count = t.scalar(ti.i32)
 

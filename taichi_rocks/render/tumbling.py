@@ -103,7 +103,7 @@ class MeshBucket:
         self.cap = int(cap)  # read at compile time
         self.on = bool(on)  # read at compile time: False, a placeholder the rock pass never writes
         n = LODS * cap
-        t = trees if trees is not None else FieldTrees(owner=self)
+        t = FieldTrees.given(trees, self)
         self.pos = t.vector(3, ti.f32, n)
         self.rad = t.scalar(ti.f32, n)
         self.quat = t.vector(4, ti.f32, n)
