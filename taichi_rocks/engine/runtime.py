@@ -14,6 +14,7 @@ import sys
 import taichi as ti
 
 from ..config.arches import ARCHES
+from . import frontend
 
 _state: dict = {"arch": None}
 
@@ -30,6 +31,7 @@ def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
     warn = warn or (lambda msg: print(f"taichi-rocks: warning: {msg}", file=sys.stderr))
     if _state["arch"] is not None:
         return _state["arch"]
+    frontend.install()  # the same kernels, compiled with less of the front end's repeated work
     threads = os.environ.get("TAICHI_ROCKS_THREADS")
     # fast_math off: x / l must round exactly like NumPy for cells on boundaries to agree everywhere
     opts = dict(log_level=ti.ERROR, random_seed=0, fast_math=False)
