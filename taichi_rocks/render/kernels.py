@@ -16,6 +16,8 @@ Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)). Kernel arguments a
 below (local f32 coordinates, the simulation's Z up); the buffers live in a :class:`Buffers`.
 """
 
+import math
+
 import taichi as ti
 
 from ..config.streams import LOOK_THIN
@@ -35,6 +37,7 @@ __all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "CameraBasis",
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
+ROW_PARTS = 8  # paint_ground's rows are painted in this many pieces, in parallel
 SHAPED_PX = 4.0  # from this many pixels in radius, splatted rocks get irregular outlines and facets
 
 _vec2 = ti.types.vector(2, ti.f32)
@@ -101,6 +104,21 @@ class Bucket:
         self.pos = t.vector(3, ti.f32, cap)
         self.rad = t.scalar(ti.f32, cap)
         self.col = t.vector(3, ti.f32, cap)
+
+
+def spread_stride(n: int) -> int:
+    """A stride coprime with ``n`` near n / golden ratio: ``(q * stride) % n`` visits 0 .. n-1 once each, and
+    any run of consecutive q lands all over the range.
+
+    Taichi 1.7.4's CPU backend hands a parallel loop to its threads in chunks of consecutive iterations, and
+    when the costly iterations lie together at the start of the range (the ground rows at the bottom of the
+    image, the sky above them) one thread did nearly all of them: paint_ground ran on one of two cores.
+    Measured on 2 cores: a loop whose first half is costly took 1.0 cores' time, spread 0.6.
+    """
+    stride = max(1, round(n * 0.6180339887))
+    while math.gcd(stride, n) != 1:
+        stride += 1
+    return stride
 
 
 # ------------------------------------------------------------------------------------------------ splatting
@@ -355,8 +373,12 @@ def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), 
                 lo, s, ground, r_max = drawing.slot_bounds(world, t, tiles)
                 if tile_in_view(lo, s, ground, r_max, cam, fr):
                     vis.slots[ti.atomic_add(vis.count[None], 1)] = t
-        for v, k in ti.ndrange(vis.count[None], drawing.slot_capacity(world)):
-            t = vis.slots[v]
+        # the visible tiles in a spread order (a prime stride, a permutation unless it divides the count): near
+        # tiles, whose rocks are big splats, lie together in the list, and the CPU backend gives a thread
+        # consecutive iterations (see spread_stride); splats are order independent
+        n_vis = vis.count[None]
+        for v, k in ti.ndrange(n_vis, drawing.slot_capacity(world)):
+            t = vis.slots[(v * 7919) % n_vis if n_vis % 7919 else v]
             if k < drawing.slot_rocks(world, t):
                 p, r, ph, rid = drawing.slot_rock(world, t, k)  # at rest: never a mesh, no orientation read
                 _draw_rock(buf, bucket, meshes, p, r, ti.Vector([0.0, 0.0, 0.0, 1.0]), ph, rid, cam, fr, size,
@@ -418,8 +440,8 @@ def _checker(hx, hy, fx, fy, wrap, inv_tile):
 
 
 @ti.func
-def _ground_row(buf, j, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
-    """Row j where the ground shows: ray ``dr`` through the row's centre line meets the plane at distance t
+def _ground_row(buf, j, i0, i1, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
+    """Columns i0 .. i1-1 of row j where the ground shows: ray ``dr`` through the row's centre line meets the plane at distance t
     (in units of dr). The pixel's ray is dr + right * u. With ``buf.shadows``, the light the sun gives is
     taken away in the shadows (the vehicles', and the flying rocks' splatted ones) from the ground and the
     resting rocks alike, in the resting rocks' contact shadows from the ground only."""
@@ -434,7 +456,7 @@ def _ground_row(buf, j, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
     bx0 = cam.eye[0] + t * dr[0]
     by0 = cam.eye[1] + t * dr[1]
     r2 = dr.norm_sqr()
-    for i in range(W):
+    for i in range(i0, i1):
         u = ((i + 0.5) / W * 2.0 - 1.0) * fr.tan_x
         hx = bx0 + t * u * right[0]
         hy = by0 + t * u * right[1]
@@ -482,26 +504,25 @@ def _ground_row(buf, j, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
 
 
 @ti.func
-def _sky_row(buf, j, dr, rocks, shaded, pal):
-    """Row j above the horizon: one colour (elevation of the row's centre), rocks only when the camera is lower
-    than they are. (A shadow splatted across the horizon is reset here.)"""
-    W, H = buf.sky.shape
+def _sky_row(buf, j, i0, i1, dr, rocks, shaded, pal):
+    """Columns i0 .. i1-1 of row j above the horizon: one colour (elevation of the row's centre), rocks only
+    when the camera is lower than they are. (A shadow splatted across the horizon is reset here.)"""
     elev = dr[2] / ti.sqrt(dr.norm_sqr())
     col = pal.horizon + (pal.sky - pal.horizon) * _smooth01(elev * (1.0 / 0.12))
     px = _to_rgba8(col)
     if ti.static(buf.shadows):
         if shaded:
-            for i in range(W):
+            for i in range(i0, i1):
                 buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
     if ti.static(buf.splat):
         if rocks:
-            for i in range(W):
+            for i in range(i0, i1):
                 buf.sky[i, j] = _to_rgba8(_composite(col, buf, i, j))
         else:
-            for i in range(W):
+            for i in range(i0, i1):
                 buf.sky[i, j] = px
     else:
-        for i in range(W):
+        for i in range(i0, i1):
             buf.sky[i, j] = px
 
 
@@ -518,12 +539,17 @@ def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Grou
     hazed towards ``pal.horizon`` with distance. Sky: ``pal.sky`` above, lightening to ``pal.horizon`` at the
     horizon. Everything GGUI draws afterwards lies above the plane, so painting the ground behind the 3D scene
     is exact; resting rocks lie on it (a rock just in front of a tire's contact patch is the only thing that
-    can come out behind instead of in front). Parallel over rows: the camera has no roll (its right vector is
-    horizontal), so a row's rays share their height and distance to the plane.
+    can come out behind instead of in front). Parallel over pieces of rows (ROW_PARTS a row, rows in a
+    spread order: :func:`spread_stride`): the camera has no roll (its right vector is horizontal), so a row's
+    rays share their height and distance to the plane. Each pixel is painted once, so the image does not depend
+    on the order.
     """
     W, H = buf.sky.shape
     h = cam.eye[2] - ground.z
-    for j in range(H):
+    for q, part in ti.ndrange(H, ti.static(ROW_PARTS)):
+        j = (q * ti.static(spread_stride(buf.sky.shape[1]))) % H  # rows spread: see spread_stride
+        i0 = part * W // ROW_PARTS
+        i1 = (part + 1) * W // ROW_PARTS
         v = ((j + 0.5) / H * 2.0 - 1.0) * fr.tan_y
         dr = cam.fwd + cam.up * v  # ray through the row's centre line
         dz = dr[2]  # right is horizontal (no roll), so the whole row shares dz and the plane distance t
@@ -534,9 +560,9 @@ def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Grou
         if ti.static(buf.shadows):
             shaded = buf.rows[2] <= j <= buf.rows[3]
         if dz < 0.0 and h > 0.0:
-            _ground_row(buf, j, dr, h / -dz, rocks, shaded, cam, fr, ground, pal, n_cars)
+            _ground_row(buf, j, i0, i1, dr, h / -dz, rocks, shaded, cam, fr, ground, pal, n_cars)
         else:
-            _sky_row(buf, j, dr, rocks, shaded, pal)
+            _sky_row(buf, j, i0, i1, dr, rocks, shaded, pal)
 
 
 @ti.kernel
