@@ -110,11 +110,9 @@ def spread_stride(n: int) -> int:
     """A stride coprime with ``n`` near n / golden ratio: ``(q * stride) % n`` visits 0 .. n-1 once each, and
     any run of consecutive q lands all over the range.
 
-    Taichi 1.7.4's CPU backend hands a parallel loop to its threads in chunks of consecutive iterations, and
-    when the costly iterations lie together at the start of the range (the ground rows at the bottom of the
-    image, the sky above them) one thread did nearly all of them: paint_ground ran on one of two cores.
-    Measured on 2 cores: a loop whose first half is costly took 1.0 cores' time, spread 0.6.
-    """
+    Taichi 1.7.4's CPU threads take chunks of consecutive iterations, and when the costly ones lay together at
+    the start of the range (the ground rows at the bottom of the image) one thread did nearly all of them: on 2
+    cores a loop whose first half is costly took 1.0 cores' time, spread 0.6."""
     stride = max(1, round(n * 0.6180339887))
     while math.gcd(stride, n) != 1:
         stride += 1
@@ -378,7 +376,7 @@ def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), 
         # consecutive iterations (see spread_stride); splats are order independent
         n_vis = vis.count[None]
         for v, k in ti.ndrange(n_vis, drawing.slot_capacity(world)):
-            t = vis.slots[(v * 7919) % n_vis if n_vis % 7919 else v]
+            t = vis.slots[ti.cast(ti.cast(v, ti.i64) * 7919 % n_vis, ti.i32) if n_vis % 7919 else v]
             if k < drawing.slot_rocks(world, t):
                 p, r, ph, rid = drawing.slot_rock(world, t, k)  # at rest: never a mesh, no orientation read
                 _draw_rock(buf, bucket, meshes, p, r, ti.Vector([0.0, 0.0, 0.0, 1.0]), ph, rid, cam, fr, size,
@@ -441,10 +439,10 @@ def _checker(hx, hy, fx, fy, wrap, inv_tile):
 
 @ti.func
 def _ground_row(buf, j, i0, i1, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
-    """Columns i0 .. i1-1 of row j where the ground shows: ray ``dr`` through the row's centre line meets the plane at distance t
-    (in units of dr). The pixel's ray is dr + right * u. With ``buf.shadows``, the light the sun gives is
-    taken away in the shadows (the vehicles', and the flying rocks' splatted ones) from the ground and the
-    resting rocks alike, in the resting rocks' contact shadows from the ground only."""
+    """Columns i0 .. i1-1 of row j where the ground shows: ray ``dr`` through the row's centre line meets the
+    plane at distance t (in units of dr). The pixel's ray is dr + right * u. With ``buf.shadows``, the light the
+    sun gives is taken away in the shadows (the vehicles', and the flying rocks' splatted ones) from the ground
+    and the resting rocks alike, in the resting rocks' contact shadows from the ground only."""
     W, H = buf.sky.shape
     inv_tile = 1.0 / ground.tile
     right = cam.right
