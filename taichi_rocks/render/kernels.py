@@ -38,6 +38,7 @@ __all__ = ["COVERAGE_ONE", "SHADE_ONE", "OPAQUE_PX", "SHAPED_PX", "CameraBasis",
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 OPAQUE_PX = 1.0  # splatted rocks at least this many pixels in radius are opaque spheres, smaller ones coverage
 ROW_PARTS = 8  # paint_ground's rows are painted in this many pieces, in parallel
+TILE_STRIDE = 7919  # a prime: the rock pass's visible tiles in a spread order (rocks_pass)
 SHAPED_PX = 4.0  # from this many pixels in radius, splatted rocks get irregular outlines and facets
 
 _vec2 = ti.types.vector(2, ti.f32)
@@ -371,12 +372,11 @@ def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), 
                 lo, s, ground, r_max = drawing.slot_bounds(world, t, tiles)
                 if tile_in_view(lo, s, ground, r_max, cam, fr):
                     vis.slots[ti.atomic_add(vis.count[None], 1)] = t
-        # the visible tiles in a spread order (a prime stride, a permutation unless it divides the count): near
-        # tiles, whose rocks are big splats, lie together in the list, and the CPU backend gives a thread
-        # consecutive iterations (see spread_stride); splats are order independent
+        # visible tiles in a spread order (a permutation unless the prime divides the count): near tiles (big
+        # splats) lie together in the list, and a CPU thread takes consecutive iterations (see spread_stride)
         n_vis = vis.count[None]
         for v, k in ti.ndrange(n_vis, drawing.slot_capacity(world)):
-            t = vis.slots[ti.cast(ti.cast(v, ti.i64) * 7919 % n_vis, ti.i32) if n_vis % 7919 else v]
+            t = vis.slots[ti.cast(ti.cast(v, ti.i64) * TILE_STRIDE % n_vis, ti.i32) if n_vis % TILE_STRIDE else v]
             if k < drawing.slot_rocks(world, t):
                 p, r, ph, rid = drawing.slot_rock(world, t, k)  # at rest: never a mesh, no orientation read
                 _draw_rock(buf, bucket, meshes, p, r, ti.Vector([0.0, 0.0, 0.0, 1.0]), ph, rid, cam, fr, size,
