@@ -40,31 +40,28 @@ class Group:
 
 
 @ti.kernel
-def _put(reals: ti.template(), cols: ti.template(), ints: ti.template(), r: ti.types.ndarray(ndim=2),
-         k: ti.types.ndarray(ndim=2), n: ti.i32):
+def _copy(reals: ti.template(), cols: ti.template(), ints: ti.template(), r: ti.types.ndarray(ndim=2),
+          k: ti.types.ndarray(ndim=2), n: ti.i32, into_fields: ti.template()):
+    """The first ``n`` rows: the arrays into the fields if ``into_fields``, else the fields into the arrays."""
     for i in range(n):
         for f in ti.static(range(len(reals))):
-            if ti.static(cols[f][1] > 0):
-                for j in ti.static(range(cols[f][1])):
-                    reals[f][i][j] = r[i, cols[f][0] + j]
-            else:
-                reals[f][i] = r[i, cols[f][0]]
+            c, w = ti.static(cols[f][0], cols[f][1])
+            for j in ti.static(range(max(w, 1))):
+                if ti.static(into_fields):
+                    if ti.static(w > 0):
+                        reals[f][i][j] = r[i, c + j]
+                    else:
+                        reals[f][i] = r[i, c]
+                else:
+                    if ti.static(w > 0):
+                        r[i, c + j] = reals[f][i][j]
+                    else:
+                        r[i, c] = reals[f][i]
         for f in ti.static(range(len(ints))):
-            ints[f][i] = k[i, f]
-
-
-@ti.kernel
-def _take(reals: ti.template(), cols: ti.template(), ints: ti.template(), r: ti.types.ndarray(ndim=2),
-          k: ti.types.ndarray(ndim=2), n: ti.i32):
-    for i in range(n):
-        for f in ti.static(range(len(reals))):
-            if ti.static(cols[f][1] > 0):
-                for j in ti.static(range(cols[f][1])):
-                    r[i, cols[f][0] + j] = reals[f][i][j]
+            if ti.static(into_fields):
+                ints[f][i] = k[i, f]
             else:
-                r[i, cols[f][0]] = reals[f][i]
-        for f in ti.static(range(len(ints))):
-            k[i, f] = ints[f][i]
+                k[i, f] = ints[f][i]
 
 
 def put(g: Group, arrays: list, rows: int) -> None:
@@ -77,7 +74,7 @@ def put(g: Group, arrays: list, rows: int) -> None:
             r[:, c:c + max(w, 1)] = np.asarray(a).reshape(rows, max(w, 1))
         else:
             k[:, j] = a
-    _put(g.reals, g.real_cols, g.ints, r, k, rows)
+    _copy(g.reals, g.real_cols, g.ints, r, k, rows, True)
 
 
 def take(g: Group, rows: int) -> list:
@@ -85,7 +82,7 @@ def take(g: Group, rows: int) -> list:
     given (vector fields ``(rows, n)``, scalar ones ``(rows,)``)."""
     r, k = g.arrays(rows)
     if rows:
-        _take(g.reals, g.real_cols, g.ints, r, k, rows)
+        _copy(g.reals, g.real_cols, g.ints, r, k, rows, False)
     out = []
     for real, j in g.order:
         if real:
