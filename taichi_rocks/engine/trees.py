@@ -37,7 +37,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang.util import to_numpy_type
 
-__all__ = ["FieldTrees", "live_trees", "retired_trees", "on_pressure", "SOFT_LIMIT", "HARD_LIMIT"]
+__all__ = ["FieldTrees", "Pool", "live_trees", "retired_trees", "on_pressure", "SOFT_LIMIT", "HARD_LIMIT"]
 
 TAICHI_LIMIT = 512  # SNode trees per process on the LLVM backends (Taichi 1.7.4, kMaxNumSnodeTreesLlvm)
 SOFT_LIMIT = 256  # live trees of the package past which an allocation first destroys the retired ones and evicts
@@ -232,3 +232,60 @@ class FieldTrees:
                 tree.destroy()
                 st["live"] -= 1
         self._trees = []
+
+
+class Pool:
+    """Objects that hold fields, leased by owners in turn and kept by layout: a World (engine/world.py), a
+    renderer's buffers (render/renderer.py).
+
+    Every kernel compiles again for a new object of fields (its fields are template arguments: seconds), so an
+    owner done with its object leaves it here, and the next owner of the same layout gets it back, reset, with
+    its kernels compiled. Each object has ``trees`` (its :class:`FieldTrees`) and ``owner`` (a weak reference
+    to its owner, or None); it is free once :meth:`give_back` was called or its owner was garbage-collected.
+    Two live owners never share one. Free objects stay until the process runs short of SNode trees: then
+    :meth:`evict` (registered with :func:`on_pressure`) destroys them. A new Taichi runtime forgets them all
+    (their fields died with the old one)."""
+
+    def __init__(self):
+        self._by_key: dict = {}
+        self._prog = None
+        on_pressure(self.evict)
+
+    def lease(self, owner, key, make, reset=None):
+        """A free object of layout ``key`` for ``owner``, after ``reset(obj)``; or else ``make()``, kept."""
+        prog = _runtime_state()["prog"]
+        if self._prog != prog:
+            self._by_key, self._prog = {}, prog
+        for obj in self._by_key.get(key, ()):
+            if self.is_free(obj):
+                if reset is not None:
+                    reset(obj)
+                obj.owner = weakref.ref(owner)
+                return obj
+        obj = make()
+        obj.owner = weakref.ref(owner)
+        self._by_key.setdefault(key, []).append(obj)
+        return obj
+
+    @staticmethod
+    def is_free(obj) -> bool:
+        return obj.owner is None or obj.owner() is None
+
+    @staticmethod
+    def give_back(obj) -> None:
+        """``obj``'s owner is done with it (it must not use it again)."""
+        obj.owner = None
+
+    def evict(self) -> None:
+        """Destroy every free object's trees."""
+        for key in list(self._by_key):
+            keep = []
+            for obj in self._by_key[key]:
+                if self.is_free(obj):
+                    obj.trees.destroy()
+                else:
+                    keep.append(obj)
+            if keep:
+                self._by_key[key] = keep
+            else:
+                del self._by_key[key]

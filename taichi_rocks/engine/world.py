@@ -10,7 +10,6 @@ estimate (engine/layout.py) adds it up.
 
 import math
 import warnings
-import weakref
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -19,7 +18,7 @@ import taichi as ti
 from taichi.lang.field import Field
 
 from .events import N_INT, N_REAL, EventBuffer
-from .trees import FieldTrees, on_pressure  # noqa: F401 - FieldTrees also imported from here
+from .trees import FieldTrees, Pool  # noqa: F401 - FieldTrees also imported from here
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
 
@@ -265,7 +264,7 @@ def _zero_fields(w: ti.template()):
             f[I] = f[I] * 0
 
 
-_POOL: dict = {}
+_POOL = Pool()
 
 
 def acquire(owner, n: int, real, **layout) -> World:
@@ -275,36 +274,12 @@ def acquire(owner, n: int, real, **layout) -> World:
     Every new World compiles every kernel again (its fields are template arguments: ~2-4 s on a 2-core CPU).
     Re-using released Worlds makes the second and later Simulations of a layout start at once: notebooks
     re-running a cell, parameter sweeps, tests. Two live Simulations never share a World. Released Worlds
-    stay until the process runs short of SNode trees (engine/trees.py): then :func:`_evict` destroys them."""
+    stay until the process runs short of SNode trees (engine/trees.py :class:`Pool`)."""
     key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
-    for w in _POOL.get(key, ()):
-        if _released(w):
-            with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
-                warnings.simplefilter("ignore", SyntaxWarning)
-                _zero_fields(w)
-            w.owner = weakref.ref(owner)
-            return w
-    w = World(n, real, **layout)
-    w.owner = weakref.ref(owner)
-    _POOL.setdefault(key, []).append(w)
-    return w
+    return _POOL.lease(owner, key, lambda: World(n, real, **layout), _zero)
 
 
-def _released(w: World) -> bool:
-    return w.owner is None or w.owner() is None
-
-
-def _evict() -> None:
-    """Destroy every released World's trees (engine/trees.py calls this when live trees run high)."""
-    for key in list(_POOL):
-        keep = [w for w in _POOL[key] if not _released(w)]
-        for w in _POOL[key]:
-            if _released(w):
-                w.trees.destroy()
-        if keep:
-            _POOL[key] = keep
-        else:
-            del _POOL[key]
-
-
-on_pressure(_evict)
+def _zero(w: World) -> None:
+    with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
+        warnings.simplefilter("ignore", SyntaxWarning)
+        _zero_fields(w)

@@ -49,7 +49,7 @@ from taichi.ui.utils import get_field_info
 
 from ..config.resolution import check_resolution
 from ..engine import drawing
-from ..engine.trees import FieldTrees
+from ..engine.trees import FieldTrees, Pool
 from . import kernels as K
 from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
@@ -120,8 +120,9 @@ class Renderer:
         self.last_count = 0
         self.tiles_in_view = 0  # tiles of the store the last rock pass visited (active stepping)
         self.timings = {"cull": 0.0, "draw": 0.0}
-        # the fields of this renderer, retired by close() or when it is garbage-collected (engine/trees.py)
-        self._trees, self._v_trees = FieldTrees(owner=self), FieldTrees(owner=self)
+        # the vehicles' fields of this renderer, retired by close() or when it is garbage-collected
+        # (engine/trees.py); the other buffers are leased from the pool (given back the same way)
+        self._v_trees = FieldTrees(owner=self)
         self._ggui_camera = ggui(ti.ui.Camera)  # GGUI's camera of the 3D layer, set from the view each frame
         self._ggui_camera.up(*GL_UP)
         self._ggui_camera.fov(self.fov)
@@ -130,22 +131,18 @@ class Renderer:
         # rocks: compact buckets (power-of-two capacities), allocated when first needed; flying ones of a few
         # pixels and more as oriented rock meshes (:mod:`.tumbling`) if the simulation tumbles them
         self.n_rocks = int(sim.n_rocks)
-        self._buckets = {}
-        self._mesh_buckets = {}
-        self._mesh_cap = MIN_MESHES
         self._protos = shared_prototypes() if drawing.has_orientations(sim.world) else None
         self._drawn = None
         self.last_meshes = 0
         w, h = self.resolution
-        # background image, splat buffers, shadows
-        self._buf = K.Buffers(w, h, rocks == "splat", MAX_CARS, self.shadows, self._trees)
-        # active stepping: the tile store's slots in view, listed by the rock pass
-        self._visible = K.Visible(drawing.slot_total(sim.world), self._trees)
+        self._f = _lease(self, w, h, rocks == "splat", self.shadows, drawing.slot_total(sim.world))
+        self._buf, self._visible = self._f.buf, self._f.visible
         self._out = np.empty((h, w, 3), np.uint8)
         self._prev_drawn = 0
         self.redraws = 0  # extra draws of the 3D layer (see render_frame)
         self._vehicle_fields()
-        self._overlays = Overlays(self.flags, self._trees)
+        self._overlays = self._f.overlays
+        self._overlays.flags = self.flags
         self.hits = HitLayer(sim.scene)  # the impacts' flashes and windscreen marks (render/hits.py)
         self._raw = None
         self._win = HiddenWindow(self.resolution) if target is None else target
@@ -269,7 +266,8 @@ class Renderer:
         with others once the process runs short of SNode trees: engine/trees.py). It draws no more frames after
         this; the Simulation stays usable."""
         self._win.release()
-        self._trees, self._v_trees = self._trees.release(), self._v_trees.release()
+        _POOL.give_back(self._f)
+        self._v_trees = self._v_trees.release()
         self.hits.close()
 
     def __enter__(self):
@@ -294,24 +292,26 @@ class Renderer:
         while cap < need:
             cap *= 2
         cap = min(cap, max(self.n_rocks, 1))
-        if cap not in self._buckets:
-            self._buckets[cap] = K.Bucket(cap, self._trees)
-        return self._buckets[cap]
+        f = self._f
+        if cap not in f.buckets:
+            f.buckets[cap] = K.Bucket(cap, f.trees)
+        return f.buckets[cap]
 
     def _mesh_bucket(self, need: int) -> MeshBucket:
         """A bucket for ``need`` rock meshes per level; without orientations (nothing to turn them by) a
         one-rock bucket that the rock pass compiles out: flying rocks stay particles."""
+        f = self._f
         if not drawing.has_orientations(self.sim.world):
-            if 0 not in self._mesh_buckets:
-                self._mesh_buckets[0] = MeshBucket(1, on=False, trees=self._trees)
-            return self._mesh_buckets[0]
-        cap = self._mesh_cap  # only ever grows: each capacity compiles the rock pass anew (seconds)
+            if 0 not in f.mesh_buckets:
+                f.mesh_buckets[0] = MeshBucket(1, on=False, trees=f.trees)
+            return f.mesh_buckets[0]
+        cap = f.mesh_cap  # only ever grows: each capacity compiles the rock pass anew (seconds)
         while cap < need:
             cap *= 2
-        self._mesh_cap = cap = min(cap, max(self.n_rocks, 1))
-        if cap not in self._mesh_buckets:
-            self._mesh_buckets[cap] = MeshBucket(cap, trees=self._trees)
-        return self._mesh_buckets[cap]
+        f.mesh_cap = cap = min(cap, max(self.n_rocks, 1))
+        if cap not in f.mesh_buckets:
+            f.mesh_buckets[cap] = MeshBucket(cap, trees=f.trees)
+        return f.mesh_buckets[cap]
 
     def _frustum(self):
         return K.Frustum(tan_x=self.tan_x, tan_y=self.tan_y, sec_x=math.sqrt(1 + self.tan_x ** 2),
@@ -547,3 +547,27 @@ class Renderer:
         hash cells, the tread patches (which lie inside the tires: a solid tire hides them entirely)."""
         f = self.flags
         return bool(f.tire_rays or f.hash_cells or f.tread_patch)
+
+
+class _Fields:
+    """A renderer's buffers for a resolution, rock mode, shadows and tile store: the background image, splat
+    buffers and shadows (:class:`.kernels.Buffers`), the tile store's slots in view (:class:`.tiles.Visible`),
+    the compact buckets of the rocks drawn as particles and as meshes (by capacity), and the overlays' lines.
+    Leased from :data:`_POOL`: the next Renderer of the same sizes on a pooled World (engine/world.py) then
+    starts with its rock pass and ground kernels compiled (a new set costs seconds of compiling)."""
+
+    def __init__(self, w: int, h: int, splat: bool, shadows: bool, n_slots: int):
+        self.trees, self.owner = FieldTrees(), None
+        self.buf = K.Buffers(w, h, splat, MAX_CARS, shadows, self.trees)
+        self.visible = K.Visible(n_slots, self.trees)
+        self.buckets, self.mesh_buckets, self.mesh_cap = {}, {}, MIN_MESHES
+        self.overlays = Overlays(SimpleNamespace(), self.trees)
+
+
+_POOL = Pool()
+
+
+def _lease(owner, w, h, splat, shadows, n_slots) -> _Fields:
+    """A free set of buffers of these sizes, cleared, or a new one."""
+    return _POOL.lease(owner, (w, h, splat, shadows, n_slots), lambda: _Fields(w, h, splat, shadows, n_slots),
+                       lambda f: K.clear_buffers(f.buf))

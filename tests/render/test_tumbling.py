@@ -6,6 +6,8 @@ compiled out; and only the commands that draw or export orientations (render, vi
 for them: ``simulate``'s Plan has no spin and its world no spin or orientation fields. The coarse level of
 detail (motion/rockshapes.py) keeps the fine rock's volume, against closed forms."""
 
+import gc
+
 import numpy as np
 import pytest
 
@@ -155,12 +157,15 @@ def test_a_placed_rock_is_turned_and_drawn_where_it_projects(tumbling_sim, q):
 
 def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
     """A simulation that does not tumble (no orientations) draws no mesh: the rock pass compiles them out. The
-    renderer retires every SNode tree it made when it closes (engine/trees.py: Taichi allows 512 a process)."""
-    from taichi_rocks.engine.trees import live_trees, retired_trees
+    renderer gives every SNode tree it made back when it closes (engine/trees.py: Taichi allows 512 a process):
+    its buffers to the pool, free for the next renderer of their sizes, the vehicles' fields retired; the next
+    renderer makes no new buffer."""
+    from taichi_rocks.engine.trees import retired_trees
+    from taichi_rocks.render import renderer as R
 
+    gc.collect()  # the renderers of earlier tests are given back now, not during this one
     sim = Simulation(load_scene(scenes_dir / "minimal.toml"), arch="cpu")
     assert not drawing.has_orientations(sim.world)
-    before, retired = live_trees(), retired_trees()
     with Renderer(sim, resolution=(W, H), window_every=0) as r:
         sim.advance_to(0.6)
         view = r.view()
@@ -170,9 +175,18 @@ def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
         _, count, meshes, counts = r._drawn
         assert not meshes.on and counts == (0, 0) and count == n > 0
         assert r._protos is None
-        made = live_trees() - before
-        assert made > 5  # buffers, buckets, vehicles: each a tree of its own
-    assert retired_trees() - retired >= made  # all of them retired (destroyed when the process runs short)
+        fields, vehicles = r._f, r._v_trees.count
+        made = fields.trees.count
+        assert made >= 4 and vehicles >= 3  # buffers, buckets, vehicles: each a tree of its own
+        assert not R._POOL.is_free(fields)
+        retired = retired_trees()
+    assert R._POOL.is_free(fields)  # kept for the next renderer (destroyed when the process runs short)
+    assert retired_trees() - retired >= vehicles  # the vehicles' fields retired
+    with Renderer(sim, resolution=(W, H), window_every=0) as again:
+        assert again._f is fields and not R._POOL.is_free(fields)
+        assert _cull(again, eye, view.fwd, view.right, view.up) == n
+        assert fields.trees.count == made  # no new buffer
+    assert R._POOL.is_free(fields)
 
 
 class _Stop(Exception):
