@@ -8,7 +8,11 @@ refresh them with:
     PYTHONPATH=. python tests/engine/test_golden.py --refresh
 
 The digests are of the CPU backend (bit-identical across runs, processes and thread counts); another
-processor family may round differently and would need its own file.
+processor family may round differently and would need its own file. The suite compiles with Taichi's own IR
+optimisation off (tests/conftest.py, engine/runtime.py ``quick_compile``); the digests are checked in that mode
+in process and in the mode the package ships in, in a process of its own:
+
+    PYTHONPATH=. TAICHI_ROCKS_QUICK_COMPILE=0 python tests/engine/test_golden.py --check
 """
 
 import hashlib
@@ -63,6 +67,46 @@ def test_state_after_steps_equals_the_golden_digest(taichi_cpu, golden, path):
                          "behaviour is meant, refresh: PYTHONPATH=. python tests/engine/test_golden.py --refresh")
 
 
+def test_the_shipped_compile_gives_the_same_digests():
+    """Both compile modes, one answer: the digests of every shipped scene compiled as the package ships (Taichi's
+    IR optimisation on), in a process of its own, against the committed ones (the test above: the suite's
+    quick compile)."""
+    import os
+    import subprocess
+
+    from taichi_rocks.engine.runtime import QUICK_COMPILE
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **{QUICK_COMPILE: "0"})
+    out = subprocess.run([sys.executable, str(Path(__file__)), "--check"], env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert out.stdout.split() == ["advanced_optimization=True"] + [f"{p.stem}:same" for p in SCENES], out.stdout
+
+
+def test_the_suite_compiles_quickly(taichi_cpu):
+    """The in-process digests above are of the quick compile (else the pair of modes would be one mode twice)."""
+    import taichi as ti
+
+    assert ti.lang.impl.current_cfg().advanced_optimization is False
+
+
+def check() -> int:
+    """Print the compile mode and, per shipped scene, ``name:same`` or ``name:changed``; 1 if any changed."""
+    import taichi as ti
+
+    from taichi_rocks.engine.runtime import init_taichi
+
+    init_taichi("cpu")
+    print(f"advanced_optimization={ti.lang.impl.current_cfg().advanced_optimization}")
+    want = json.loads(GOLDEN.read_text())["scenes"]
+    bad = 0
+    for p in SCENES:
+        same = digest(p) == want[p.stem]
+        bad += not same
+        print(f"{p.stem}:{'same' if same else 'changed'}", flush=True)
+    return int(bad > 0)
+
+
 def refresh() -> None:
     from taichi_rocks.engine.runtime import init_taichi
 
@@ -75,6 +119,8 @@ def refresh() -> None:
 
 
 if __name__ == "__main__":
+    if sys.argv[1:] == ["--check"]:
+        raise SystemExit(check())
     if sys.argv[1:] != ["--refresh"]:
-        raise SystemExit("usage: PYTHONPATH=. python tests/engine/test_golden.py --refresh")
+        raise SystemExit("usage: PYTHONPATH=. python tests/engine/test_golden.py --refresh | --check")
     refresh()
