@@ -3,7 +3,9 @@ activity (rocks in the air, vehicles, speed) at fixed N; the memory per rock.
 
 Every job of points runs in a process of its own (the sweep runner, runner/tasks.py: locally one at a time,
 or spread over a Ray cluster; ``python -m taichi_rocks.bench.activity JOB`` runs one by hand), so that its memory is
-its own (Taichi never frees fields) and no point's fields or compiled kernels weigh on another's. A point:
+its own (Taichi never frees fields) and no point's fields or compiled kernels weigh on another's (the tiny
+configuration of the tests, ``act_isolated`` False, runs all but the profiled job in the calling process: its
+memory figures are then not each point's own). A point:
 build the fleet scene, step 1 s (steady state: rocks in the air, the bed's rim moving), read the memory
 (``/proc/self/status``: VmRSS and VmHWM, against the process's RSS before the simulation was built; and the
 bytes of the World's fields), then time rounds of m steps (``ti.sync()`` around each round) interleaved with
@@ -32,6 +34,7 @@ import math
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
@@ -289,13 +292,18 @@ def run_jobs(jobs: list, cfg, arch: str, prog, backend: str = "local", address=N
         got[o.task["id"]] = o.result["points"] if o.result else [dict(p, error=o.error) for p in job]
         prog(f"activity: {job[0]['label']}")
 
+    if not cfg.act_isolated and backend == "local":  # the tiny run: all but the profiled job here, at once
+        here = [t for t in tasks if not any(p.get("profile") for p in t["points"])]
+        for t in here:
+            report(SimpleNamespace(task=t, result=run_points(t), error=None))
+        tasks = [t for t in tasks if t not in here]
     if backend == "ray":
         run_tasks(tasks, "taichi_rocks.bench.activity:run_points", backend="ray", address=address,
                   threads=WHOLE_NODE, retries=0, report=report, fresh=True)
     else:
         run_tasks(tasks, "taichi_rocks.bench.activity:run_points", workers=1, retries=0, report=report, fresh=True,
                   timeout=timeout)
-    return [p for t in tasks for p in got[t["id"]]]
+    return [p for i in range(len(jobs)) for p in got[str(i)]]
 
 
 def _by_n(points: list, series: str, cfg) -> list:
@@ -347,7 +355,8 @@ def activity_section(cfg, arch: str, prog, backend: str = "local", address=None)
            "sweep": [p for p in points if p["group"] in ("tires", "speed", "parked", "balanced")],
            "profile": [p for p in points if p["group"] == "profile"],
            "reference_n": cfg.act_fixed_n, "radius": cfg.act_radius, "t_rear": cfg.act_t,
-           "speed": cfg.act_speed, "density_b": cfg.act_ref_n / (math.pi * cfg.act_radius ** 2)}
+           "speed": cfg.act_speed, "density_b": cfg.act_ref_n / (math.pi * cfg.act_radius ** 2),
+           "isolated": bool(cfg.act_isolated)}
     res["memory"] = {s: memory_summary(res["series"][s]) for s in ("a", "b")}
     res["errors"] = [f"activity {p['label']}: {p['error']}" for p in points if "error" in p]
     res["elapsed_s"] = time.perf_counter() - t0

@@ -77,6 +77,7 @@ class Config:
     act_steps: int = 25
     act_balanced: bool = True
     act_profile_n: tuple = (100_000, 1_000_000)  # N profiled (kernel profiler, host side, launches), series (a)
+    act_isolated: bool = True  # each job in a process of its own (else, but the profiled one, in this process)
     # 5. impacts (impacts.py): the study's mode ("full", "quick"), None: not run
     impacts: Optional[str] = "full"
 
@@ -113,7 +114,7 @@ def make_config(quick: bool = False, tiny: bool = False) -> Config:
                       use_warp=True, substeps_mode=False, effects=("drag none",), effects_all_flying=False,
                       act_n=(10_000, 30_000), act_full_max=30_000, act_full_min=30_000, act_radius=8.0, act_ref_n=30_000, act_t=2,
                       act_fixed_n=30_000, act_tires=(2, 6), act_speeds=(10.0,), act_warm_s=0.2, act_rounds=3,
-                      act_steps=10, act_profile_n=(10_000,), impacts=None)
+                      act_steps=10, act_profile_n=(10_000,), act_isolated=False, impacts=None)
     if quick:
         return Config(mode="quick", grid_n=(10_000, 100_000), grid_t=(2, 20), bed_radius=30.0,
                       main=(100_000, 20), k_hits=20, warm=3, reps=10, pass_reps=4, numpy_reps=2, kdtree_reps=2,

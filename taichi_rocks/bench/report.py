@@ -314,7 +314,9 @@ def _activity_sweep_table(act: dict) -> list:
 
 
 def _activity_memory(act: dict) -> list:
-    L = ["Memory per rock (each point in a process of its own; growth = peak RSS (VmHWM) - the process's RSS "
+    alone = "each point in a process of its own" if act.get("isolated", True) else \
+        "the points in one process, one after another: not each point's own"
+    L = [f"Memory per rock ({alone}; growth = peak RSS (VmHWM) - the process's RSS "
          "before the simulation was built, after 1 s of steps; fields = the bytes of the World's Taichi fields):\n",
          "| series | stepping | N | fields MB | fields B/rock | RSS MB | peak RSS MB | peak growth B/rock |",
          "|---|---|---|---|---|---|---|---|"]

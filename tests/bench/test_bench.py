@@ -1,8 +1,8 @@
 """The benchmark on its tiny configuration: files, sections, identical hits across hash settings, sane ratios.
 
 No timing is asserted (the machine may be busy); only that every number that should be a positive finite ratio
-is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores, and its cost-against-activity section
-about 90 s more: each of its points compiles in a process of its own. Its tests are all in this file, so that
+is one. The tiny run takes about 35 s with cold Taichi caches on 2 cores, its cost-against-activity section
+included (its points run in the test's process, but the profiled one). Its tests are all in this file, so that
 the run is made once per test process (the suite runs a file per process at a time).
 """
 
@@ -270,6 +270,7 @@ def test_the_section_in_results_and_report(bench_run):
     data = json.loads((out / "results.json").read_text())
     act = data["activity"]
     assert data["errors"] == [] and act["errors"] == []
+    from taichi_rocks.bench.activity import plan_jobs
     from taichi_rocks.bench.config import make_config
 
     cfg = make_config(tiny=True)
@@ -308,6 +309,9 @@ def test_the_section_in_results_and_report(bench_run):
     assert f"| (a) | {cfg.act_n[-1]:,} | {cfg.act_radius:.1f} | {act['series']['a'][-1]['active']['in_air']:,} |" in section
     assert f"| parked | parked fleet (0 m/s) | {cfg.act_t} | 0 |" in section
     assert "GB** peak" in section
+    # the tiny run measures its points in the test's process (but the profiled one): the report says so
+    assert act["isolated"] is False and "the points in one process, one after another" in section
+    assert [p["label"] for p in act["points"]] == [p["label"] for job in plan_jobs(cfg) for p in job]
 
 
 def test_the_targets_have_verdicts(bench_run):
