@@ -176,8 +176,9 @@ class SweptKernel:
                            ((p0, (3,)), (p1, (3,)), (corners, (8, 3))))
         n = len(p0)
         r = np.broadcast_to(np.asarray(r, np.float64), (n,))
-        if planes is None:
-            planes = np.array([hexahedron_planes(c) for c in corners])
+        if planes is None:  # each distinct body once (the tests repeat one body over thousands of paths)
+            bodies, which = np.unique(corners.reshape(n, -1), axis=0, return_inverse=True)
+            planes = np.array([hexahedron_planes(c.reshape(8, 3)) for c in bodies])[which.reshape(-1)]
         out = {k: [] for k in ("hit", "t", "point", "normal", "face")}
         for s in range(0, n, self.cap):
             e = min(s + self.cap, n)

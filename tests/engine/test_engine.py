@@ -251,7 +251,7 @@ def test_far_from_origin_same_relative_motion():
 
 
 def test_checkpoint_restore_continues_bit_identically():
-    sc = scene(rocks=5000, vehicles=[{"name": "car", "path": {"kind": "circle", "center": [0.0, 0.0],
+    sc = scene(rocks=6000, vehicles=[{"name": "car", "path": {"kind": "circle", "center": [0.0, 0.0],
                                                                "radius": 5.0, "speed": 8.0}}])
     a = Simulation(sc)
     a.step(60)

@@ -287,7 +287,7 @@ def bed_uniform(sim):
 
 def test_sharp_clockwise_turn_throws_outwards_and_backwards():
     # radius 3 m at 8 m/s, clockwise: the rear wheels slide to the left (outside) at |yaw| wheelbase / 2 = 3.6 m/s
-    sim = Simulation(scene(rocks=5000, radius=5.0, vehicles=[{"name": "car", "path": {
+    sim = Simulation(scene(rocks=4000, radius=5.0, vehicles=[{"name": "car", "path": {
         "kind": "circle", "center": [0.0, 0.0], "radius": 3.0, "speed": 8.0, "clockwise": True}}]))
     recs = launch_records(sim, 600)
     assert len(recs) > 30
