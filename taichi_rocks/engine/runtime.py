@@ -62,9 +62,10 @@ def quick_compile() -> bool:
     """True if ``TAICHI_ROCKS_QUICK_COMPILE=1``: Taichi's own optimisation of its IR is off
     (``advanced_optimization=False``; LLVM still optimises the code it is given). Kernels compile 2-2.5x faster
     (the default scene's first step: 10.0 s -> 3.8 s of CPU) and compute the same bits (the golden digests of
-    every shipped scene, tests/engine/test_golden.py, checked in both modes); a step may run slower (full
-    stepping of 1,000,000 rocks: 4-40 % in three alternating runs). For short runs that compile much: the test
-    suite sets it (tests/conftest.py), a sweep of many layouts, the viewer's recompile buttons."""
+    every shipped scene, tests/engine/test_golden.py, checked in both modes); a step may run slower (1,000,000
+    rocks, three alternating runs: full stepping 6-42 % longer, active stepping -24 % to +50 %, the machine's
+    noise). For short runs that compile much: the test suite sets it (tests/conftest.py), a sweep of many
+    layouts, the viewer's recompile buttons."""
     return os.environ.get(QUICK_COMPILE, "") == "1"
 
 
