@@ -44,8 +44,24 @@ def tire_switches(center=True, swept=False, patch=False, ground="bounce", throw=
     return Switches(plan, READS["hash_and_tires"])
 
 
+def canonical(k: int, least: int = 64) -> int:
+    """The smallest power of two >= max(k, least): a probe's World sizes, so that probes of nearby sizes share
+    a layout (the World pool then hands one's World, compiled, to the next)."""
+    c = least
+    while c < k:
+        c *= 2
+    return c
+
+
+FAR = np.array([1.0e4, 1.0e4, 1.0e4])  # where the padding rocks (and, 100 m below, the padding rays) lie
+
+
 class Probe:
-    """A World holding given rocks, a hash built in a given mode, and rays; the tire pass's switches."""
+    """A World holding given rocks, a hash built in a given mode, and rays; the tire pass's switches.
+
+    The World's sizes are canonical (:func:`canonical`): the rocks past the ``n`` given and the rays past those
+    given are padding far away (:data:`FAR`), which nothing can hit; ``hits()`` and ``slot_members()`` speak of
+    the given rocks only."""
 
     def __init__(self, pos, radius, *, cell, insert="center", table=None, rays=(), real=ti.f32,
                  swept=False, rest_speed=1e-6, patch=False, throw="uniform", fenders=False):
@@ -54,24 +70,26 @@ class Probe:
         n = len(pos)
         self.n, self.cell, self.center = n, cell, insert == "center"
         r_max = float(radius.max()) if n else cell
-        entries = entry_capacity(radius, cell, self.center)
-        self.table = table or next_prime(max(entries, 1))
+        cap = canonical(n)
+        pos = np.concatenate([pos, FAR + np.arange(cap - n)[:, None] * np.array([4.0 * cell, 0.0, 0.0])])
+        radius = np.concatenate([radius, np.full(cap - n, float(radius.min()) if n else cell)])
+        entries = canonical(entry_capacity(radius, cell, self.center))
+        self.table = table or next_prime(entries)
         rays = np.asarray(rays, np.float64).reshape(-1, 2, 3)
         self.swept = swept
         ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
+        n_tires = canonical(len(rays), 4) if len(rays) else 0
         # from the World pool: a released probe's World of the same layout, zeroed, runs its compiled kernels
-        self.w = w = acquire(self, n, real, hash_table=self.table, hash_entries=entries, n_tires=len(rays),
-                             ray_capacity=hashgrid.ray_capacity(ray_len, cell) + 8)
+        self.w = w = acquire(self, cap, real, hash_table=self.table, hash_entries=entries, n_tires=n_tires,
+                             ray_capacity=canonical(hashgrid.ray_capacity(ray_len, cell) + 8, 16))
         self.switches = tire_switches(self.center, swept, patch, "bounce", throw, fenders)
-        par, ipar = pack({"N_ROCKS": n, "CELL": cell, "R_MAX": r_max, "REST_SPEED": rest_speed, "GRAVITY": 9.81,
+        par, ipar = pack({"N_ROCKS": cap, "CELL": cell, "R_MAX": r_max, "REST_SPEED": rest_speed, "GRAVITY": 9.81,
                           "ANGLE_MIN": np.radians(30.0), "ANGLE_MAX": np.radians(30.0), "TIE_EPS": 1e-5,
                           "DILATE": dilation_cells(r_max, cell) if self.center else 0})
         w.set_params(par, ipar)
         npr = w.np_real()
-        cap = max(n, 1)
-        pad = lambda a, k=(): np.concatenate([a, np.zeros((cap - n,) + k)]).astype(npr)
-        w.pos.from_numpy(pad(pos, (3,)))
-        w.radius.from_numpy(pad(radius))
+        w.pos.from_numpy(pos.astype(npr))
+        w.radius.from_numpy(radius.astype(npr))
         w.friction.from_numpy(np.full(cap, 0.5, npr))
         w.rock_id.from_numpy(np.arange(cap, dtype=np.int32))
         w.phase.from_numpy(np.zeros(cap, np.int32))
@@ -84,11 +102,14 @@ class Probe:
         hashgrid.scatter(w, self.center)
 
     def set_rays(self, prev, cur, spin=10.0, tread=None):
-        """Rays prev -> cur; ``tread``: the columns from HALF_W on (engine.patch.tread_columns), or zeros."""
+        """Rays prev -> cur; ``tread``: the columns from HALF_W on (engine.patch.tread_columns), or zeros. The
+        World's rays past those given are padding, far away."""
         w = self.w
+        pad = lambda r: np.concatenate([r, np.tile(FAR - 100.0, (w.n_tires - len(r), 2, 1))])
+        prev, cur = pad(np.asarray(prev, np.float64)), pad(np.asarray(cur, np.float64))
         data = np.zeros((w.n_tires, RAY_FIELDS))
         if tread is not None:
-            data[:, HALF_W:] = tread
+            data[:len(tread), HALF_W:] = tread
         data[:, 0:3], data[:, 3:6] = prev[:, 0], prev[:, 1]
         data[:, 6:9], data[:, 9:12] = cur[:, 0], cur[:, 1]
         data[:, 15] = 1.0
@@ -101,7 +122,7 @@ class Probe:
         w = self.w
         cur = self.rays
         self.set_rays(cur if prev is None else prev, cur, tread=tread)
-        w.phase.from_numpy(np.zeros(max(self.n, 1), np.int32))
+        w.phase.from_numpy(np.zeros(w.pos.shape[0], np.int32))
         if not self.swept:
             tires.trace_rays(w)
         tires.tire_pass(w, self.switches, step)
@@ -111,7 +132,8 @@ class Probe:
         """slot -> set of rock indices, from the built table."""
         start = self.w.cell_start.to_numpy()
         entries = self.w.entries.to_numpy()
-        return {s: set(entries[start[s]:start[s + 1]].tolist()) for s in range(self.table) if start[s + 1] > start[s]}
+        members = {s: {int(i) for i in entries[start[s]:start[s + 1]] if i < self.n} for s in range(self.table)}
+        return {s: m for s, m in members.items() if m}
 
 
 def segment_sphere_kernel(dtype, n=4096):
