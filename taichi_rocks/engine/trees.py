@@ -241,7 +241,7 @@ class Pool:
     Every kernel compiles again for a new object of fields (its fields are template arguments: seconds), so an
     owner done with its object leaves it here, and the next owner of the same layout gets it back, reset, with
     its kernels compiled. Each object has ``trees`` (its :class:`FieldTrees`) and ``owner`` (a weak reference
-    to its owner, or None); it is free once :meth:`give_back` was called or its owner was garbage-collected.
+    to its owner, or None); it is free once its owner called :meth:`give_back` or was garbage-collected.
     Two live owners never share one. Free objects stay until the process runs short of SNode trees: then
     :meth:`evict` (registered with :func:`on_pressure`) destroys them. A new Taichi runtime forgets them all
     (their fields died with the old one)."""
@@ -272,9 +272,11 @@ class Pool:
         return obj.owner is None or obj.owner() is None
 
     @staticmethod
-    def give_back(obj) -> None:
-        """``obj``'s owner is done with it (it must not use it again)."""
-        obj.owner = None
+    def give_back(obj, owner) -> None:
+        """``owner`` is done with ``obj`` (it must not use it again); nothing if ``obj`` is no longer its (a
+        second close after another owner leased it)."""
+        if obj.owner is not None and obj.owner() is owner:
+            obj.owner = None
 
     def evict(self) -> None:
         """Destroy every free object's trees."""

@@ -262,11 +262,12 @@ class Renderer:
                 for m, p, a in zip(self._meshes, poses, self.wheel_angles(t))]
 
     def close(self) -> None:
-        """Release the window and the imgui.ini GGUI left behind, and retire the renderer's fields (destroyed
-        with others once the process runs short of SNode trees: engine/trees.py). It draws no more frames after
-        this; the Simulation stays usable."""
+        """Release the window and the imgui.ini GGUI left behind, give the buffers back to the pool (the next
+        renderer of their sizes takes them, compiled) and retire the vehicles' fields (destroyed with others once
+        the process runs short of SNode trees: engine/trees.py). It draws no more frames after this; the
+        Simulation stays usable. Closing twice does nothing more."""
         self._win.release()
-        _POOL.give_back(self._f)
+        _POOL.give_back(self._f, self)
         self._v_trees = self._v_trees.release()
         self.hits.close()
 

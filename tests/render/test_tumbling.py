@@ -184,6 +184,8 @@ def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
     assert retired_trees() - retired >= vehicles  # the vehicles' fields retired
     with Renderer(sim, resolution=(W, H), window_every=0) as again:
         assert again._f is fields and not R._POOL.is_free(fields)
+        r.close()  # a second close of the first renderer leaves the buffers with the second
+        assert not R._POOL.is_free(fields)
         assert _cull(again, eye, view.fwd, view.right, view.up) == n
         assert fields.trees.count == made  # no new buffer
     assert R._POOL.is_free(fields)
