@@ -56,6 +56,14 @@ def canonical(k: int, least: int = 64) -> int:
 FAR = np.array([1.0e4, 1.0e4, 1.0e4])  # where the padding rocks (and, 100 m below, the padding rays) lie
 
 
+def padded_rocks(pos, radius, cap: int, cell: float) -> tuple:
+    """``pos`` (N, 3) and ``radius`` (N,) followed by cap - N padding rocks far away (:data:`FAR`, 4 cells
+    apart), which no ray can hit."""
+    n = len(pos)
+    pos = np.concatenate([pos, FAR + np.arange(cap - n)[:, None] * np.array([4.0 * cell, 0.0, 0.0])])
+    return pos, np.concatenate([radius, np.full(cap - n, float(radius.min()) if n else cell)])
+
+
 class Probe:
     """A World holding given rocks, a hash built in a given mode, and rays; the tire pass's switches.
 
@@ -71,8 +79,7 @@ class Probe:
         self.n, self.cell, self.center = n, cell, insert == "center"
         r_max = float(radius.max()) if n else cell
         cap = canonical(n)
-        pos = np.concatenate([pos, FAR + np.arange(cap - n)[:, None] * np.array([4.0 * cell, 0.0, 0.0])])
-        radius = np.concatenate([radius, np.full(cap - n, float(radius.min()) if n else cell)])
+        pos, radius = padded_rocks(pos, radius, cap, cell)
         entries = canonical(entry_capacity(radius, cell, self.center))
         self.table = table or next_prime(entries)
         rays = np.asarray(rays, np.float64).reshape(-1, 2, 3)

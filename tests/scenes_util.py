@@ -50,8 +50,9 @@ def reload_probe(probe, pos, radius, rays, cell=None):
 
     The probe must have been built with at least as many rocks and rays, hash entries (aabb: larger radii,
     smaller cells) and ray cells (longer rays, smaller cells) as needed. Missing rocks and rays are padded
-    with dummies far away (10 km up), which nothing can hit. Returns the probe; ``hits()`` then works as
-    usual (indices < len(pos))."""
+    with dummies far away (harness.padded_rocks, Probe.set_rays), which nothing can hit. Returns the probe;
+    ``hits()`` then works as usual (indices < len(pos))."""
+    from harness import padded_rocks
     from taichi_rocks.engine import hashgrid
     from taichi_rocks.engine.params import IPar, Par, dilation_cells
 
@@ -63,12 +64,8 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     n, m = len(pos), len(rays)
     assert n <= cap and m <= w.n_tires, (n, cap, m, w.n_tires)
     cell = float(probe.cell if cell is None else cell)
-    far = np.array([1.0e4, 1.0e4, 1.0e4])
-    r_dummy = float(radius.min()) if n else cell
-    pos = np.concatenate([pos, far + np.arange(cap - n)[:, None] * np.array([4.0 * cell, 0.0, 0.0])])
-    radius = np.concatenate([radius, np.full(cap - n, r_dummy)])
-    rays = np.concatenate([rays, np.tile(far - 100.0, (w.n_tires - m, 2, 1))])
-    length = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1)))
+    pos, radius = padded_rocks(pos, radius, cap, cell)
+    length = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if m else 0.0
     assert hashgrid.ray_capacity(length, cell) <= w.ray_capacity, "probe built for shorter rays / larger cells"
     r_max = float(radius.max())
     par = w.par.to_numpy()
@@ -81,7 +78,7 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     w.pos.from_numpy(pos.astype(npr))
     w.radius.from_numpy(radius.astype(npr))
     w.hit_step.from_numpy(np.full(cap, -1, np.int32))
-    probe.n, probe.cell, probe.rays = cap, cell, rays
+    probe.n, probe.cell, probe.rays = n, cell, rays
     hashgrid.clear_counts(w)
     hashgrid.count_all(w, probe.center, 0.0, 0.0)
     probe.total = hashgrid.inclusive_scan(w)

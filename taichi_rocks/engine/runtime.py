@@ -17,6 +17,7 @@ from ..config.arches import ARCHES
 from . import frontend
 
 _state: dict = {"arch": None}
+QUICK_COMPILE = "TAICHI_ROCKS_QUICK_COMPILE"  # the environment variable of quick_compile()
 
 
 def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
@@ -67,9 +68,6 @@ def quick_compile() -> bool:
     noise). For short runs that compile much: the test suite sets it (tests/conftest.py), a sweep of many
     layouts, the viewer's recompile buttons."""
     return os.environ.get(QUICK_COMPILE, "") == "1"
-
-
-QUICK_COMPILE = "TAICHI_ROCKS_QUICK_COMPILE"
 
 
 def current_arch():
