@@ -325,7 +325,7 @@ class Simulation:
         w.recycles[None] = int(data["recycles"]) if "recycles" in data else 0
         par = self._par.copy()
         par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
-        w.par.from_numpy(par.astype(w.np_real()))
+        w.set_params(par)
         if self.plan.spin and "rock_orient" not in data:  # a checkpoint of a run without tumbling
             data = {**data, "rock_orient": initial_orientations(self.scene.seed, self.n_rocks),
                     "rock_spin": np.zeros((self.n_rocks, 3))}

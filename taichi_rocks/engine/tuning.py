@@ -46,7 +46,7 @@ def set_runtime(sim, values: dict):
     par, _ = scene_params(scene, sim.plan, sim._sizing, ground_z=scene.world.ground_z - sim.origin[2])
     sim.scene = scene
     sim._par = par  # what restore() uploads again
-    sim.world.par.from_numpy(par.astype(sim.world.np_real()))  # ipar (rock and table counts) stays as it is
+    sim.world.set_params(par)  # ipar (rock and table counts) stays as it is
     return scene
 
 

@@ -10,12 +10,14 @@ estimate (engine/layout.py) adds it up.
 
 import math
 import warnings
+from typing import Optional
 from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
 from taichi.lang.field import Field
+from taichi.lang.matrix import MatrixField
 
 from .events import N_INT, N_REAL, EventBuffer
 from .trees import FieldTrees, Pool  # noqa: F401 - FieldTrees also imported from here
@@ -245,9 +247,16 @@ class World:
         """Every Taichi field of this World."""
         return [v for v in vars(self).values() if isinstance(v, Field)]
 
-    def set_params(self, par: np.ndarray, ipar: np.ndarray) -> None:
-        self.par.from_numpy(par.astype(np.float64 if self.real == ti.f64 else np.float32))
-        self.ipar.from_numpy(ipar.astype(np.int32))
+    def set_params(self, par: np.ndarray, ipar: Optional[np.ndarray] = None) -> None:
+        """The scene's parameters into ``par``, and into ``ipar`` unless None (its counts, which the kernels
+        update, then stay as they are), in one launch: one small kernel to compile per World, not the two of
+        ``from_numpy``. The values are copied in the fields' dtypes, so the bits are those of ``from_numpy``."""
+        ints = np.zeros(1, np.int32) if ipar is None else np.ascontiguousarray(ipar, np.int32)
+        if len(par) != self.par.shape[0] or (ipar is not None and len(ints) != self.ipar.shape[0]):
+            raise ValueError(f"parameters of {len(par)} and {len(ints)} values for fields of "
+                             f"{self.par.shape[0]} and {self.ipar.shape[0]}")
+        _put_params(self.par, self.ipar, np.ascontiguousarray(par, self.np_real()), ints,
+                    0 if ipar is None else len(ints))
 
     def np_real(self):
         return np.float64 if self.real == ti.f64 else np.float32
@@ -258,10 +267,28 @@ class World:
 
 
 @ti.kernel
+def _put_params(par: ti.template(), ipar: ti.template(), p: ti.types.ndarray(ndim=1), k: ti.types.ndarray(ndim=1),
+                n_int: ti.i32):
+    for i in range(p.shape[0]):
+        par[i] = p[i]
+    for i in range(n_int):
+        ipar[i] = k[i]
+
+
+@ti.kernel
 def _zero_fields(w: ti.template()):
+    # a literal zero, not f[I] * 0: without fast math NaN * 0 is NaN and -x * 0 is -0.0, so a World handed on
+    # would keep what its last owner left there
     for f in ti.static(w.fields()):
-        for I in ti.grouped(f):
-            f[I] = f[I] * 0
+        if ti.static(not isinstance(f, MatrixField)):
+            for I in ti.grouped(f):
+                f[I] = ti.cast(0, f.dtype)
+        elif ti.static(f.m > 1):
+            for I in ti.grouped(f):
+                f[I] = ti.Matrix.zero(f.dtype, f.n, f.m)
+        else:
+            for I in ti.grouped(f):
+                f[I] = ti.Vector.zero(f.dtype, f.n)
 
 
 _POOL = Pool()
