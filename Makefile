@@ -16,11 +16,12 @@ demo: setup
 	$(VENV)/bin/taichi-rocks render $(SCENE) --overwrite
 
 # the suite on TEST_WORKERS processes (pytest-xdist), a test file per process at a time (its module fixtures and
-# pooled Worlds stay together); each process holds one Taichi runtime. 2 suits a 2-core machine.
+# pooled Worlds stay together), the slowest files first (tests/conftest.py SLOW_FILES, kept in that order by
+# --no-loadscope-reorder); each process holds one Taichi runtime. 2 suits a 2-core machine.
 TEST_WORKERS ?= 2
 
 test: setup
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: setup
 	$(VENV)/bin/pip install -q -e '.[bench]'

@@ -54,15 +54,6 @@ def _env(display, **extra):
     return env
 
 
-def _env(display, **extra):
-    env = dict(os.environ, PYTHONPATH=str(ROOT), **extra)
-    if display is None:
-        env.pop("DISPLAY", None)
-    else:
-        env["DISPLAY"] = display
-    return env
-
-
 class View:
     """A running viewer of ``scene`` (default scenes/minimal.toml; its window is titled with the file's stem, the
     scene's name): its status, its window (xdotool), its outputs in ``cwd``."""
