@@ -688,15 +688,16 @@ def test_settled_rocks_stay_put_bit_for_bit(settled):
     sim.check_health()
 
 
-# ------------------------------------------------------------------------------------------ 11. one hour
-# one simulated hour at dt = 0.1 (the largest dt a scene accepts) is 36,000 steps: the engine's host overhead
-# (~1 ms a step) makes it ~40 s here; TAICHI_ROCKS_LONG_RUN_S shortens it when needed
-LONG_RUN_S = float(os.environ.get("TAICHI_ROCKS_LONG_RUN_S", "3600"))
+# ------------------------------------------------------------------------------------------ 11. a long run
+# ten simulated minutes at dt = 0.1 (the largest dt a scene accepts) are 6,000 steps, ~3 s here (the engine's
+# host overhead is ~0.5 ms a step); TAICHI_ROCKS_LONG_RUN_S=3600 runs the full hour (36,000 steps, ~16 s)
+LONG_RUN_S = float(os.environ.get("TAICHI_ROCKS_LONG_RUN_S", "600"))
 
 
-def test_one_hour_on_a_circle():
-    """One hour at dt = 0.1: a car looping on a circle, every rock hashed and re-sorted in memory every
-    64 steps (scope "all"). Count, identity, finiteness, bed and ground hold throughout; uniform at the end."""
+def test_a_long_run_on_a_circle():
+    """Ten minutes (an hour with TAICHI_ROCKS_LONG_RUN_S=3600) at dt = 0.1: a car looping on a circle, every
+    rock hashed and re-sorted in memory every 64 steps (scope "all"). Count, identity, finiteness, bed and
+    ground hold throughout; uniform at the end."""
     R = 4.0
     sc = scene(rocks=600, radius=R, sim={"dt": 0.1, "hash": {"scope": "all"}, "stepping": "full"},  # re-sorting
                vehicles=[{"name": "car", "path": {"kind": "circle", "center": [0.0, 0.0], "radius": 12.0,
