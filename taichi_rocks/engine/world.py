@@ -10,9 +10,9 @@ estimate (engine/layout.py) adds it up.
 
 import math
 import warnings
-from typing import Optional
 from dataclasses import dataclass
 from types import SimpleNamespace
+from typing import Optional
 
 import numpy as np
 import taichi as ti

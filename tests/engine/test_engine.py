@@ -333,7 +333,7 @@ def test_released_fields_are_reused_zeroed_and_never_shared():
         for k in ("positions", "velocities", "phase"):
             np.testing.assert_array_equal(s[k], sa[k])
     # what a World is handed on with: zeros, their bits too (no NaN or -0.0 of the last owner: f * 0 keeps both),
-    # checked on a field of each kind the zeroing tells apart
+    # checked on a field of each kind the zeroing tells apart (a World has no matrix fields of several columns)
     from taichi.lang.matrix import MatrixField
     from taichi_rocks.engine.world import _zero
 
