@@ -68,12 +68,10 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     length = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if m else 0.0
     assert hashgrid.ray_capacity(length, cell) <= w.ray_capacity, "probe built for shorter rays / larger cells"
     r_max = float(radius.max())
-    par = w.par.to_numpy()
+    par, ipar = w.par.to_numpy(), w.ipar.to_numpy()
     par[Par.CELL], par[Par.R_MAX] = cell, r_max
-    w.par.from_numpy(par)
-    ipar = w.ipar.to_numpy()
     ipar[IPar.DILATE] = dilation_cells(r_max, cell) if probe.center else 0
-    w.ipar.from_numpy(ipar)
+    w.set_params(par, ipar)
     npr = w.np_real()
     w.pos.from_numpy(pos.astype(npr))
     w.radius.from_numpy(radius.astype(npr))

@@ -251,12 +251,12 @@ class World:
         """The scene's parameters into ``par``, and into ``ipar`` unless None (its counts, which the kernels
         update, then stay as they are), in one launch: one small kernel to compile per World, not the two of
         ``from_numpy``. The values are copied in the fields' dtypes, so the bits are those of ``from_numpy``."""
+        n_int = 0 if ipar is None else len(ipar)
+        if len(par) != self.par.shape[0] or n_int not in (0, self.ipar.shape[0]):
+            raise ValueError(f"{len(par)} real and {n_int} integer parameters for fields of {self.par.shape[0]} "
+                             f"and {self.ipar.shape[0]}")
         ints = np.zeros(1, np.int32) if ipar is None else np.ascontiguousarray(ipar, np.int32)
-        if len(par) != self.par.shape[0] or (ipar is not None and len(ints) != self.ipar.shape[0]):
-            raise ValueError(f"parameters of {len(par)} and {len(ints)} values for fields of "
-                             f"{self.par.shape[0]} and {self.ipar.shape[0]}")
-        _put_params(self.par, self.ipar, np.ascontiguousarray(par, self.np_real()), ints,
-                    0 if ipar is None else len(ints))
+        _put_params(self.par, self.ipar, np.ascontiguousarray(par, self.np_real()), ints, n_int)
 
     def np_real(self):
         return np.float64 if self.real == ti.f64 else np.float32

@@ -36,7 +36,7 @@ def launch_kernel(taichi_cpu):
         par = w.par.to_numpy()
         par[Par.ANGLE_MIN], par[Par.ANGLE_MAX] = np.radians(angle)
         par[Par.SPREAD] = np.radians(spread)
-        w.par.from_numpy(par)
+        w.set_params(par)
         k = len(spin_v)
         for f, v, shape in ((wheel, wheel_v, (m, 3)), (fwd, forward, (m, 2)), (spin, spin_v, (m,)), (mu, mu_v, (m,))):
             buf = np.zeros(shape, np.float32)

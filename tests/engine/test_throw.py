@@ -30,7 +30,7 @@ def set_tread_params(w, wetness=0.0, spin_spread=0.0, **kw):
     par[Par.ADHESION], par[Par.GROOVE], par[Par.DENSITY] = p["adhesion"], p["groove"], p["density"]
     par[Par.GRAVITY], par[Par.TRANSFER], par[Par.RESTITUTION] = p["g"], p["transfer"], p["restitution"]
     par[Par.WETNESS], par[Par.SPREAD] = wetness, spin_spread
-    w.par.from_numpy(par.astype(w.np_real()))
+    w.set_params(par)
 
 
 # ------------------------------------------------------------------------------------------ NumPy references
