@@ -815,14 +815,15 @@ def render_cli_args(scenes_dir, out, *extra):
 
 
 @pytest.fixture(scope="module")
-def cli_reference(scenes_dir, tmp_path_factory):
-    """An uninterrupted render through the command line: its frames and its video's bytes."""
+def cli_reference(taichi_cpu, scenes_dir, tmp_path_factory):
+    """An uninterrupted render through the command line, in this process (the interrupted renders compared with
+    it run in processes of their own, so their frames must also match across processes): its frames and its
+    video's bytes."""
     import imageio.v3 as iio
-    from cli_util import cli
+    from cli_util import run_here
 
     out = tmp_path_factory.mktemp("cli_reference")
-    r = cli(*render_cli_args(scenes_dir, out))
-    assert r.returncode == 0, r.stderr
+    run_here(render_cli_args(scenes_dir, out))
     frames = [iio.imread(out / "frames" / f"frame_{k:05d}.png") for k in range(CLI_FRAMES)]
     return frames, (out / "minimal.mp4").read_bytes()
 
@@ -840,15 +841,17 @@ def assert_same_render(out, reference):
 
 
 @pytest.mark.parametrize("how", ["sigint", "kill -9"])
-def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, cli_reference, tmp_path, how):
-    """Ctrl-C: exit 130, a one-line message naming --resume, finished frames kept, no video. kill -9: no time
-    to clean up, yet every frame under its final name is complete and there is no video under its final name.
-    Either way `render --resume` restores a saved state and ends with the frames and the video of an
-    uninterrupted render, and removes what the killed process left behind."""
+def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, cli_reference, capsys, tmp_path,
+                                                                    how):
+    """Ctrl-C: exit 130, a one-line message naming --resume, the folder kept with its finished frames and its
+    saved states only (no video, partial or final). kill -9: no time to clean up, yet every frame under its
+    final name is complete and there is no video under its final name. Either way `render --resume` restores a
+    saved state and ends with the frames and the video of an uninterrupted render, and removes what the killed
+    process left behind. The interrupted render is a process of its own; the resume runs in this one."""
     import signal
 
     import imageio.v3 as iio
-    from cli_util import child_pids, cli, start_cli, wait_for, wait_gone
+    from cli_util import child_pids, cli_here, start_cli, wait_for, wait_gone
     from taichi_rocks.output.video import finished_frames
 
     frames_dir = tmp_path / "frames"
@@ -859,8 +862,10 @@ def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, 
         _, err = p.communicate(timeout=120)
         assert p.returncode == 130, err
         assert "Traceback" not in err
-        last = err.strip().splitlines()[-1]
-        assert "interrupted" in last and "--resume" in last, err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "interrupted" in lines[0] and "--resume" in lines[0], err
+        assert sorted(os.listdir(tmp_path)) == [".resume", "frames"]  # the partial video removed
+        assert (tmp_path / ".resume" / "render.json").is_file()
     else:
         encoders = child_pids(p.pid)  # the ffmpeg the video is piped to: it outlives a kill -9 of the render
         p.kill()
@@ -876,7 +881,7 @@ def test_interrupted_cli_render_resumes_to_the_uninterrupted_result(scenes_dir, 
         assert iio.imread(path).shape == (H, W, 3), path
     saved = sorted((tmp_path / ".resume").glob("frame_*.npz"))
     assert saved, "no simulation state was saved"
-    r = cli(*render_cli_args(scenes_dir, tmp_path, "--resume"))
+    r = cli_here(capsys, *render_cli_args(scenes_dir, tmp_path, "--resume"))
     assert r.returncode == 0, r.stderr
     first = int(saved[0].stem.split("_")[1])
     assert f"resumed at frame {n} (restored the state saved after frame " in r.stdout, r.stdout
