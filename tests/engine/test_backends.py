@@ -2,19 +2,22 @@
 same counters, the same launched rocks, and positions equal to f32 round-off; the renderer draws the same
 frames.
 
-Taichi starts once per process and this test session runs on the CPU (fixture ``taichi_cpu``), so both
-backends run in subprocesses, through the command line (``simulate --arch A --out X.npz``), side by side.
-There is no skip: a machine without a Vulkan driver fails here, saying so (a fallback to the CPU would
+Taichi starts once per process and this test session runs on the CPU (fixture ``taichi_cpu``): the CPU side runs
+in this process (tests/cli_util.py ``cli_here``), the Vulkan side in one subprocess that runs every scene in turn
+(commands_in_turn.py), both through the command line (``simulate --arch A --out X.npz``, ``render``), side by
+side. There is no skip: a machine without a Vulkan driver fails here, saying so (a fallback to the CPU would
 compare the CPU with itself)."""
 
+import json
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cli_util import _env, start_cli
+from cli_util import _env, cli_here
 from taichi_rocks import load_run
 
 RESTING = 0
@@ -46,55 +49,91 @@ CASES = {
 }
 
 
-def _vulkan_device() -> str:
-    """The arch Taichi really starts for ``vulkan`` in a fresh process (``vulkan``, or ``cpu`` on fallback)."""
-    code = "from taichi_rocks.engine.runtime import init_taichi; print(init_taichi('vulkan', warn=lambda m: None))"
-    r = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
-    return r.stdout.strip().splitlines()[-1]
+# per case, the stepping each arch runs (the scene's default, "active", unless given)
+STEPPING = {"minimal-swept-all": {"vulkan": "full"}}
+DRIVER = Path(__file__).resolve().parent / "commands_in_turn.py"
+NO_VULKAN = ("Taichi found no Vulkan device (it would run on {!r}): install a Vulkan driver, e.g. Mesa lavapipe "
+             "(apt-get install mesa-vulkan-drivers libvulkan1, as tools/setup.sh does)")
+
+
+def _commands(scenes_dir, folder: Path, arch: str) -> dict:
+    """Name -> the arguments of each command compared, run on ``arch`` into ``folder``: a simulate per case (its
+    scene edited, with the [sim] stepping of STEPPING, if given), and the render."""
+    commands = {}
+    for case, (name, frames, fps, edits) in CASES.items():
+        text = _edited((scenes_dir / name).read_text(), edits)
+        if arch in STEPPING.get(case, {}):
+            text = _edited(text, [("[sim]\n", f'[sim]\nstepping = "{STEPPING[case][arch]}"\n')])
+        scene = folder / f"{case}.toml"
+        scene.write_text(text)
+        commands[case] = ("simulate", scene, "--arch", arch, "--frames", frames, "--fps", fps,
+                          "--out", folder / f"{case}.npz")
+    commands["render"] = ("render", scenes_dir / "minimal.toml", "--arch", arch, "--frames", 3, "--format", "png",
+                          "--resolution", "160x96", "--out", folder / "render")
+    return {name: [str(a) for a in args] for name, args in commands.items()}
+
+
+def _start_vulkan(folder: Path, commands: dict) -> subprocess.Popen:
+    """The process running ``commands`` on Vulkan, once it has said that Taichi started there."""
+    vk = subprocess.Popen([sys.executable, str(DRIVER), "vulkan", str(folder), json.dumps(commands)],
+                          env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    started = re.fullmatch(r"arch: (\w+)\n", vk.stdout.readline())
+    if started is None or started.group(1) != "vulkan":
+        _, stderr = vk.communicate(timeout=300)
+        assert started, f"vulkan: status {vk.returncode}\n{stderr}"
+        raise AssertionError(NO_VULKAN.format(started.group(1)))
+    return vk
 
 
 @pytest.fixture(scope="module")
-def vulkan():
-    arch = _vulkan_device()
-    assert arch == "vulkan", (
-        f"Taichi found no Vulkan device (it would run on {arch!r}): install a Vulkan driver, e.g. Mesa lavapipe "
-        "(apt-get install mesa-vulkan-drivers libvulkan1, as tools/setup.sh does)")
-    return arch
+def runs(taichi_cpu, scenes_dir, tmp_path_factory) -> dict:
+    """Every command on both archs, at once: Vulkan's in one subprocess, meanwhile the CPU's here. Per arch, its
+    folder and, by command name, (exit status, stdout, stderr)."""
+    root = tmp_path_factory.mktemp("backends")
+    folders = {a: root / a for a in ("cpu", "vulkan")}
+    commands = {}
+    for arch, folder in folders.items():
+        folder.mkdir()
+        commands[arch] = _commands(scenes_dir, folder, arch)
+    vk = _start_vulkan(folders["vulkan"], commands["vulkan"])
+    try:
+        cpu = {}
+        for name, args in commands["cpu"].items():
+            r = cli_here(None, *args)
+            cpu[name] = (r.returncode, r.stdout, r.stderr)
+        _, stderr = vk.communicate(timeout=900)
+    finally:
+        if vk.poll() is None:
+            vk.kill()
+            vk.communicate()
+    assert vk.returncode == 0 and FALLBACK not in stderr, f"vulkan: status {vk.returncode}\n{stderr}"
+    vulkan = {}
+    for name in commands["vulkan"]:
+        r = json.loads((folders["vulkan"] / f"{name}.json").read_text())
+        vulkan[name] = (r["status"], r["stdout"], r["stderr"])
+    return {"cpu": (folders["cpu"], cpu), "vulkan": (folders["vulkan"], vulkan)}
 
 
-# per case, the stepping each arch runs (the scene's default, "active", unless given)
-STEPPING = {"minimal-swept-all": {"vulkan": "full"}}
-
-
-def _run_both(scene, frames, fps, tmp_path, stepping=None) -> dict:
-    """Run ``scene`` on cpu and vulkan at once (with ``stepping[arch]``, if given: a copy of the scene with
-    that [sim] stepping); per arch the .npz arrays and the reported launch total."""
-    files = {}
-    for a in ("cpu", "vulkan"):
-        files[a] = scene
-        if stepping and a in stepping:
-            files[a] = tmp_path / f"{a}-{scene.name}"
-            files[a].write_text(_edited(scene.read_text(), [("[sim]\n", f'[sim]\nstepping = "{stepping[a]}"\n')]))
-    procs = {a: start_cli("simulate", files[a], "--arch", a, "--frames", frames, "--fps", fps,
-                          "--out", tmp_path / f"{a}.npz") for a in ("cpu", "vulkan")}
+def _finished(runs: dict, name: str) -> dict:
+    """Per arch, the folder of command ``name``'s outputs and its stdout; it must have succeeded on its
+    device."""
     out = {}
-    for arch, stdout in _finish(procs).items():
-        m = re.search(r"(\d+) launches", stdout)
-        assert m, stdout
-        out[arch] = load_run(tmp_path / f"{arch}.npz")
-        out[arch]["launches_total"] = int(m.group(1))
+    for arch, (folder, results) in runs.items():
+        status, stdout, stderr = results[name]
+        assert status == 0, f"{arch}: status {status}\n{stderr}"
+        assert FALLBACK not in stderr, f"{arch} did not run on its device:\n{stderr}"
+        out[arch] = (folder, stdout)
     return out
 
 
-def _finish(procs: dict) -> dict:
-    """Wait for the per-arch processes; each must succeed on its own device. Their stdout by arch."""
+def _run_both(runs: dict, case: str) -> dict:
+    """Per arch, the .npz arrays of ``case`` and the reported launch total."""
     out = {}
-    for arch, p in procs.items():
-        stdout, stderr = p.communicate(timeout=600)
-        assert p.returncode == 0, f"{arch}: status {p.returncode}\n{stderr}"
-        assert FALLBACK not in stderr, f"{arch} did not run on its device:\n{stderr}"
-        out[arch] = stdout
+    for arch, (folder, stdout) in _finished(runs, case).items():
+        m = re.search(r"(\d+) launches", stdout)
+        assert m, stdout
+        out[arch] = load_run(folder / f"{case}.npz")
+        out[arch]["launches_total"] = int(m.group(1))
     return out
 
 
@@ -119,11 +158,8 @@ def _tolerance(d) -> float:
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_cpu_and_vulkan_agree(case, vulkan, scenes_dir, tmp_path):
-    name, frames, fps, edits = CASES[case]
-    scene = tmp_path / name
-    scene.write_text(_edited((scenes_dir / name).read_text(), edits))
-    run = _run_both(scene, frames, fps, tmp_path, STEPPING.get(case))
+def test_cpu_and_vulkan_agree(case, runs):
+    run = _run_both(runs, case)
     cpu, vk = run["cpu"], run["vulkan"]
 
     # the scene does something: rocks are thrown in several frames, not only at the start
@@ -144,7 +180,7 @@ def test_cpu_and_vulkan_agree(case, vulkan, scenes_dir, tmp_path):
     assert err <= tol, f"positions differ by {err:.3g} m > {tol:.3g} m"
 
 
-def test_render_same_on_cpu_and_vulkan(vulkan, scenes_dir, tmp_path):
+def test_render_same_on_cpu_and_vulkan(runs):
     """The renderer's own kernels (sky, splatted rocks in 64-bit z and colour buffers) on either backend draw
     the same frames (GGUI draws through Vulkan in both). The rocks they draw agree to f32 round-off, not to
     the bit (test_cpu_and_vulkan_agree: active stepping's fused kernel rounds a few rocks' positions a few
@@ -152,13 +188,11 @@ def test_render_same_on_cpu_and_vulkan(vulkan, scenes_dir, tmp_path):
     level, in at most 0.1 % of the pixels (measured: 3 values of one pixel in 3 frames)."""
     import imageio.v3 as iio
 
-    procs = {a: start_cli("render", scenes_dir / "minimal.toml", "--arch", a, "--frames", 3, "--format", "png",
-                          "--resolution", "160x96", "--out", tmp_path / a) for a in ("cpu", "vulkan")}
-    _finish(procs)
-    names = sorted(p.name for p in (tmp_path / "cpu" / "frames").glob("frame_*.png"))
+    out = {arch: folder / "render" / "frames" for arch, (folder, _) in _finished(runs, "render").items()}
+    names = sorted(p.name for p in out["cpu"].glob("frame_*.png"))
     assert len(names) == 3, names
     for name in names:
-        cpu, vk = (iio.imread(tmp_path / a / "frames" / name) for a in ("cpu", "vulkan"))
+        cpu, vk = (iio.imread(out[a] / name) for a in ("cpu", "vulkan"))
         assert cpu.std() > 0  # not blank
         diff = np.abs(vk.astype(np.int16) - cpu.astype(np.int16))
         assert diff.max() <= 1, (name, int(diff.max()))
