@@ -3,10 +3,17 @@ cluster (digests included), a worker killed with SIGKILL mid-run on each (every 
 run retried), Ctrl-C then --resume, a run that fails (a failed row, exit status 1, the next run in a new
 worker), the render metric, and bad sweep files (one line, exit status 2, nothing written).
 
-The runs are minimal.toml with 400 rocks on a 4 m bed for 0.4 s; a worker writes runs/<id>/worker.json (its pid) when it
-starts a run, which is how the kill tests find the process to kill. The Ray cluster is started with
-``ray start --head`` on 127.0.0.1 (2 CPUs, a free port, its session files in a temporary folder) and its
-process group is killed at the end, whatever the tests did."""
+The runs are minimal.toml with 400 rocks on a 4 m bed (written next to each sweep file as its base scene) for
+0.4 s; a worker writes runs/<id>/worker.json (its pid) when it starts a run, which is how the kill tests find
+the process to kill (the local one runs the command in the test's process, its workers being processes of
+their own all the same, and kills from a thread; the Ray one runs it in a process of its own). The Ray cluster
+is started with ``ray start --head`` on 127.0.0.1 (2 CPUs, a free port, its session files in a temporary
+folder) and its process group is killed at the end, whatever the tests did.
+
+Every sweep's workers have the same number of Taichi threads (those the reference gets by default) and every
+run but the failing one has the same bed: Taichi's offline kernel cache is keyed by the compile configuration,
+the thread count among it, and by the fields' shapes, and a worker that ends normally writes it. So the failing
+run's sweep, first in the file, compiles the kernels, and every later worker loads them."""
 
 import csv
 import json
@@ -18,24 +25,27 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 import pytest
 
-from cli_util import cli, refused, start_cli, wait_for
+from cli_util import cli, cli_here, refused, start_cli, wait_for
 from taichi_rocks.app.sweep.metrics import METRICS, state_digest
 from taichi_rocks.app.sweep.sweep import run_sweep
 from taichi_rocks.cli import main
 from taichi_rocks.config.sweep import SweepError, load_sweep, sweep_runs
+from taichi_rocks.runner.tasks import usable_cores
 
 ROOT = Path(__file__).resolve().parents[2]
 MINIMAL = ROOT / "scenes" / "minimal.toml"
-SWEEP = f"""scene = "{MINIMAL}"
+# The bed is the base scene's (_base_scene), not single-valued grid keys: the driver draws a figure per metric
+# and grid key (~0.5 s of CPU each), and the speed's are the ones the reference checks.
+SWEEP = """scene = "base.toml"
 seeds = [1, 2]
 duration = 0.4
 [grid]
-"bed.rocks" = [400]
-"bed.radius" = [4.0]
 "vehicle[0].path.speed" = [8.0, 12.0]
 [measure]
 metrics = ["launch", "timing", "digest"]
@@ -43,10 +53,25 @@ metrics = ["launch", "timing", "digest"]
 RUNS = 4
 # what depends on the machine or the worker, not on the run
 VARYING = {"attempts", "seconds", "build_s", "first_step_s", "ms_per_step"}
+# Taichi threads per worker: those the reference gets by default for its 2 workers, passed to every other sweep
+# (the offline cache's key, module docstring)
+THREADS = max(1, usable_cores() // 2)
+
+
+def _base_scene() -> str:
+    """minimal.toml with 400 rocks on a 4 m bed."""
+    text = MINIMAL.read_text()
+    assert "\nradius = 8.0\n" in text and "\nrocks = 2000\n" in text, "minimal.toml changed: update _base_scene"
+    return text.replace("\nradius = 8.0\n", "\nradius = 4.0\n").replace("\nrocks = 2000\n", "\nrocks = 400\n")
+
+
+BASE = _base_scene()
 
 
 def _sweep_file(folder: Path, text: str = SWEEP, name: str = "sweep.toml") -> Path:
+    """The sweep file, with its base scene (base.toml) beside it."""
     folder.mkdir(parents=True, exist_ok=True)
+    (folder / "base.toml").write_text(BASE)
     p = folder / name
     p.write_text(text)
     return p
@@ -61,11 +86,31 @@ def _same(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k not in VARYING} for r in rows]
 
 
+def test_a_failed_run_is_a_failed_row(tmp_path, capsys):
+    """A bed too large to allocate passes validation and fails in the engine: a failed row with the error's
+    line, the sweep goes on (the next run in a new worker: the failed build leaves Taichi unusable in its
+    process), one line on stderr, exit status 1."""
+    # 4 m: the bed of every other run (module docstring). First in the file: its first worker ends normally
+    # (after the failure), so it is the one that compiles the kernels the others load.
+    sweep = _sweep_file(tmp_path, SWEEP.replace('"vehicle[0].path.speed" = [8.0, 12.0]',
+                                                '"bed.radius" = [4.0, 1e12, 4.0]')
+                        .replace("seeds = [1, 2]", "seeds = [1]").replace('"launch", "timing", ', ""))
+    status = main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--workers", "1", "--threads", str(THREADS)])
+    out, err = capsys.readouterr()
+    assert status == 1, err
+    rows = _rows(tmp_path / "out")
+    assert [x["status"] for x in rows] == ["ok", "failed", "ok"]
+    assert rows[1]["error"] and rows[1]["digest"] == "" and "\n" not in rows[1]["error"]
+    assert len([line for line in err.splitlines() if "run r0001" in line and "failed" in line]) == 1
+    assert "1 failed (r0001)" in out
+    assert rows[2]["digest"] == rows[0]["digest"]  # the new worker computes what the first one did
+
+
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The sweep run once through the Python API, locally on 2 workers: the rows every other run must give."""
     folder = tmp_path_factory.mktemp("sweep_ref")
-    table = run_sweep(_sweep_file(folder), folder / "out", workers=2, progress=False)
+    table = run_sweep(_sweep_file(folder), folder / "out", workers=2, progress=False)  # default threads: THREADS
     return folder / "out", table
 
 
@@ -112,7 +157,7 @@ def test_the_reference_sweep(reference):
     assert all(int(r["launches"]) > 0 and float(r["ms_per_step"]) > 0 for r in rows)
     assert [t["digest"] for t in table] == [r["digest"] for r in rows]
     meta = json.loads((out / "sweep.json").read_text())
-    assert meta["runs"] == RUNS and meta["failed"] == 0 and meta["workers"] == 2 and meta["threads"] == 1
+    assert meta["runs"] == RUNS and meta["failed"] == 0 and meta["workers"] == 2 and meta["threads"] == THREADS
     assert "vehicle[0].path.speed" in meta["sweep_text"] and meta["machine"]["usable_cores"] >= 1
     plots = sorted(p.name for p in (out / "plots").glob("*.png"))
     assert "launch_vs_vehicle_0_.path.speed.png" in plots and "timing_vs_vehicle_0_.path.speed.png" in plots
@@ -135,34 +180,64 @@ def test_the_digest_is_the_final_state(reference, taichi_cpu):
     assert state_digest(sim.state()) == row["digest"]
 
 
+def _first_started(out: Path):
+    """The worker.json of the first run a worker has started, or None."""
+    found = sorted((out / "runs").glob("*/worker.json")) if (out / "runs").is_dir() else []
+    return json.loads(found[0].read_text()) if found else None
+
+
 def _kill_first_worker(proc, out: Path) -> str:
     """Wait for the first run a worker starts (its worker.json), SIGKILL that worker; the run's id."""
-    found = []
-
-    def started():
-        found[:] = sorted((out / "runs").glob("*/worker.json")) if (out / "runs").is_dir() else []
-        return bool(found)
-
-    wait_for(started, proc)
-    info = json.loads(found[0].read_text())
+    wait_for(lambda: _first_started(out) is not None, proc)
+    info = _first_started(out)
     os.kill(info["pid"], signal.SIGKILL)
     return info["run"]
 
 
+def _sweep_here_killing_first_worker(capsys, args, out: Path):
+    """``taichi-rocks sweep ARGS`` in this process while a thread SIGKILLs the worker of the first run started
+    (its workers are processes of their own all the same); (the run's id, the command's result)."""
+    done, killed = threading.Event(), []
+
+    def kill():
+        while not done.is_set():
+            info = _first_started(out)
+            if info:
+                os.kill(info["pid"], signal.SIGKILL)
+                killed.append(info["run"])
+                return
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill, daemon=True)
+    killer.start()
+    try:
+        r = cli_here(capsys, *args)
+    finally:
+        done.set()
+        killer.join()
+    assert killed, f"the sweep ended before a worker was killed: {r.stderr}"
+    return killed[0], r
+
+
 @pytest.mark.parametrize("backend", ["local", "ray"])
-def test_a_killed_worker_has_its_run_retried(backend, reference, request, tmp_path):
+def test_a_killed_worker_has_its_run_retried(backend, reference, request, tmp_path, capsys):
     """kill -9 of the worker (local) or actor (ray, joining the running cluster with --address) running a run:
     the run is run again on another worker (the one started in its place); every row exactly once, and the rows
     (digests included) are the local reference's: on Ray this is also the test that both backends give the same
     rows."""
-    address, env = request.getfixturevalue("ray_cluster") if backend == "ray" else (None, {})
-    extra = ["--address", address] if address else []
     out = tmp_path / "out"
-    proc = start_cli("sweep", _sweep_file(tmp_path), "--out", out, "--backend", backend, "--workers", "1", *extra,
-                     env=env)
-    killed = _kill_first_worker(proc, out)
-    _, err = proc.communicate(timeout=300)
-    assert proc.returncode == 0, err
+    args = ("sweep", _sweep_file(tmp_path), "--out", out, "--backend", backend, "--workers", "1",
+            "--threads", THREADS)
+    if backend == "local":
+        killed, r = _sweep_here_killing_first_worker(capsys, args, out)
+        status, err = r.returncode, r.stderr
+    else:  # the Ray driver in a process of its own: ray.init here would leave Ray's threads in the test process
+        address, env = request.getfixturevalue("ray_cluster")
+        proc = start_cli(*args, "--address", address, env=env)
+        killed = _kill_first_worker(proc, out)
+        _, err = proc.communicate(timeout=300)
+        status = proc.returncode
+    assert status == 0, err
     rows = _rows(out)
     assert [r["id"] for r in rows] == [f"r{i:04d}" for i in range(RUNS)]
     assert {r["id"]: r["attempts"] for r in rows}[killed] == "2"
@@ -176,7 +251,8 @@ def test_ctrl_c_then_resume(reference, tmp_path, capsys):
     out = tmp_path / "out"
     sweep = _sweep_file(tmp_path)
     proc = subprocess.Popen([sys.executable, "-m", "taichi_rocks", "sweep", str(sweep), "--out", str(out),
-                             "--workers", "1"], env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                             "--workers", "1", "--threads", str(THREADS)],
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     wait_for(lambda: (out / "results.csv").is_file(), proc)
     os.killpg(proc.pid, signal.SIGINT)
@@ -189,28 +265,11 @@ def test_ctrl_c_then_resume(reference, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--resume" in err[0] and "--overwrite" in err[0], err
     assert _rows(out) == kept
-    table = run_sweep(sweep, out, resume=True, workers=1, progress=False)  # the Python API resumes alike
+    table = run_sweep(sweep, out, resume=True, workers=1, threads=THREADS, progress=False)  # the API resumes alike
     assert [t["status"] for t in table] == ["ok"] * RUNS
     rows = _rows(out)
     assert _same(rows) == _same(_rows(reference[0]))
     assert [r["seconds"] for r in rows[:len(kept)]] == [k["seconds"] for k in kept]  # not run again
-
-
-def test_a_failed_run_is_a_failed_row(tmp_path, capsys):
-    """A bed too large to allocate passes validation and fails in the engine: a failed row with the error's
-    line, the sweep goes on (the next run in a new worker: the failed build leaves Taichi unusable in its
-    process), one line on stderr, exit status 1."""
-    sweep = _sweep_file(tmp_path, SWEEP.replace('"vehicle[0].path.speed" = [8.0, 12.0]',
-                                                '"bed.radius" = [6.0, 1e12, 5.0]').replace('"bed.radius" = [4.0]\n', "")
-                        .replace("seeds = [1, 2]", "seeds = [1]").replace('"launch", "timing", ', ""))
-    status = main(["sweep", str(sweep), "--out", str(tmp_path / "out"), "--workers", "1"])
-    out, err = capsys.readouterr()
-    assert status == 1, err
-    rows = _rows(tmp_path / "out")
-    assert [x["status"] for x in rows] == ["ok", "failed", "ok"]
-    assert rows[1]["error"] and rows[1]["digest"] == "" and "\n" not in rows[1]["error"]
-    assert len([line for line in err.splitlines() if "run r0001" in line and "failed" in line]) == 1
-    assert "1 failed (r0001)" in out
 
 
 def test_the_render_metric_writes_a_video(tmp_path):
@@ -218,7 +277,7 @@ def test_the_render_metric_writes_a_video(tmp_path):
     text = SWEEP.replace("seeds = [1, 2]", "seeds = [1]").replace("duration = 0.4", "duration = 0.2").replace(
         '"vehicle[0].path.speed" = [8.0, 12.0]', '"render.resolution" = [[160, 96]]').replace(
         '["launch", "timing", "digest"]', '["render"]')
-    table = run_sweep(_sweep_file(tmp_path, text), tmp_path / "out", workers=1, progress=False)
+    table = run_sweep(_sweep_file(tmp_path, text), tmp_path / "out", workers=1, threads=THREADS, progress=False)
     assert [t["status"] for t in table] == ["ok"], table
     video = tmp_path / "out" / table[0]["video"]
     assert video.is_file() and video.stat().st_size > 1000 and table[0]["render_frames"] == 6
@@ -268,7 +327,7 @@ def test_the_runs_of_a_sweep():
     """Grid combinations in file order (the last key fastest), then seeds; each run's scene has its values;
     a dotted path into a vehicle works; the metric registry holds the documented metrics."""
     sweep, base = load_sweep(_sweep_file(Path(tempfile.mkdtemp()), SWEEP.replace(
-        '"bed.rocks" = [400]', '"launch.grip" = [1e5, 4e5]')), METRICS)
+        "[grid]\n", '[grid]\n"launch.grip" = [1e5, 4e5]\n"bed.radius" = [4.0]\n')), METRICS)
     runs = sweep_runs(sweep, base, "s.toml")
     assert len(runs) == 2 * 2 * 2 and [r.id for r in runs][:2] == ["r0000", "r0001"]
     assert [(r.values["launch.grip"], r.values["vehicle[0].path.speed"], r.seed) for r in runs[:3]] == [
@@ -278,7 +337,7 @@ def test_the_runs_of_a_sweep():
     assert {"launch", "timing", "digest", "render"} <= set(METRICS)
     with pytest.raises(SweepError, match="seeds are swept by seeds"):
         sweep_runs(*load_sweep(_sweep_file(Path(tempfile.mkdtemp()), SWEEP.replace(
-            '"bed.rocks" = [400]', '"seed" = [3]'))), "s.toml")
+            "[grid]\n", '[grid]\n"seed" = [3]\n'))), "s.toml")
 
 
 def test_the_shipped_sweeps_validate():
