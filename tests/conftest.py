@@ -23,8 +23,8 @@ os.environ.setdefault("TAICHI_ROCKS_QUICK_COMPILE", "1")
 # figures only order the files and need refreshing only when the order has changed a lot.
 SLOW_FILES = {
     "app/test_sweep.py": 105, "render/test_render.py": 89, "engine/test_robustness.py": 85, "test_cli.py": 66,
-    "engine/test_impacts_step.py": 66, "bench/test_bench.py": 62, "render/test_view.py": 60,
-    "engine/test_impacts.py": 56, "engine/test_lookahead.py": 53, "render/test_view_controls.py": 46,
+    "engine/test_impacts_step.py": 66, "bench/test_bench.py": 62, "render/test_view.py": 25,
+    "engine/test_impacts.py": 56, "engine/test_lookahead.py": 53, "render/test_view_controls.py": 55,
     "engine/test_golden.py": 45, "engine/test_engine.py": 44, "engine/test_backends.py": 39,
     "engine/test_tumble.py": 32, "render/test_marks_engine.py": 28, "engine/test_rockfields.py": 27,
     "engine/test_active.py": 25, "engine/test_tires.py": 22, "engine/test_tuning.py": 21,

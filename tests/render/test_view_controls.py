@@ -1,63 +1,191 @@
-"""``taichi-rocks view``'s controls in a real window (Xvfb, xdotool; view_util.py): the Up/Down speed keys, ``f``
-and the free camera (W/A/S/D/E/Q), the camera buttons, the overlay check boxes, the time slider and the
-recompile buttons of the panel; and ``--quit-after`` with ``--record DIR --overwrite`` and ``--seed``.
+"""``taichi-rocks view``'s controls in a real window (Xvfb, xdotool; view_util.py): the window (its size, the
+scene's frames, the seed given), space (pause), Right/Left (a frame step; scrubbing back shows the frame
+``render`` draws), c (the next camera), h (the panel), p (a screenshot named after the scene and the time),
+Up/Down (the speed), ``f`` and the free camera (W/A/S/D/E/Q); with the mouse, the panel's wetness slider, camera
+buttons, overlay check boxes, the time slider and the recompile buttons.
 
-One viewer process (480x720: the whole "tune" panel fits) serves the control tests, in this order (the recompile
-buttons last: they change the simulation). Widgets are found in a screenshot, not at fixed pixels: Dear ImGui
-draws every slider, button and check box on a blue frame, so the rows of blue in the panel's column are its
-widgets, in render/panel.py's order. Every wait is on the viewer's status file."""
+One viewer process of scenes/minimal.toml (480x720: the whole "tune" panel fits) serves every test here, in this
+order (the recompile buttons last: they change the simulation); each first puts it in the state it needs: paused
+or playing, panel shown or hidden. The frame ``render`` draws, for the scrubbing test, is rendered in this
+process while the viewer starts. Widgets are found in a screenshot, not at fixed pixels: Dear ImGui draws every
+slider, button and check box on a blue frame, so the rows of blue in the panel's column are its widgets, in
+render/panel.py's order. Every wait is on the viewer's status file (TAICHI_ROCKS_VIEW_STATUS, written after
+every frame shown). How the viewer ends (Escape, --quit-after, --record) and its refusals: test_view.py.
+"""
 
-import json
-import subprocess
-import sys
+import re
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from view_util import ROOT, TIMEOUT, View, _env, xdisplay  # noqa: F401  (xdisplay: the display fixture)
+from cli_util import cli_here
+from view_util import ROOT, View, xdisplay  # noqa: F401  (xdisplay: the display fixture)
 
 W, H = 480, 720
+SEED = 3
+K = 10  # the frame scrubbed back to and compared with render's
 
 
-# ---------------------------------------------------------------------------------------------- a process of its own
-def test_quit_after_ends_the_window_and_record_overwrite_replaces_old_frames(xdisplay, tmp_path):
-    """--quit-after: the viewer closes by itself that long after its first frame (exit 0, a summary line);
-    --record DIR --overwrite: DIR's old frames are gone, every frame shown is written, other files stay;
-    --seed: the window's simulation has that seed. Runs before the shared viewer starts (not beside it)."""
+def _render_frame_k(out: Path):
+    """``render``'s frame K of the viewer's scene, seed and size: (the command's result, the image or None)."""
     import imageio.v3 as iio
 
-    rec = tmp_path / "rec"
-    rec.mkdir()
-    for k in range(300):  # more than 1.5 s can show (at most 30 frames a second)
-        (rec / f"frame_{k:05d}.png").write_bytes(b"old")
-    (rec / "notes.txt").write_text("mine")
-    status_file = tmp_path / "status.json"
-    r = subprocess.run([sys.executable, "-m", "taichi_rocks", "view", str(ROOT / "scenes" / "minimal.toml"),
-                        "--resolution", "320x180", "--seed", "5", "--quit-after", "1.5", "--record", str(rec),
-                        "--overwrite"], cwd=tmp_path, env=_env(xdisplay, TAICHI_ROCKS_VIEW_STATUS=str(status_file)),
-                       capture_output=True, text=True, timeout=300 + TIMEOUT)
-    assert r.returncode == 0, r.stderr
-    assert "view: ready" in r.stderr.splitlines() and "Traceback" not in r.stderr
-    status = json.loads(status_file.read_text())
-    n = status["recorded"]
-    assert status["seed"] == 5 and status["shown"] == n >= 2
-    head, seconds, tail = r.stdout.strip().partition(" frames shown in ")
-    assert head == f"view: {n}" and tail.endswith(f" s, {n} frames written to {rec}"), r.stdout
-    assert float(tail.split(" s,")[0]) >= 1.5
-    frames = sorted(p.name for p in rec.glob("frame_*.png"))
-    assert frames == [f"frame_{k:05d}.png" for k in range(n)]  # none of the 300 old ones left
-    assert (rec / "notes.txt").read_text() == "mine" and len(list(rec.iterdir())) == n + 1
-    assert iio.imread(rec / frames[-1]).shape[:2] == (180, 320)
+    try:
+        r = cli_here(None, "render", ROOT / "scenes" / "minimal.toml", "--seed", SEED, "--frames", K + 1,
+                     "--resolution", f"{W}x{H}", "--format", "png", "--out", out)
+    except Exception as e:  # the scrubbing test's failure, not an error of every test sharing the viewer
+        return SimpleNamespace(returncode=None, stderr=repr(e)), None
+    path = out / "frames" / f"frame_{K:05d}.png"
+    return r, iio.imread(path).astype(np.int16) if r.returncode == 0 and path.exists() else None
 
 
-# ---------------------------------------------------------------------------------------------- the shared viewer
 @pytest.fixture(scope="module")
-def view(xdisplay, tmp_path_factory):
-    v = View(xdisplay, tmp_path_factory.mktemp("controls"), "--seed", "3", resolution=(W, H))
-    yield v
-    if v.proc.poll() is None:
-        v.proc.kill()
-    v.finish()
+def view(xdisplay, tmp_path_factory, taichi_cpu):
+    v = View(xdisplay, tmp_path_factory.mktemp("controls"), "--seed", SEED, resolution=(W, H), ready=False)
+    try:
+        # drawn here while the viewer process starts up, not while its window runs idle waiting for it
+        v.offline = _render_frame_k(tmp_path_factory.mktemp("render"))
+        v.ready()
+        yield v
+    finally:
+        if v.proc.poll() is None:
+            v.proc.kill()
+        v.finish()
+
+
+def test_window_opens_with_the_seed_given_in_reach_of_the_pointer(view):
+    s = view.wait(lambda s: s["shown"] >= 3)
+    assert s["seed"] == SEED and s["camera"] == "chase" and s["eye"] is not None
+    assert s["panel"] is True and s["frames"] == 60  # 2 s at 30 fps
+    assert "view: ready" in view.stderr().splitlines()
+    geometry = view.xdo("getwindowgeometry", view.wid).stdout
+    assert f"{W}x{H}" in geometry, geometry
+    x, y = (int(v) for v in geometry.split("Position: ")[1].split()[0].split(","))
+    screen = view.xdo("getdisplaygeometry").stdout.split()
+    assert x + W <= int(screen[0]) and y + H <= int(screen[1]), (geometry, screen)  # every pixel in reach
+
+
+def test_pause_stops_time(view):
+    view.toggle_until("space", lambda s: not s["paused"], "playing")
+    f0 = view.status()["frame"]
+    view.wait(lambda s: s["frame"] != f0, "time to move while playing")
+    s = view.toggle_until("space", lambda s: s["paused"], "paused")
+    later = view.frames_later(10)
+    assert later["frame"] == s["frame"] and later["time"] == s["time"]
+    view.key("Right")  # one step while paused
+    stepped = view.wait(lambda x: x["frame"] != s["frame"], "one frame step")
+    assert stepped["frame"] == (s["frame"] + 1) % s["frames"] and stepped["paused"]
+
+
+def test_key_moves_camera(view):
+    view.still(panel=False)
+    assert view.status()["camera"] == "chase"  # the scene's view (each test that changes it goes back)
+    view.frames_later()
+    before = view.screenshot().astype(np.int16)
+    view.key("c")
+    s = view.wait(lambda s: s["camera"] == "side", "the side camera")
+    assert s["frame"] == view.status()["frame"]  # paused: only the camera moved
+    view.frames_later()
+    after = view.screenshot().astype(np.int16)
+    diff = np.abs(after - before).max(axis=2)
+    assert (diff > 30).mean() > 0.2, (diff > 30).mean()
+    view.key("c")
+    view.wait(lambda s: s["camera"] == "low", "the low camera")
+    while view.status()["camera"] != "chase":  # back to the scene's own view for the other tests
+        cam = view.status()["camera"]
+        view.key("c")
+        view.wait(lambda s: s["camera"] != cam, "the next camera")
+
+
+def test_p_writes_a_png_named_after_scene_and_time(view):
+    view.still(panel=True)
+    img = view.screenshot()
+    s = view.status()
+    path = Path(s["screenshots"][-1])
+    stem = f"minimal_t{s['time']:06.2f}"  # other tests may have taken this moment already: then _2, _3 ...
+    assert path.parent == view.cwd and re.fullmatch(re.escape(stem) + r"(_\d+)?\.png", path.name), path.name
+    assert img.shape[:2] == (H, W)
+    assert img.reshape(-1, img.shape[2])[:, :3].std(axis=0).min() > 10  # not blank: sky, ground, rocks, panel
+    view.screenshot()  # same moment: another file, the first kept
+    second = Path(view.status()["screenshots"][-1])
+    assert second.name.startswith(stem + "_") and second != path and path.exists() and second.exists()
+
+
+def test_scrubbing_back_shows_the_frame_render_draws(view):
+    render, offline = view.offline
+    assert render.returncode == 0 and offline is not None, render.stderr
+    s = view.still(panel=False)
+    assert s["params"]["world.wetness"] == 0.0  # the scene's parameters, as render has them
+    replayed = s["replayed"]
+    # Each step back restores the newest saved state (frames 0, 30) and simulates forward from it, a step forward
+    # simulates one frame: from further on than K + 3, forward round the loop to K + 1 first, then one step back.
+    if not K < s["frame"] <= K + 3:
+        view.step_to(K + 1, forward=True)
+    view.step_to(K)
+    s = view.status()
+    assert s["replayed"] > replayed  # going back restored a saved state and simulated forward
+    shown = view.screenshot()[:, :, :3].astype(np.int16)
+    diff = np.abs(shown - offline[:, :, :3]).max(axis=2)
+    assert diff.mean() < 2.0 and (diff > 24).mean() < 0.005, (diff.mean(), (diff > 24).mean())
+
+
+def first_slider(img: np.ndarray, panel_left: int) -> tuple:
+    """(row, bar start, bar end, grab centre) in pixels of the first slider right of ``panel_left``, found in a
+    screenshot: Dear ImGui draws a slider as a blue bar (its frame) with a brighter blue grab; the panel's
+    title bar is blue too but has no grab."""
+    rgb = img[:, panel_left:, :3].astype(int)
+    grab = (rgb[..., 2] > 180) & (rgb[..., 0] < 120)
+    rows = np.flatnonzero(grab.sum(axis=1) >= 3)
+    assert len(rows), "no slider grab in the panel"
+    run_end = rows[0] + int(np.argmax(np.diff(np.append(rows, rows[-1] + 2)) > 1))  # the first run of rows
+    y = (rows[0] + run_end) // 2
+    blue = np.flatnonzero(rgb[y, :, 2] - rgb[y, :, 0] > 30)  # the bar (frame and grab; its value's text
+    g = np.flatnonzero(grab[y])  # breaks it), then only the label, in grey, to its right
+    return int(y), panel_left + int(blue[0]), panel_left + int(blue[-1]), panel_left + int(g.mean())
+
+
+def test_wetness_slider_dragged_with_the_mouse_reaches_the_kernels(view):
+    from taichi_rocks.render.panel import SLIDERS, panel_width
+
+    assert next(iter(SLIDERS)) == "world.wetness"  # the first widget of the "tune" panel
+    view.still(panel=True)
+    assert view.status()["params"]["world.wetness"] == 0.0
+    left = int(round(W * (1.0 - panel_width(W))))  # the panel's left edge, from its layout
+    y, x0, x1, grab = first_slider(view.screenshot(), left)
+    assert x0 <= grab < x0 + 0.25 * (x1 - x0) and x1 - x0 > 60, (x0, x1, grab)  # at 0: the grab on the left
+    s = _drag(view, grab, x0 + int(0.9 * (x1 - x0)), y, lambda s: s["params"]["world.wetness"] > 0.5)
+    assert s["params"]["world.wetness"] <= 1.0
+    assert s["params"]["world.gravity"] == pytest.approx(9.81, rel=1e-6)  # the other sliders did not move
+    # back to the scene's value (the far left: 0) for the other tests
+    _drag(view, x0 + (x1 - x0) // 2, x0 - 60, y, lambda s: s["params"]["world.wetness"] == 0.0)
+
+
+def _drag(view, x_from, x_to, y, done):
+    """Drag the mouse along row ``y``, then wait until ``done(status)``; again if the viewer opened a new window
+    meanwhile (app/view.py: a drag across two windows is lost)."""
+    for _ in range(3):
+        before = view.status()["window_refreshes"]
+        _drag_once(view, x_from, x_to, y)
+        s = view.wait(lambda s: done(s) or s["window_refreshes"] != before, "the dragged value")
+        if done(s):
+            return s
+    raise AssertionError("the drag never took effect")
+
+
+def _drag_once(view, x_from, x_to, y):
+    view.xdo("mousemove", "--window", view.wid, str(x_from), str(y))
+    view.frames_later()
+    view.xdo("mousedown", "1")
+    view.frames_later()
+    step = 20 if x_to > x_from else -20
+    for x in range(x_from + step, x_to + step, step):
+        view.xdo("mousemove", "--window", view.wid, str(x), str(y))
+        view.frames_later(2)
+    view.xdo("mouseup", "1")
+    view.frames_later()
+    view.xdo("mousemove", "--window", view.wid, "5", "5")
 
 
 def _blue_rows(img, x0, x1, y0, y1, min_pixels=8):
@@ -131,16 +259,6 @@ def widgets(view):
     return layout(view.screenshot())
 
 
-def test_the_window_runs_the_seed_given(view):
-    s = view.wait(lambda s: s["shown"] >= 2)
-    assert s["seed"] == 3 and s["camera"] == "chase" and s["eye"] is not None
-    geometry = view.xdo("getwindowgeometry", view.wid).stdout
-    assert f"{W}x{H}" in geometry, geometry
-    x, y = (int(v) for v in geometry.split("Position: ")[1].split()[0].split(","))
-    screen = view.xdo("getdisplaygeometry").stdout.split()
-    assert x + W <= int(screen[0]) and y + H <= int(screen[1]), (geometry, screen)  # every pixel in reach
-
-
 def test_up_and_down_double_and_halve_the_speed_within_a_quarter_and_four(view):
     view.still(panel=True)
     assert view.status()["speed"] == 1.0
@@ -155,7 +273,7 @@ def test_up_and_down_double_and_halve_the_speed_within_a_quarter_and_four(view):
         assert s["speed"] == want and s["paused"], (key, s["speed"])
 
 
-def _moved(view, key, frames=8):
+def _moved(view, key, frames=4):
     """Hold ``key`` for ``frames`` frames; (eye displacement, forward, right) in world metres. Again if the
     viewer opened a new window meanwhile (a key held across two windows is lost)."""
     for _ in range(3):
@@ -184,7 +302,7 @@ def test_f_starts_the_free_camera_and_w_a_s_d_e_q_move_it(view):
         d, fwd, right = _moved(view, key)
         direction = {"forward": fwd, "right": right, "up": up}[axis] * sign
         along = float(d @ direction)
-        assert along > 0.3, (key, d, direction)  # ~7 m/s held for 8+ frames
+        assert along > 0.3, (key, d, direction)  # ~7 m/s held for 4+ frames: >= 0.7 m at 30 frames/s
         assert np.linalg.norm(d - along * direction) < 0.35 * along, (key, d, direction)  # and only that way
     assert view.status()["camera"] == "free" and view.status()["paused"]
     view.key("f")

@@ -7,6 +7,7 @@ tests/render/test_view.py and tests/render/test_view_controls.py: the display (a
 
 import json
 import os
+import select
 import shutil
 import subprocess
 import sys
@@ -28,21 +29,43 @@ def xdisplay():
     if missing:
         pytest.fail(f"{', '.join(missing)} not installed: run tools/setup.sh (apt-get install xvfb xdotool "
                     f"x11-utils)")
-    for n in range(40, 100):
-        if Path(f"/tmp/.X11-unix/X{n}").exists() or Path(f"/tmp/.X{n}-lock").exists():
-            continue
-        proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    # Xvfb picks a free display itself and reports it on a pipe once it listens (-displayfd): two test processes
+    # choosing "the first free number" at the same moment could both get one server, and its one pointer
+    proc, display = _start_xvfb()
+    try:
         deadline = time.time() + 60
         while proc.poll() is None and time.time() < deadline:
-            if subprocess.run(["xdpyinfo", "-display", f":{n}"], capture_output=True).returncode == 0:
-                yield f":{n}"
-                proc.terminate()
-                proc.wait(timeout=30)
+            if subprocess.run(["xdpyinfo", "-display", display], capture_output=True).returncode == 0:
+                yield display
                 return
             time.sleep(0.1)
+        pytest.fail(f"Xvfb {display} never answered")
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+def _start_xvfb():
+    read_end, write_end = os.pipe()
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(write_end), "-screen", "0", "1280x1024x24", "-nolisten",
+                             "tcp"], pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    number = b""
+    try:
+        deadline = time.time() + 60
+        while not number.endswith(b"\n") and time.time() < deadline:
+            if select.select([read_end], [], [], 1.0)[0]:
+                chunk = os.read(read_end, 16)
+                if not chunk:  # Xvfb ended
+                    break
+                number += chunk
+    finally:
+        os.close(read_end)
+    if not number.strip().isdigit():
         proc.kill()
-    pytest.fail("could not start Xvfb on a free display")
+        proc.wait(timeout=30)
+        pytest.fail(f"could not start Xvfb (status {proc.returncode})")
+    return proc, f":{int(number)}"
 
 
 def _env(display, **extra):
@@ -56,9 +79,10 @@ def _env(display, **extra):
 
 class View:
     """A running viewer of ``scene`` (default scenes/minimal.toml; its window is titled with the file's stem, the
-    scene's name): its status, its window (xdotool), its outputs in ``cwd``."""
+    scene's name): its status, its window (xdotool), its outputs in ``cwd``. ``ready=False``: return as soon as
+    the process is started (the caller does other work while it starts up, then calls :meth:`ready`)."""
 
-    def __init__(self, display, cwd: Path, *args, resolution=(480, 320), scene=None):
+    def __init__(self, display, cwd: Path, *args, resolution=(480, 320), scene=None, ready=True):
         self.display, self.cwd = display, cwd
         self.scene = Path(scene) if scene is not None else ROOT / "scenes" / "minimal.toml"
         self.status_file = cwd / "status.json"
@@ -68,7 +92,12 @@ class View:
             [sys.executable, "-m", "taichi_rocks", "view", str(self.scene), "--resolution",
              f"{w}x{h}", *map(str, args)], cwd=cwd, env=_env(display, TAICHI_ROCKS_VIEW_STATUS=str(self.status_file)),
             stdout=self.out, stderr=self.err, text=True)
-        self.wait(lambda s: s["shown"] >= 1)
+        if ready:
+            self.ready()
+
+    def ready(self):
+        """Wait for the first frame shown and the window."""
+        self.wait(lambda s: s["shown"] >= 1, "the first frame")
         self._window()
 
     def stderr(self) -> str:
@@ -136,6 +165,14 @@ class View:
         if not cond(self.status()):
             self.key(key)
         return self.wait(cond, what)
+
+    def step_to(self, k, forward=False):
+        """Step one frame at a time until frame ``k`` is shown: Left while past it, else Right (``forward``:
+        Right only, round the loop past the last frame)."""
+        while self.status()["frame"] != k:
+            f = self.status()["frame"]
+            self.key("Left" if f > k and not forward else "Right")
+            self.wait(lambda x: x["frame"] != f, "a frame step")
 
     def still(self, panel=False):
         """Paused, panel shown or not."""
