@@ -16,21 +16,21 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 os.environ.setdefault("TAICHI_ROCKS_QUICK_COMPILE", "1")
 
 
-# Seconds each of the slowest files takes (the mean of two suite runs on a 2-core machine, from
-# ``pytest --junitxml``), slowest first. The suite runs whole files on its two workers (``--dist loadfile``,
-# Makefile), handed out in this order: the long files start first and the short ones fill in at the end, so
-# neither worker is left with a long file while the other idles. A file not listed runs after these; the
-# figures only order the files and need refreshing only when the order has changed a lot.
+# Seconds each of the slowest files takes (a suite run on a 2-core machine, from a per-file timer), slowest first.
+# The suite runs whole files on its two workers (``--dist loadfile``, Makefile), handed out in this order: the long
+# files start first and the short ones fill in at the end, so neither worker is left with a long file while the
+# other idles. A file not listed runs after these; the figures only order the files and need refreshing only when
+# the order has changed a lot.
 SLOW_FILES = {
-    "app/test_sweep.py": 105, "render/test_render.py": 89, "engine/test_robustness.py": 85, "test_cli.py": 66,
-    "engine/test_impacts_step.py": 66, "bench/test_bench.py": 62, "render/test_view.py": 25,
-    "engine/test_impacts.py": 56, "engine/test_lookahead.py": 53, "render/test_view_controls.py": 55,
-    "engine/test_golden.py": 45, "engine/test_engine.py": 44, "engine/test_backends.py": 39,
-    "engine/test_tumble.py": 32, "render/test_marks_engine.py": 28, "engine/test_rockfields.py": 27,
-    "engine/test_active.py": 25, "engine/test_tires.py": 22, "engine/test_tuning.py": 21,
-    "render/test_render_stepping.py": 20, "bench/test_impacts_study.py": 18, "output/test_export.py": 18,
-    "output/test_impact_export.py": 17, "engine/test_translation.py": 17, "bench/test_launch_study.py": 17,
-    "engine/test_properties.py": 15, "render/test_tumbling.py": 15, "engine/test_hashgrid.py": 13,
+    "render/test_render.py": 81, "app/test_sweep.py": 73, "engine/test_robustness.py": 68,
+    "bench/test_bench.py": 62, "render/test_view_controls.py": 57, "engine/test_lookahead.py": 47,
+    "engine/test_engine.py": 44, "engine/test_backends.py": 41, "engine/test_impacts_step.py": 40,
+    "test_cli.py": 36, "engine/test_golden.py": 32, "engine/test_impacts.py": 30, "engine/test_tumble.py": 30,
+    "output/test_export.py": 24, "render/test_view.py": 23, "engine/test_active.py": 22,
+    "render/test_render_stepping.py": 20, "render/test_marks_engine.py": 19, "engine/test_rockfields.py": 18,
+    "engine/test_tires.py": 18, "output/test_export_values.py": 17, "engine/test_tuning.py": 16,
+    "bench/test_impacts_study.py": 15, "engine/test_translation.py": 15, "engine/test_reference_stepping.py": 15,
+    "output/test_impact_export.py": 14, "engine/test_properties.py": 12, "bench/test_launch_study.py": 12,
 }
 
 
