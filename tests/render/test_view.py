@@ -93,20 +93,17 @@ def _check_shots(v, want, shot, cut):
     v.still(panel=False)
     v.step_to(cut)
     for key, k in (("Left", cut - 1), ("Right", cut)):
-        v.key(key)
-        s = v.wait(lambda x: x["frame"] == k, f"frame {k}")
+        s = v.press(key, lambda x: x["frame"] == k, f"frame {k}")
         np.testing.assert_allclose(s["eye"], want[k], rtol=0, atol=2e-4, err_msg=f"frame {k}")
     v.toggle_until("space", lambda s: not s["paused"], "playing")
     play_until(lambda: len(set(shot[k] for k in seen)) == 3)  # until frames of all three shots were shown
     for k, eye in seen.items():
         np.testing.assert_allclose(eye, want[k], rtol=0, atol=2e-4, err_msg=f"frame {k}")
     v.still(panel=False)
-    v.key("c")
-    v.wait(lambda x: x["camera"] == "chase", "the chase preset after the shots")
+    v.press("c", lambda x: x["camera"] == "chase", "the chase preset after the shots")
     while v.status()["camera"] != "shots":  # round the presets, back to the scene's own camera
         cam = v.status()["camera"]
-        v.key("c")
-        v.wait(lambda x: x["camera"] != cam, "the next camera")
+        v.press("c", lambda x: x["camera"] != cam, "the next camera")
     s = v.frames_later(2)
     np.testing.assert_allclose(s["eye"], want[s["frame"]], rtol=0, atol=2e-4)
 

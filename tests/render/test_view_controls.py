@@ -74,8 +74,7 @@ def test_pause_stops_time(view):
     s = view.toggle_until("space", lambda s: s["paused"], "paused")
     later = view.frames_later(10)
     assert later["frame"] == s["frame"] and later["time"] == s["time"]
-    view.key("Right")  # one step while paused
-    stepped = view.wait(lambda x: x["frame"] != s["frame"], "one frame step")
+    stepped = view.press("Right", lambda x: x["frame"] != s["frame"], "one frame step")  # one step while paused
     assert stepped["frame"] == (s["frame"] + 1) % s["frames"] and stepped["paused"]
 
 
@@ -84,19 +83,16 @@ def test_key_moves_camera(view):
     assert view.status()["camera"] == "chase"  # the scene's view (each test that changes it goes back)
     view.frames_later()
     before = view.screenshot().astype(np.int16)
-    view.key("c")
-    s = view.wait(lambda s: s["camera"] == "side", "the side camera")
+    s = view.press("c", lambda s: s["camera"] == "side", "the side camera")
     assert s["frame"] == view.status()["frame"]  # paused: only the camera moved
     view.frames_later()
     after = view.screenshot().astype(np.int16)
     diff = np.abs(after - before).max(axis=2)
     assert (diff > 30).mean() > 0.2, (diff > 30).mean()
-    view.key("c")
-    view.wait(lambda s: s["camera"] == "low", "the low camera")
+    view.press("c", lambda s: s["camera"] == "low", "the low camera")
     while view.status()["camera"] != "chase":  # back to the scene's own view for the other tests
         cam = view.status()["camera"]
-        view.key("c")
-        view.wait(lambda s: s["camera"] != cam, "the next camera")
+        view.press("c", lambda s: s["camera"] != cam, "the next camera")
 
 
 def test_p_writes_a_png_named_after_scene_and_time(view):
@@ -293,8 +289,7 @@ def test_f_starts_the_free_camera_and_w_a_s_d_e_q_move_it(view):
     goes back to the preset, where it was."""
     s = view.still(panel=False)
     preset_eye = np.array(view.frames_later(2)["eye"])
-    view.key("f")
-    s = view.wait(lambda s: s["camera"] == "free", "the free camera")
+    s = view.press("f", lambda s: s["camera"] == "free", "the free camera")
     np.testing.assert_allclose(s["eye"], preset_eye, atol=1e-3)
     up = np.array([0.0, 0.0, 1.0])
     for key, sign, axis in (("w", 1, "forward"), ("s", -1, "forward"), ("d", 1, "right"), ("a", -1, "right"),
@@ -305,8 +300,7 @@ def test_f_starts_the_free_camera_and_w_a_s_d_e_q_move_it(view):
         assert along > 0.3, (key, d, direction)  # ~7 m/s held for 4+ frames: >= 0.7 m at 30 frames/s
         assert np.linalg.norm(d - along * direction) < 0.35 * along, (key, d, direction)  # and only that way
     assert view.status()["camera"] == "free" and view.status()["paused"]
-    view.key("f")
-    s = view.wait(lambda s: s["camera"] == "chase", "back to the chase camera")
+    s = view.press("f", lambda s: s["camera"] == "chase", "back to the chase camera")
     np.testing.assert_allclose(view.frames_later(2)["eye"], preset_eye, atol=1e-3)
 
 

@@ -160,19 +160,33 @@ class View:
                 return
         raise AssertionError(f"could not press {name}")
 
+    def press(self, key, done, what):
+        """Press ``key`` and wait until ``done(status)``. A key sent while the viewer replaces its window (it
+        opens a new one now and then: app/view.py) is lost: if the window was replaced and the press showed no
+        effect a few frames into the new one, it is pressed again (only then: a second press of a toggle that
+        did land would undo it)."""
+        for _ in range(3):
+            before = self.status()["window_refreshes"]
+            self.key(key)
+            s = self.wait(lambda s: done(s) or s["window_refreshes"] != before, what)
+            if not done(s):
+                s = self.frames_later(3)
+            if done(s):
+                return s
+        raise AssertionError(f"{key} had no effect while the viewer kept opening new windows: {what}")
+
     def toggle_until(self, key, cond, what):
         """Press ``key`` unless ``cond(status)`` holds already; wait for it."""
-        if not cond(self.status()):
-            self.key(key)
-        return self.wait(cond, what)
+        if cond(self.status()):
+            return self.status()
+        return self.press(key, cond, what)
 
     def step_to(self, k, forward=False):
         """Step one frame at a time until frame ``k`` is shown: Left while past it, else Right (``forward``:
         Right only, round the loop past the last frame)."""
         while self.status()["frame"] != k:
             f = self.status()["frame"]
-            self.key("Left" if f > k and not forward else "Right")
-            self.wait(lambda x: x["frame"] != f, "a frame step")
+            self.press("Left" if f > k and not forward else "Right", lambda x: x["frame"] != f, "a frame step")
 
     def still(self, panel=False):
         """Paused, panel shown or not."""
@@ -183,6 +197,5 @@ class View:
         import imageio.v3 as iio
 
         n = len(self.status()["screenshots"])
-        self.key("p")
-        s = self.wait(lambda s: len(s["screenshots"]) > n, "a screenshot")
+        s = self.press("p", lambda s: len(s["screenshots"]) > n, "a screenshot")
         return iio.imread(s["screenshots"][-1])
