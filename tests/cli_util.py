@@ -63,6 +63,18 @@ def start_cli(*args, env=None):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@contextlib.contextmanager
+def reaped(proc):
+    """``proc`` for the block (work done meanwhile in this process); killed and reaped if the block leaves
+    before it ended, so a failure meanwhile leaves no process running."""
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
 def start_held_writer(marker, *args):
     """Start ``taichi-rocks ARGS`` in the background with its .npz writer holding once it has written into its
     ``.part`` temporary, after creating ``marker`` (tests/held_writer.py): wait for ``marker``, then interrupt."""

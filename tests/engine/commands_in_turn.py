@@ -19,15 +19,22 @@ from cli_util import cli_here  # noqa: E402
 from taichi_rocks.engine.runtime import init_taichi  # noqa: E402
 
 
+def run_each(commands: dict) -> dict:
+    """Each command in turn in this process: name -> (exit status, stdout, stderr)."""
+    out = {}
+    for name, args in commands.items():
+        r = cli_here(None, *args)
+        out[name] = (r.returncode, r.stdout, r.stderr)
+    return out
+
+
 def run(arch: str, out: Path, commands: dict) -> int:
     used = init_taichi(arch)  # a missing device: its warning on stderr, and "arch: cpu"
     print(f"arch: {used}", flush=True)
     if used != arch:
         return 1
-    for name, args in commands.items():
-        r = cli_here(None, *args)
-        (out / f"{name}.json").write_text(json.dumps({"status": r.returncode, "stdout": r.stdout,
-                                                      "stderr": r.stderr}))
+    for name, (status, stdout, stderr) in run_each(commands).items():
+        (out / f"{name}.json").write_text(json.dumps({"status": status, "stdout": stdout, "stderr": stderr}))
     return 0
 
 

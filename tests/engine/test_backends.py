@@ -3,7 +3,7 @@ same counters, the same launched rocks, and positions equal to f32 round-off; th
 frames.
 
 Taichi starts once per process and this test session runs on the CPU (fixture ``taichi_cpu``): the CPU side runs
-in this process (tests/cli_util.py ``cli_here``), the Vulkan side in one subprocess that runs every scene in turn
+in this process (commands_in_turn.py ``run_each``), the Vulkan side in one subprocess that runs every scene in turn
 (commands_in_turn.py), both through the command line (``simulate --arch A --out X.npz``, ``render``), side by
 side. There is no skip: a machine without a Vulkan driver fails here, saying so (a fallback to the CPU would
 compare the CPU with itself)."""
@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli_util import _env, cli_here
+from cli_util import _env, reaped
+from commands_in_turn import run_each
 from taichi_rocks import load_run
 
 RESTING = 0
@@ -95,17 +96,9 @@ def runs(taichi_cpu, scenes_dir, tmp_path_factory) -> dict:
     for arch, folder in folders.items():
         folder.mkdir()
         commands[arch] = _commands(scenes_dir, folder, arch)
-    vk = _start_vulkan(folders["vulkan"], commands["vulkan"])
-    try:
-        cpu = {}
-        for name, args in commands["cpu"].items():
-            r = cli_here(None, *args)
-            cpu[name] = (r.returncode, r.stdout, r.stderr)
+    with reaped(_start_vulkan(folders["vulkan"], commands["vulkan"])) as vk:
+        cpu = run_each(commands["cpu"])
         _, stderr = vk.communicate(timeout=900)
-    finally:
-        if vk.poll() is None:
-            vk.kill()
-            vk.communicate()
     assert vk.returncode == 0 and FALLBACK not in stderr, f"vulkan: status {vk.returncode}\n{stderr}"
     vulkan = {}
     for name in commands["vulkan"]:

@@ -20,7 +20,7 @@ import csv
 import numpy as np
 import pytest
 
-from cli_util import start_cli
+from cli_util import reaped, start_cli
 from impacts_util import Hull
 from taichi_rocks import load_run
 from taichi_rocks.app.simulate import simulate_scene
@@ -230,15 +230,11 @@ def test_vulkan_gives_the_cpu_events(tmp_path):
     assert SCENE.count('detection = "patch"\n') == 1
     path.write_text(SCENE.replace('detection = "patch"\n', DT_4MS))
     frames = dict(frames=9, fps=20.0)
-    vk = start_cli("simulate", path, "--arch", "vulkan", "--frames", frames["frames"], "--fps", frames["fps"],
-                   "--out", tmp_path / "vk.npz", "--impacts", tmp_path / "vk.csv")
-    try:  # the CPU's run of the same scene here, meanwhile
+    with reaped(start_cli("simulate", path, "--arch", "vulkan", "--frames", frames["frames"], "--fps",
+                          frames["fps"], "--out", tmp_path / "vk.npz", "--impacts", tmp_path / "vk.csv")) as vk:
+        # the CPU's run of the same scene here, meanwhile
         info = simulate_scene(load_scene(path), out=tmp_path / "cpu.npz", progress=False, **frames)
         _, err = vk.communicate(timeout=900)
-    finally:
-        if vk.poll() is None:
-            vk.kill()
-            vk.communicate()
     assert vk.returncode == 0, err[-2000:]
     assert "running on the CPU" not in err
     vk, cpu = load_run(tmp_path / "vk.npz")["impacts"], info["impacts"]
