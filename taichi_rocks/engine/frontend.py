@@ -15,19 +15,30 @@ front end, 12 s of them in ``get_pos_info`` and 3 s in ``getsourcelines``.
 
 The strings are the ones Taichi would have built (tests/engine/test_frontend.py compares them), so compile
 errors read the same. Idempotent; undone by :func:`uninstall` (tests).
+
+Decorating costs too: ``@ti.kernel`` and ``@ti.func`` ask whether they sit in a class body
+(``kernel_impl._inside_class``) by reading the caller's line through ``inspect.getframeinfo``, whose source lookup
+scans every loaded module (``inspect.getmodule``) on each of the package's ~190 decorators: about 0.2 s of every
+process's import (the engine, the renderer and the bench, 0.70 -> 0.50 s, best of six). :func:`install_decorators`
+(run when ``taichi_rocks.engine`` is imported, before any of its kernels is decorated) reads the same line
+from ``linecache`` and matches Taichi's own patterns, so every decorator gets the answer Taichi's check gives
+(tests/engine/test_frontend.py compares the two on module-level and class-body kernels).
 """
 
 from __future__ import annotations
 
 import functools
+import linecache
+import sys
 
 from taichi.lang import kernel_impl
 from taichi.lang.ast import ast_transformer_utils as _ast_utils
 
-__all__ = ["install", "uninstall", "installed"]
+__all__ = ["install", "install_decorators", "uninstall", "installed"]
 
 _BODY_KINDS = ("For", "While", "FunctionDef", "If")  # their message quotes only the lines before the body
-_original = {"pos": _ast_utils.ASTTransformerContext.get_pos_info, "lines": kernel_impl.getsourcelines}
+_original = {"pos": _ast_utils.ASTTransformerContext.get_pos_info, "lines": kernel_impl.getsourcelines,
+             "inside_class": kernel_impl._inside_class}
 _messages: dict = {}
 _MAX_MESSAGES = 200_000  # a bound on the memo (a few tens of MB at most); cleared when full
 
@@ -60,13 +71,31 @@ def _cached_pos_info(self, node):
     return msg
 
 
+def _inside_class(level_of_class_stackframe):
+    """Taichi's ``kernel_impl._inside_class``: does the caller's frame at that level execute a line that opens a
+    class (``class X...`` or ``@...data_oriented``)? The line from ``linecache`` instead of ``getframeinfo``."""
+    try:
+        frame = sys._getframe(level_of_class_stackframe)  # called where Taichi's is: the same depth
+        line = linecache.getline(frame.f_code.co_filename, frame.f_lineno).strip()
+    except (ValueError, AttributeError):  # no frame that deep
+        return False
+    return any(p.match(line) for p in kernel_impl._KERNEL_CLASS_STACKFRAME_STMT_RES)
+
+
+def install_decorators() -> None:
+    """The cheaper class-body check for ``@ti.kernel`` / ``@ti.func`` (module docstring); idempotent."""
+    kernel_impl._inside_class = _inside_class
+
+
 def install() -> None:
     """Memoize the front end's source reads and error-position messages (see the module docstring)."""
+    install_decorators()
     _ast_utils.ASTTransformerContext.get_pos_info = _cached_pos_info
     kernel_impl.getsourcelines = _cached_source_lines
 
 
 def uninstall() -> None:
+    kernel_impl._inside_class = _original["inside_class"]
     _ast_utils.ASTTransformerContext.get_pos_info = _original["pos"]
     kernel_impl.getsourcelines = _original["lines"]
     _messages.clear()

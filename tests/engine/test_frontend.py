@@ -81,3 +81,41 @@ def test_a_compile_error_reads_the_same(taichi_cpu):
     frontend.install()
     assert messages[0] == messages[1]
     assert "undefined_name" in messages[0] and "^" in messages[0] and "test_frontend.py" in messages[0]
+
+
+def test_the_class_body_check_answers_as_taichis(monkeypatch):
+    """frontend.install_decorators: a kernel and a func in a data-oriented class body are class members, at module
+    level (and in a function) they are not; Taichi's own check, called at the same place, says the same."""
+    from taichi.lang import kernel_impl
+
+    answers = []
+
+    def both(level_of_class_stackframe):
+        # called where Taichi calls its check: one frame deeper for the two below, hence the + 1
+        ours = frontend._inside_class(level_of_class_stackframe + 1)
+        theirs = frontend._original["inside_class"](level_of_class_stackframe + 1)
+        answers.append((ours, theirs))
+        return theirs
+
+    monkeypatch.setattr(kernel_impl, "_inside_class", both)
+
+    @ti.data_oriented
+    class Holder:
+        @ti.kernel
+        def k(self):
+            pass
+
+        @ti.func
+        def f(self):
+            pass
+
+    @ti.kernel
+    def loose():
+        pass
+
+    @ti.func
+    def loose_func():
+        pass
+
+    assert answers == [(True, True), (True, True), (False, False), (False, False)], answers
+    assert Holder and loose and loose_func
