@@ -4,7 +4,7 @@ Taichi compiles ``field.from_numpy`` and ``field.to_numpy`` once per field (the 
 its copy kernel): a World's six to nine saved rock fields cost about 40 ms of compiling each way and field,
 about 0.5 s a World on a 2-core CPU. Here a group of fields travels as two 2-D arrays, the real fields' components
 side by side in columns of one array of the World's precision and the i32 fields in one int32 array, through one
-kernel per direction: one compile a World and direction (about 60 ms), and one launch instead of one per field.
+kernel for both directions: one compile a World and group (about 60 ms), and one launch instead of one per field.
 
 The values are copied, not converted (each array has its fields' dtype), so the bits are those of
 ``from_numpy`` / ``to_numpy``.
@@ -41,13 +41,14 @@ class Group:
 
 @ti.kernel
 def _copy(reals: ti.template(), cols: ti.template(), ints: ti.template(), r: ti.types.ndarray(ndim=2),
-          k: ti.types.ndarray(ndim=2), n: ti.i32, into_fields: ti.template()):
-    """The first ``n`` rows: the arrays into the fields if ``into_fields``, else the fields into the arrays."""
+          k: ti.types.ndarray(ndim=2), n: ti.i32, into_fields: ti.i32):
+    """The first ``n`` rows: the arrays into the fields if ``into_fields``, else the fields into the arrays. The
+    direction is an argument, not a template: one compile serves both."""
     for i in range(n):
         for f in ti.static(range(len(reals))):
             c, w = ti.static(cols[f][0], cols[f][1])
             for j in ti.static(range(max(w, 1))):
-                if ti.static(into_fields):
+                if into_fields:
                     if ti.static(w > 0):
                         reals[f][i][j] = r[i, c + j]
                     else:
@@ -58,7 +59,7 @@ def _copy(reals: ti.template(), cols: ti.template(), ints: ti.template(), r: ti.
                     else:
                         r[i, c] = reals[f][i]
         for f in ti.static(range(len(ints))):
-            if ti.static(into_fields):
+            if into_fields:
                 ints[f][i] = k[i, f]
             else:
                 k[i, f] = ints[f][i]
@@ -74,7 +75,7 @@ def put(g: Group, arrays: list, rows: int) -> None:
             r[:, c:c + max(w, 1)] = np.asarray(a).reshape(rows, max(w, 1))
         else:
             k[:, j] = a
-    _copy(g.reals, g.real_cols, g.ints, r, k, rows, True)
+    _copy(g.reals, g.real_cols, g.ints, r, k, rows, 1)
 
 
 def take(g: Group, rows: int) -> list:
@@ -82,7 +83,7 @@ def take(g: Group, rows: int) -> list:
     given (vector fields ``(rows, n)``, scalar ones ``(rows,)``)."""
     r, k = g.arrays(rows)
     if rows:
-        _copy(g.reals, g.real_cols, g.ints, r, k, rows, False)
+        _copy(g.reals, g.real_cols, g.ints, r, k, rows, 0)
     out = []
     for real, j in g.order:
         if real:
