@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import taichi as ti
 
-from taichi_rocks.engine import hashgrid, tires
+from taichi_rocks.engine import hashgrid, rocks, tires
 from taichi_rocks.engine.kernels import READS, Switches
 from taichi_rocks.engine.params import dilation_cells, pack
 from taichi_rocks.engine.setup import entry_capacity
@@ -64,6 +64,16 @@ def padded_rocks(pos, radius, cap: int, cell: float) -> tuple:
     return pos, np.concatenate([radius, np.full(cap - n, float(radius.min()) if n else cell)])
 
 
+def put_rocks(w, **arrays):
+    """Whole rock fields of ``w`` (name -> one value per entry of its capacity), the others kept: all of them
+    through engine/rocks.py (one copy kernel a World for both ways, not one per field and way)."""
+    cap = w.pos.shape[0]
+    now = rocks.read_listed(w, cap)
+    for name, a in arrays.items():
+        now[name] = np.asarray(a).astype(now[name].dtype).reshape(now[name].shape)
+    rocks.write(w, now, cap)
+
+
 class Probe:
     """A World holding given rocks, a hash built in a given mode, and rays; the tire pass's switches.
 
@@ -94,14 +104,8 @@ class Probe:
                           "ANGLE_MIN": np.radians(30.0), "ANGLE_MAX": np.radians(30.0), "TIE_EPS": 1e-5,
                           "DILATE": dilation_cells(r_max, cell) if self.center else 0})
         w.set_params(par, ipar)
-        npr = w.np_real()
-        w.pos.from_numpy(pos.astype(npr))
-        w.radius.from_numpy(radius.astype(npr))
-        w.friction.from_numpy(np.full(cap, 0.5, npr))
-        w.rock_id.from_numpy(np.arange(cap, dtype=np.int32))
-        w.phase.from_numpy(np.zeros(cap, np.int32))
-        w.vel.from_numpy(np.zeros((cap, 3), npr))
-        w.hit_step.from_numpy(np.full(cap, -1, np.int32))
+        put_rocks(w, pos=pos, radius=radius, friction=np.full(cap, 0.5), rock_id=np.arange(cap), phase=np.zeros(cap),
+                  vel=np.zeros((cap, 3)), hit_step=np.full(cap, -1))
         self.rays = rays
         hashgrid.clear_counts(w)
         hashgrid.count_all(w, self.center, 0.0, 0.0)
@@ -129,11 +133,11 @@ class Probe:
         w = self.w
         cur = self.rays
         self.set_rays(cur if prev is None else prev, cur, tread=tread)
-        w.phase.from_numpy(np.zeros(w.pos.shape[0], np.int32))
+        put_rocks(w, phase=np.zeros(w.pos.shape[0]))
         if not self.swept:
             tires.trace_rays(w)
         tires.tire_pass(w, self.switches, step)
-        return np.flatnonzero(w.hit_step.to_numpy()[: self.n] == step)
+        return np.flatnonzero(rocks.read_listed(w, w.pos.shape[0])["hit_step"][: self.n] == step)
 
     def slot_members(self):
         """slot -> set of rock indices, from the built table."""

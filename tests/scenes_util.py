@@ -52,7 +52,7 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     smaller cells) and ray cells (longer rays, smaller cells) as needed. Missing rocks and rays are padded
     with dummies far away (harness.padded_rocks, Probe.set_rays), which nothing can hit. Returns the probe;
     ``hits()`` then works as usual (indices < len(pos))."""
-    from harness import padded_rocks
+    from harness import padded_rocks, put_rocks
     from taichi_rocks.engine import hashgrid
     from taichi_rocks.engine.params import IPar, Par, dilation_cells
 
@@ -72,10 +72,7 @@ def reload_probe(probe, pos, radius, rays, cell=None):
     par[Par.CELL], par[Par.R_MAX] = cell, r_max
     ipar[IPar.DILATE] = dilation_cells(r_max, cell) if probe.center else 0
     w.set_params(par, ipar)
-    npr = w.np_real()
-    w.pos.from_numpy(pos.astype(npr))
-    w.radius.from_numpy(radius.astype(npr))
-    w.hit_step.from_numpy(np.full(cap, -1, np.int32))
+    put_rocks(w, pos=pos, radius=radius, hit_step=np.full(cap, -1))
     probe.n, probe.cell, probe.rays = n, cell, rays
     hashgrid.clear_counts(w)
     hashgrid.count_all(w, probe.center, 0.0, 0.0)
