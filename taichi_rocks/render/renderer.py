@@ -221,12 +221,11 @@ class Renderer:
         self._v_verts = vt.vector(3, ti.f32, len(vs))
         self._v_norms = vt.vector(3, ti.f32, len(vs))
         self._v_cols = vt.vector(3, ti.f32, len(vs))
-        self._v_cols.from_numpy(cs.astype(np.float32))
         self._v_idx = vt.scalar(ti.i32, max(len(tri) for tri in self._layouts.values()))
-        self._upload_layout(None)
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
         self._v_model = vt.matrix(4, 4, ti.f32, 1)
-        self._v_model.from_numpy(np.eye(4, dtype=np.float32)[None])
+        self._put_vehicle_mesh(cols=cs, identity=True)
+        self._upload_layout(None)
         self._identity = host_buffer((1, 4, 4))  # the same, as GGUI's wrapper hands it over (never freed)
         self._identity[0] = np.eye(4, dtype=np.float32)
 
@@ -246,8 +245,18 @@ class Renderer:
         ids = self._layouts[inside]
         full = np.zeros(self._v_idx.shape[0], np.int32)
         full[:len(ids)] = ids
-        self._v_idx.from_numpy(full)
+        self._put_vehicle_mesh(idx=full)
         self._layout = inside
+
+    def _put_vehicle_mesh(self, verts=None, norms=None, cols=None, idx=None, identity=False) -> None:
+        """Parts of the vehicles' mesh into its fields, through one kernel (kernels.put_vehicle_mesh)."""
+        none3, none1 = np.zeros((1, 3), np.float32), np.zeros(1, np.int32)
+        arr = lambda a, empty, dt: empty if a is None else np.ascontiguousarray(a, dt)
+        v, n = arr(verts, none3, np.float32), arr(norms, none3, np.float32)
+        c, ix = arr(cols, none3, np.float32), arr(idx, none1, np.int32)
+        K.put_vehicle_mesh(self._v_verts, self._v_norms, self._v_cols, self._v_idx, self._v_model, v, n, c, ix,
+                           0 if verts is None else len(v), 0 if cols is None else len(c),
+                           0 if idx is None else len(ix), int(identity))
 
     def wheel_angles(self, t: float) -> list:
         """Per vehicle, its wheels' angles (rad) at time ``t``: distance driven / tire radius (rear wheels:
@@ -535,8 +544,7 @@ class Renderer:
         posed = self.posed_vehicles(poses, origin, self.sim.time)
         out_v = np.concatenate([v for v, _ in posed])
         self._v_frame = out_v
-        self._v_verts.from_numpy(out_v.astype(np.float32))
-        self._v_norms.from_numpy(np.concatenate([n for _, n in posed]).astype(np.float32))
+        self._put_vehicle_mesh(verts=out_v, norms=np.concatenate([n for _, n in posed]))
         if self._inside != self._layout:
             self._upload_layout(self._inside)
         scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
