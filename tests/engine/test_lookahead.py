@@ -126,8 +126,7 @@ def _run_modes(recording, sc, drive, paths=None):
         sim = recording(sc, mode, paths)
         drive(sim)
         runs.append((mode, sim.recorded, _final(sim), sim._host_side.ahead.batches))
-        del sim
-        gc.collect()  # the simulation is gone (the reference mode's patch made a cycle): the next takes its World
+        del sim  # in a cycle (the reference mode's patch): the next make() collects it and takes its World
     (_, ref, ref_final, ref_batches), rest = runs[0], runs[1:]
     assert len(ref) > 50, "the drive took too few steps to say anything"
     assert ref_batches == 0

@@ -9,7 +9,6 @@ through the fields (``sim.world.pos/vel/phase``, local coordinates in memory ord
 ``rock_id``) with :func:`set_rocks`.
 """
 
-import gc
 import math
 import os
 import re
@@ -176,8 +175,7 @@ def strip_distance(c, x0, x1, y):
 
 def test_high_speed_swept_misses_nothing_and_ray_misses_many():
     sim, rays, pos, r, got_swept = high_speed_run("swept")
-    del sim
-    gc.collect()  # its World serves the ray run below (engine/world.py acquire)
+    del sim  # its World serves the ray run below (engine/world.py acquire)
     assert np.ptp(rays[:, :, :, 1], axis=0).max() == 0 and np.all(rays[:, :, 0, 2] > rays[:, :, 1, 2])
     swept_d = np.min([strip_distance(pos, rays[0, t, 0, 0], rays[-1, t, 0, 0], rays[0, t, 0, 1])
                       for t in range(rays.shape[1])], axis=0)
@@ -318,8 +316,7 @@ def test_u_turn_and_reversing():
     headings = sim.state()["vehicle_headings"]
     assert abs(headings[0]) > 2.5, "the car came back"
     bed_uniform(sim)
-    del sim, recs
-    gc.collect()  # its World serves the run below (engine/world.py acquire)
+    del sim, recs  # its World serves the run below (engine/world.py acquire)
     # driving backwards: the nose points to -x, the car travels to +x, rocks leave towards the nose
     back = Simulation(scene(rocks=4000, radius=5.0, vehicles=[car(speed=10.0, reverse=True)]))
     recs = launch_records(back, 300)
