@@ -54,7 +54,7 @@ from ..config.plan import Plan
 from ..config.scene import SceneError
 from ..motion.bodies import LABELS, body_parts, hexahedron_planes, label_table
 from .events import EVENT_DTYPE, append
-from . import tumble
+from . import transfer, tumble
 from .impacts import bounce, damage_class, stone_mass, surface_velocity, swept_sphere_hull
 from .rockfields import FLYING
 from .world import POSE_ROWS, Par
@@ -156,15 +156,13 @@ def check_bodies(scene, plan=None) -> None:
 def write_bodies(world, bodies: Bodies, tire_vehicle) -> None:
     """The bodies and each splashing tire's vehicle (``tire_vehicle``: scene indices, tire order) into the
     World's fields (engine/world.py field_specs: allocated with impacts)."""
-    npr = world.np_real()
     tv = np.full(world.tire_vehicle.shape[0], -1, np.int32)
     tv[:len(tire_vehicle)] = tire_vehicle
-    world.tire_vehicle.from_numpy(tv)
-    for name, a, dt in (("target_vehicle", bodies.vehicle, np.int32), ("target_parts", bodies.parts, np.int32),
-                        ("target_box", bodies.box, npr), ("part_box", bodies.part_box, npr),
-                        ("part_planes", bodies.planes, npr), ("part_corners", bodies.corners, npr),
-                        ("part_labels", bodies.labels, np.int32), ("part_split", bodies.split, npr)):
-        getattr(world, name).from_numpy(np.ascontiguousarray(a, dt))
+    named = (("tire_vehicle", tv), ("target_vehicle", bodies.vehicle), ("target_parts", bodies.parts),
+             ("target_box", bodies.box), ("part_box", bodies.part_box), ("part_planes", bodies.planes),
+             ("part_corners", bodies.corners), ("part_labels", bodies.labels), ("part_split", bodies.split))
+    # one launch for the nine fields (engine/transfer.py), in their dtypes: the bits of from_numpy
+    transfer.put_whole([getattr(world, name) for name, _ in named], [a for _, a in named], world.np_real())
 
 
 def pose_rows(prev, cur, targets, shift) -> np.ndarray:

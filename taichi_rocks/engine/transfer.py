@@ -6,14 +6,18 @@ about 0.5 s a World on a 2-core CPU. Here a group of fields travels as two 2-D a
 side by side in columns of one array of the World's precision and the i32 fields in one int32 array, through one
 kernel for both directions: one compile a World and group (about 60 ms), and one launch instead of one per field.
 
+:func:`put_whole` writes whole fields of any shapes and element kinds (scalars, vectors, matrices; a World's
+bodies, engine/impact_pass.py) from their arrays in one launch: one compile a World instead of one per field.
+
 The values are copied, not converted (each array has its fields' dtype), so the bits are those of
 ``from_numpy`` / ``to_numpy``.
 """
 
 import numpy as np
 import taichi as ti
+from taichi.lang.util import to_numpy_type
 
-__all__ = ["Group", "put", "take"]
+__all__ = ["Group", "put", "take", "put_whole"]
 
 
 class Group:
@@ -92,3 +96,64 @@ def take(g: Group, rows: int) -> list:
         else:
             out.append(k[:, j].copy())
     return out
+
+
+def _element(f) -> tuple:
+    """The shape of one entry of field ``f``: () a scalar, (n,) a vector, (n, m) a matrix."""
+    if not hasattr(f, "n"):
+        return ()
+    return (f.n,) if getattr(f, "ndim", 2) == 1 else (f.n, f.m)
+
+
+def put_whole(fields: list, arrays: list, real_np) -> None:
+    """Each array into the whole of its field, as ``field.from_numpy(array)`` would: the array's shape is the
+    field's shape followed by its entries' (a vector's n, a matrix's n x m); a field holds ``real_np`` values
+    (the World's precision) or int32 ones. One launch, one compile per tuple of fields."""
+    reals, ints, layout, r_at, k_at = [], [], [], 0, 0
+    for f, a in zip(fields, arrays):
+        shape = tuple(f.shape) + _element(f)
+        is_int = f.dtype == ti.i32
+        if not is_int and np.dtype(to_numpy_type(f.dtype)) != np.dtype(real_np):
+            raise ValueError(f"a field of {f.dtype} among fields of {np.dtype(real_np)} values")
+        flat = np.ascontiguousarray(a, np.int32 if is_int else real_np)
+        if flat.shape != shape:
+            raise ValueError(f"an array of shape {flat.shape} for a field of shape {shape}")
+        (ints if is_int else reals).append(flat.reshape(-1))
+        layout.append((not is_int, k_at if is_int else r_at, _element(f), int(np.prod(_element(f), dtype=int))))
+        if is_int:
+            k_at += flat.size
+        else:
+            r_at += flat.size
+    r = np.concatenate(reals) if reals else np.zeros(1, real_np)
+    k = np.concatenate(ints) if ints else np.zeros(1, np.int32)
+    _put_whole(tuple(fields), tuple(layout), r, k)
+
+
+@ti.kernel
+def _put_whole(fields: ti.template(), layout: ti.template(), r: ti.types.ndarray(ndim=1),
+               k: ti.types.ndarray(ndim=1)):
+    """Field f's entries, in row-major order, from ``r`` (real) or ``k`` (int32) at its offset (``layout[f]``:
+    (real?, offset, entry shape, values per entry))."""
+    for f in ti.static(range(len(fields))):
+        real, at, elem, size = ti.static(layout[f])
+        for I in ti.grouped(ti.ndrange(*fields[f].shape)):
+            lin = 0
+            for d in ti.static(range(len(fields[f].shape))):
+                lin = lin * fields[f].shape[d] + I[d]
+            base = at + lin * size
+            for j in ti.static(range(size)):
+                if ti.static(real):
+                    _set(fields[f], I, elem, j, r[base + j])
+                else:
+                    _set(fields[f], I, elem, j, k[base + j])
+
+
+@ti.func
+def _set(field: ti.template(), I, elem: ti.template(), j: ti.template(), value):
+    """Value j (row-major) of entry I of ``field``, whose entries have shape ``elem``."""
+    if ti.static(len(elem) == 0):
+        field[I] = value
+    elif ti.static(len(elem) == 1):
+        field[I][j] = value
+    else:
+        field[I][j // elem[1], j % elem[1]] = value
