@@ -56,6 +56,10 @@ def test_set_mid_run_changes_only_what_follows_and_survives_restore(scene):
     set_runtime(sim, {"world.gravity": 2.0})
     _same(sim.state(), before)  # nothing moved yet
     after = _run(sim, 60)
+    sim.restore(saved)  # restore uploads the parameters again: the new ones
+    assert runtime_values(sim)["world.gravity"] == pytest.approx(2.0)
+    _same(_run(sim, 60), after)
+    del sim  # one simulation at a time: each takes the World of the one before (engine/world.py acquire)
     ref = Simulation(scene_with(scene, {"world.gravity": 2.0}))
     ref.restore(saved)
     _same(after, _run(ref, 60))  # the new value acts from the next step, as if the scene had it
@@ -65,10 +69,6 @@ def test_set_mid_run_changes_only_what_follows_and_survives_restore(scene):
     unchanged = _run(plain, 60)
     assert np.count_nonzero(unchanged["phase"] == 1) > 0  # rocks in the air, which gravity moves
     assert not np.array_equal(after["positions"], unchanged["positions"])  # the change changed what followed
-    del plain
-    sim.restore(saved)  # restore uploads the parameters again: the new ones
-    assert runtime_values(sim)["world.gravity"] == pytest.approx(2.0)
-    _same(_run(sim, 60), after)
 
 
 def test_bad_values_are_refused_and_change_nothing(scene):
@@ -101,8 +101,10 @@ def test_rebuild_continues_from_the_checkpoint_with_the_switch(scene):
     assert new.plan.integrator == "heun" and new.step_count == 40
     _same(new.state(), state)
     a = _run(new)
+    del new  # one simulation at a time: each takes the World of the one before (engine/world.py acquire)
+    saved = _checkpoint_of(scene, 40)
     ref = Simulation(scene_with(scene, {"sim.integrator": "heun"}))
-    ref.restore(_checkpoint_of(scene, 40))
+    ref.restore(saved)
     _same(a, _run(ref))
 
 
