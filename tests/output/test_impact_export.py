@@ -92,6 +92,7 @@ def exported(taichi_cpu, tmp_path_factory):
         out[fmt] = path
         out["expected"] = _expected(sim, ev, body)
         out["events"] = ev
+        del sim  # the next format's simulation takes its World
     return out
 
 
