@@ -284,9 +284,10 @@ def test_the_section_in_results_and_report(bench_run):
             assert all(_positive_finite(x) for x in a["step_rounds_ms"]) and len(a["step_rounds_ms"]) == cfg.act_rounds
             assert 0 < a["in_air"] <= a["active_count"] < r["n"]  # rocks thrown; most rest in their tiles
             m = a["memory"]
-            # the high-water mark holds the World; the resident size may be below the point's baseline: in a
-            # process that ran other points before, a garbage collection may free more than the World takes
-            assert m["hwm_mb"] >= m["rss_mb"] > 0 and m["hwm_mb"] >= m["baseline_rss_mb"] > 0
+            # no order between them is asserted: in a process that ran other points before, a collection may
+            # free more than the World takes (the resident size drops below the point's baseline), and Linux
+            # brings VmHWM up to date lazily (per-thread RSS counters): seen 0.2 MB below the baseline
+            assert m["hwm_mb"] > 0 and m["rss_mb"] > 0 and m["baseline_rss_mb"] > 0
             assert 0 < m["field_mb"] < m["hwm_mb"] and _positive_finite(m["field_bytes_per_rock"])
             if r["full"]:
                 f = r["full"]
