@@ -564,28 +564,6 @@ def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Grou
 
 
 @ti.kernel
-def put_vehicle_mesh(verts: ti.template(), norms: ti.template(), cols: ti.template(), idx: ti.template(),
-                     model: ti.template(), v: ti.types.ndarray(ndim=2), n: ti.types.ndarray(ndim=2),
-                     c: ti.types.ndarray(ndim=2), ix: ti.types.ndarray(ndim=1), nv: ti.i32, nc: ti.i32, ni: ti.i32,
-                     identity: ti.i32):
-    """The vehicles' mesh into its fields: the first ``nv`` vertices and normals, ``nc`` colours, ``ni``
-    indices, and the identity model matrix if ``identity`` (0: that part is left as it is). One kernel for
-    what ``from_numpy`` would compile once per field: the build's colours, indices and matrix, each frame's
-    vertices and normals (the values are copied in the fields' dtype: the bits ``from_numpy`` gives)."""
-    for i in range(nv):
-        for k in ti.static(range(3)):
-            verts[i][k] = v[i, k]
-            norms[i][k] = n[i, k]
-    for i in range(nc):
-        for k in ti.static(range(3)):
-            cols[i][k] = c[i, k]
-    for i in range(ni):
-        idx[i] = ix[i]
-    for _ in range(identity):
-        model[0] = ti.Matrix.identity(ti.f32, 4)
-
-
-@ti.kernel
 def to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3),
           buf: ti.template()):
     """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), with the

@@ -49,6 +49,7 @@ from taichi.ui.utils import get_field_info
 
 from ..config.resolution import check_resolution
 from ..engine import drawing
+from ..engine.transfer import put_whole
 from ..engine.trees import FieldTrees, Pool
 from . import kernels as K
 from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
@@ -224,7 +225,7 @@ class Renderer:
         self._v_idx = vt.scalar(ti.i32, max(len(tri) for tri in self._layouts.values()))
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
         self._v_model = vt.matrix(4, 4, ti.f32, 1)
-        self._put_vehicle_mesh(cols=cs, identity=True)
+        put_whole([self._v_cols, self._v_model], [cs, np.eye(4)[None]], np.float32)
         self._upload_layout(None)
         self._identity = host_buffer((1, 4, 4))  # the same, as GGUI's wrapper hands it over (never freed)
         self._identity[0] = np.eye(4, dtype=np.float32)
@@ -245,18 +246,8 @@ class Renderer:
         ids = self._layouts[inside]
         full = np.zeros(self._v_idx.shape[0], np.int32)
         full[:len(ids)] = ids
-        self._put_vehicle_mesh(idx=full)
+        put_whole([self._v_idx], [full], np.float32)
         self._layout = inside
-
-    def _put_vehicle_mesh(self, verts=None, norms=None, cols=None, idx=None, identity=False) -> None:
-        """Parts of the vehicles' mesh into its fields, through one kernel (kernels.put_vehicle_mesh)."""
-        none3, none1 = np.zeros((1, 3), np.float32), np.zeros(1, np.int32)
-        arr = lambda a, empty, dt: empty if a is None else np.ascontiguousarray(a, dt)
-        v, n = arr(verts, none3, np.float32), arr(norms, none3, np.float32)
-        c, ix = arr(cols, none3, np.float32), arr(idx, none1, np.int32)
-        K.put_vehicle_mesh(self._v_verts, self._v_norms, self._v_cols, self._v_idx, self._v_model, v, n, c, ix,
-                           0 if verts is None else len(v), 0 if cols is None else len(c),
-                           0 if idx is None else len(ix), int(identity))
 
     def wheel_angles(self, t: float) -> list:
         """Per vehicle, its wheels' angles (rad) at time ``t``: distance driven / tire radius (rear wheels:
@@ -544,7 +535,8 @@ class Renderer:
         posed = self.posed_vehicles(poses, origin, self.sim.time)
         out_v = np.concatenate([v for v, _ in posed])
         self._v_frame = out_v
-        self._put_vehicle_mesh(verts=out_v, norms=np.concatenate([n for _, n in posed]))
+        # both in one launch (engine/transfer.py): one compile a renderer, not one per field
+        put_whole([self._v_verts, self._v_norms], [out_v, np.concatenate([n for _, n in posed])], np.float32)
         if self._inside != self._layout:
             self._upload_layout(self._inside)
         scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
