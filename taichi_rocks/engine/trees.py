@@ -254,11 +254,10 @@ class Pool:
     def lease(self, owner, key, make, reset=None):
         """A free object of layout ``key`` for ``owner``, after ``reset(obj)``; or else ``make()``, kept.
 
-        When every object of the layout is leased, a garbage collection runs first: an owner held only by a
-        reference cycle (a Simulation whose host side refers back to it, one a finished test or notebook cell
-        dropped) is not freed before the collector runs, and its object would be compiled anew. A collection
-        takes milliseconds (about 50 ms in a process holding a test suite's worth of objects); a new object's
-        compiles take seconds."""
+        When every object of the layout is leased, a garbage collection runs first: an owner that a finished
+        test or notebook cell dropped but a reference cycle still holds is not freed before the collector runs,
+        and the next owner would compile a new object. A collection takes milliseconds (about 50 ms in a
+        process holding a test suite's worth of objects); a new object's compiles take seconds."""
         prog = _runtime_state()["prog"]
         if self._prog != prog:
             self._by_key, self._prog = {}, prog
