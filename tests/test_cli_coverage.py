@@ -4,7 +4,6 @@ once and pooled): --seed on every command, default output paths, ``simulate --ou
 ``view --quit-after`` / ``--record --overwrite`` (up to the window), ``bench --quick`` and ``--only``, exit status 1
 for the runtime guard and TAICHI_ROCKS_DEBUG. The window itself: tests/render/test_view_controls.py."""
 
-import gc
 import os
 import re
 import subprocess
@@ -135,7 +134,7 @@ def test_render_seed_profile_and_default_folder(taichi_cpu, capsys, in_tmp, monk
     assert profile["resume_replay"] == 0.0
     [(seed, positions)] = seen
     assert seed == 5
-    gc.collect()  # the render's Simulation is gone: its World serves the two below
+    # the render's Simulation is gone: its World serves the two below
     scene = load_scene(MINIMAL)
     np.testing.assert_array_equal(positions, Simulation(scene, seed=5).state()["positions"])
     assert np.abs(positions - Simulation(scene).state()["positions"]).max() > 0.1

@@ -111,7 +111,8 @@ def put_whole(fields: list, arrays: list, real_np) -> None:
     (the World's precision) or int32 ones. One launch, one compile per tuple of fields."""
     reals, ints, layout, r_at, k_at = [], [], [], 0, 0
     for f, a in zip(fields, arrays):
-        shape = tuple(f.shape) + _element(f)
+        elem = _element(f)
+        shape = tuple(f.shape) + elem
         is_int = f.dtype == ti.i32
         if not is_int and np.dtype(to_numpy_type(f.dtype)) != np.dtype(real_np):
             raise ValueError(f"a field of {f.dtype} among fields of {np.dtype(real_np)} values")
@@ -119,7 +120,7 @@ def put_whole(fields: list, arrays: list, real_np) -> None:
         if flat.shape != shape:
             raise ValueError(f"an array of shape {flat.shape} for a field of shape {shape}")
         (ints if is_int else reals).append(flat.reshape(-1))
-        layout.append((not is_int, k_at if is_int else r_at, _element(f), int(np.prod(_element(f), dtype=int))))
+        layout.append((not is_int, k_at if is_int else r_at, elem, int(np.prod(elem, dtype=int))))
         if is_int:
             k_at += flat.size
         else:

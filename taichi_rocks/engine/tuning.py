@@ -15,7 +15,6 @@ Two kinds of scene keys, by how they reach the kernels:
 
 from __future__ import annotations
 
-import gc
 
 import numpy as np
 
@@ -72,8 +71,7 @@ def rebuilder(sim, changes: dict):
     state, arch, timer, tumble = sim.checkpoint(), sim.arch, sim.timer, sim.tumble
     coast = sim.coast
 
-    def make():
-        gc.collect()
+    def make():  # the pool collects a dropped sim still in a reference cycle (engine/trees.py Pool.lease)
         new = Simulation(scene, arch=arch, timer=timer, tumble=tumble)
         new.restore(state)
         new.coast = coast

@@ -162,8 +162,6 @@ def _small_scene():
 
 
 def test_rebuild_carries_on_bit_identically_on_the_same_world():
-    import gc
-
     from taichi_rocks.bench.measure import Built
     from taichi_rocks.config.scene import scene_with
 
@@ -172,7 +170,6 @@ def test_rebuild_carries_on_bit_identically_on_the_same_world():
     b.sim.step(12)
     straight = b.sim.state()
     del b
-    gc.collect()
     b = Built(scene, "cpu", "rebuilt")
     world = b.sim.world
     b.sim.step(5)

@@ -5,7 +5,6 @@ chain ``patch._hull``, per-step ``Fleet.rear_tires``), over the shipped scenes, 
 restore() in the middle of a batch, advance_to with a short last step, a path that jumps, a floating-origin
 shift in the middle of a batch, reversing, parked vehicles and coasting."""
 
-import gc
 import math
 
 import numpy as np
@@ -104,8 +103,7 @@ def recording(monkeypatch):
     monkeypatch.setattr(steppers, "rock_pass", rock_pass)
 
     def make(sc, mode, paths=None):
-        sims.clear()  # one simulation at a time: the World is shared through the pool
-        gc.collect()
+        sims.clear()  # one simulation at a time: the World is shared through the pool (which collects cycles)
         sim = _simulation(sc, mode, monkeypatch, paths)
         sims[id(sim.world)] = sim
         return sim

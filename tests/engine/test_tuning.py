@@ -112,15 +112,12 @@ def test_a_launch_model_is_a_switch_of_the_plan_not_of_the_world(scene):
     """Scenes that differ only in the launch model (or the fenders) share a World from the pool; the tire
     pass compiles per switch set: the uniform model throws differently (no stone of these reaches the fenders
     this early, so the fenders change nothing yet)."""
-    import gc
-
     from taichi_rocks.config.scene import scene_with
     from taichi_rocks.engine.simulation import Simulation
 
     sim = Simulation(scene)
     world, thrown = sim.world, _run(sim, 120)
     del sim
-    gc.collect()
     for changes in ({"launch.model": "uniform"}, {"effects.fenders": False}):
         other = Simulation(scene_with(scene, changes))
         assert other.world is world, changes
@@ -128,7 +125,6 @@ def test_a_launch_model_is_a_switch_of_the_plan_not_of_the_world(scene):
         assert state["launches_total"] > 0
         assert np.array_equal(state["positions"], thrown["positions"]) == ("launch.model" not in changes)
         del other
-        gc.collect()
 
 
 def _checkpoint_of(scene, steps):

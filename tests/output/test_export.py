@@ -1,7 +1,6 @@
 """Export for other tools (USD, PLY) and the light run files: read back as those tools would, compared with
 what `simulate` writes for the same scene."""
 
-import gc
 import math
 import os
 import signal
@@ -506,7 +505,6 @@ def test_a_new_format_is_one_module_and_one_registry_line(taichi_cpu, tmp_path, 
                 export_run(sim, out, 10, 30.0, fmt="landings")
             assert cls.calls == [0, 1, 2, "abort"] and not out.parent.exists()
         del sim  # its World goes back to the pool: the second export runs on it
-        gc.collect()
 
 
 # ---------------------------------------------------------------------------------------------- colours
