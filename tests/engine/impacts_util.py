@@ -45,12 +45,9 @@ def closest_on_triangle(p, a, b, c):
         ((vb <= 0) & (d2 >= 0) & (d6 <= 0), on_ac),
         ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), on_bc),
     ]
-    out = inner.copy()
-    done = np.zeros(len(p), bool)
-    for cond, pts in regions:
-        take = cond & ~done
-        out[take] = pts[take]
-        done |= take
+    out = inner
+    for cond, pts in reversed(regions):  # the last applied is the first that applies
+        out = np.where(cond[:, None], pts, out)
     return out
 
 
@@ -95,6 +92,10 @@ class Hull:
             best[take], where[take] = near[take], q[k, rows][take]
         return np.sqrt(best), where
 
+    def take(self, idx) -> "Hull":
+        """The hull of the points ``idx`` asked about (itself if it is one hexahedron for all)."""
+        return Hull(self.corners[idx]) if self.corners.ndim == 3 else self
+
     def distance(self, p):
         p = np.atleast_2d(np.asarray(p, np.float64))
         d, _ = self.closest(p)
@@ -133,11 +134,16 @@ def first_contacts(hull: Hull, p0, p1, r, iters=80, roots=True):
     start = f0 <= 0.0
     fmin, tmin = np.where(start, np.minimum(f0, fmin), fmin), np.where(start, 0.0, tmin)
     hit = start | (fmin <= 0.0)
-    a, b = zero.copy(), np.where(start, 0.0, tmin)
-    for _ in range(64 if roots else 0):  # bisection on [0, argmin], where f changes sign once
-        m = 0.5 * (a + b)
-        inside = f(m) <= 0.0
-        a, b = np.where(inside, a, m), np.where(inside, m, b)
+    b = np.where(start, 0.0, tmin)
+    cross = np.flatnonzero(hit & ~start)  # only these have a root inside the path to find
+    if roots and len(cross):
+        h, q0, q1, rr = hull.take(cross), p0[cross], p1[cross], r[cross]
+        a, bb = np.zeros(len(cross)), b[cross]
+        for _ in range(64):  # bisection on [0, argmin], where f changes sign once
+            m = 0.5 * (a + bb)
+            inside = h.distance(q0 + m[:, None] * (q1 - q0)) - rr <= 0.0
+            a, bb = np.where(inside, a, m), np.where(inside, m, bb)
+        b[cross] = bb
     return hit, np.where(hit, b, np.nan), fmin, tmin
 
 

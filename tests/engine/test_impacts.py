@@ -164,7 +164,10 @@ def check(res, corners, p0, p1, r, tol, ref=None):
     start = hit & (t == 0) & (dist0 <= r + tol)
     moving = hit & ~start
     never(moving & (np.abs(hull.distance(c) - r) > tol), "not at r from the part")
-    never(moving & (min_on(hull, p0, p1, r, t) < -tol), "a deeper contact before the reported one")
+    deeper = np.zeros(len(p0), bool)
+    m = np.flatnonzero(moving)  # the search on these paths only
+    deeper[m] = min_on(hull.take(m), p0[m], p1[m], r[m], t[m]) < -np.broadcast_to(tol, deeper.shape)[m]
+    never(deeper, "a deeper contact before the reported one")
     t_probe = np.maximum(np.nan_to_num(t_ref) - 1e-3, 0.0)
     speed_in = (r - hull.distance(p0 + t_probe[:, None] * d)) / 1e-3  # how fast the path closes in there
     sharp = moving & hit_ref & (np.abs(fmin) > tol) & (np.nan_to_num(t_ref) > 0) & (speed_in > 0.01)

@@ -26,6 +26,7 @@ from taichi_rocks import load_run
 from taichi_rocks.app.simulate import simulate_scene
 from taichi_rocks.config.impacts import DAMAGE_CLASSES
 from taichi_rocks.config.scene import load_scene, scene_with
+from taichi_rocks.engine import rocks
 from taichi_rocks.engine.events import EVENT_DTYPE
 from taichi_rocks.engine.impact_pass import pose_rows, time_row
 from taichi_rocks.engine.simulation import Simulation
@@ -83,10 +84,11 @@ def _hulls(sc):
 def _closest_gap(sim, hulls) -> float:
     """The least (distance to a part - radius) over the moving rocks and every part of every body now (a
     stone and the body of the vehicle that threw it excepted: that is the fenders' business)."""
-    st = sim.state()
+    arrays = sim.rock_arrays()  # read once: the state's arrays and the throwers
+    st = rocks.state_arrays(sim.world, arrays, sim.origin)
     moving = st["phase"] != 0
     x, r = st["positions"][moving], st["radii"][moving]
-    thrower = sim.rock_arrays()["thrower"][moving]
+    thrower = arrays["thrower"][moving]
     worst = np.inf
     for v, (pose, parts) in enumerate(zip(sim.fleet.poses(sim.time), hulls)):
         c, s = np.cos(pose.heading), np.sin(pose.heading)
