@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import taichi as ti
 
-from ..engine.trees import FieldTrees
+from ..engine.trees import FieldTrees, Pool
 from .marks import Hits, body_to_local, cabin_for, flash_geometry, glass_side, to_body_frame
 
 __all__ = ["HitLayer", "MARK_COLOR", "MARK_PX", "SPARK_PX", "MAX_SEGMENTS"]
@@ -28,12 +28,26 @@ SPARK_PX = 3.0
 MAX_SEGMENTS = 1 << 15
 
 
+class _Fields:
+    """A hit buffer's fields for ``cap`` entries: positions, colours and (``rad``) radii, leased from
+    :data:`_POOL` by the size (engine/trees.py Pool): the next buffer of that size uploads into them with its
+    copies compiled. Only the first count entries of an upload are drawn, and every upload writes every entry."""
+
+    def __init__(self, cap: int, rad: bool):
+        self.trees, self.owner = FieldTrees(), None
+        self.pos, self.col = self.trees.vector(3, ti.f32, cap), self.trees.vector(3, ti.f32, cap)
+        self.rad = self.trees.scalar(ti.f32, cap) if rad else None
+
+
+_POOL = Pool()
+
+
 class _Buffer:
     """A GGUI vertex buffer and its colours that grows in powers of two (at least 64 entries)."""
 
     def __init__(self):
         self.pos = self.col = self.rad = None
-        self._trees = FieldTrees(owner=self)  # replaced (the old fields retired) each time the buffer grows
+        self._f = None  # its fields, leased from the pool (given back when the buffer grows or closes)
         self._colours = None  # the key of the colours uploaded, if the caller gave one
 
     def put(self, pos: np.ndarray, col: np.ndarray, rad: np.ndarray = None, colour_key=None) -> int:
@@ -45,9 +59,9 @@ class _Buffer:
             cap = 64
             while cap < n:
                 cap *= 2
-            self._trees = self._trees.release()
-            self.pos, self.col = self._trees.vector(3, ti.f32, cap), self._trees.vector(3, ti.f32, cap)
-            self.rad = self._trees.scalar(ti.f32, cap) if rad is not None else None
+            self.close()
+            self._f = _POOL.lease(self, ("hits", cap, rad is not None), lambda: _Fields(cap, rad is not None))
+            self.pos, self.col, self.rad = self._f.pos, self._f.col, self._f.rad
         cap = self.pos.shape[0]
         pad = lambda a, shape: np.concatenate([a, np.zeros((cap - n,) + shape, np.float32)]).astype(np.float32)
         self.pos.from_numpy(pad(pos, (3,)))
@@ -59,8 +73,9 @@ class _Buffer:
         return n
 
     def close(self) -> None:
-        self._trees = self._trees.release()
-        self.pos = self.col = self.rad = None
+        if self._f is not None:
+            _POOL.give_back(self._f, self)
+        self._f = self.pos = self.col = self.rad = None
 
 
 class HitLayer:

@@ -121,9 +121,9 @@ class Renderer:
         self.last_count = 0
         self.tiles_in_view = 0  # tiles of the store the last rock pass visited (active stepping)
         self.timings = {"cull": 0.0, "draw": 0.0}
-        # the vehicles' fields of this renderer, retired by close() or when it is garbage-collected
-        # (engine/trees.py); the other buffers are leased from the pool (given back the same way)
-        self._v_trees = FieldTrees(owner=self)
+        # the vehicles' fields and the other buffers are leased from the pool: given back by close() or when
+        # this renderer is garbage-collected (engine/trees.py)
+        self._v = None
         self._ggui_camera = ggui(ti.ui.Camera)  # GGUI's camera of the 3D layer, set from the view each frame
         self._ggui_camera.up(*GL_UP)
         self._ggui_camera.fov(self.fov)
@@ -218,13 +218,11 @@ class Renderer:
         self._v_frame = None  # this frame's vertices (local frame), for the lost-mesh check
         self._inside = None  # the vehicle whose cabin the camera looks out of this frame
         self._odometer = Odometer(self.sim.fleet.paths)
-        vt = self._v_trees = self._v_trees.release()  # the vehicles' fields of the last call retire
-        self._v_verts = vt.vector(3, ti.f32, len(vs))
-        self._v_norms = vt.vector(3, ti.f32, len(vs))
-        self._v_cols = vt.vector(3, ti.f32, len(vs))
-        self._v_idx = vt.scalar(ti.i32, max(len(tri) for tri in self._layouts.values()))
+        if self._v is not None:  # the fields of the last call go back (the same sizes take them again)
+            _POOL.give_back(self._v, self)
+        self._v = v = _lease_vehicles(self, len(vs), max(len(tri) for tri in self._layouts.values()))
+        self._v_verts, self._v_norms, self._v_cols, self._v_idx, self._v_model = v.verts, v.norms, v.cols, v.idx, v.model
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
-        self._v_model = vt.matrix(4, 4, ti.f32, 1)
         put_whole([self._v_cols, self._v_model], [cs, np.eye(4)[None]], np.float32)
         self._upload_layout(None)
         self._identity = host_buffer((1, 4, 4))  # the same, as GGUI's wrapper hands it over (never freed)
@@ -263,12 +261,11 @@ class Renderer:
 
     def close(self) -> None:
         """Release the window and the imgui.ini GGUI left behind, give the buffers back to the pool (the next
-        renderer of their sizes takes them, compiled) and retire the vehicles' fields (destroyed with others once
-        the process runs short of SNode trees: engine/trees.py). It draws no more frames after this; the
-        Simulation stays usable. Closing twice does nothing more."""
+        renderer of their sizes takes them, compiled), the vehicles' fields with them. It draws no more frames
+        after this; the Simulation stays usable. Closing twice does nothing more."""
         self._win.release()
         _POOL.give_back(self._f, self)
-        self._v_trees = self._v_trees.release()
+        _POOL.give_back(self._v, self)
         self.hits.close()
 
     def __enter__(self):
@@ -565,7 +562,26 @@ class _Fields:
         self.overlays = Overlays(SimpleNamespace(), self.trees)
 
 
+class _Vehicles:
+    """The vehicles' merged mesh for ``nv`` vertices and ``ni`` indices: positions and normals (posed each
+    frame), colours, the triangles' indices and GGUI's model matrix. Leased from :data:`_POOL` like
+    :class:`_Fields`: a renderer of the same vehicles then uploads and draws them with kernels compiled (the
+    uploads' and GGUI's copies into its vertex buffers). Every field is written before it is drawn."""
+
+    def __init__(self, nv: int, ni: int):
+        self.trees, self.owner = FieldTrees(), None
+        t = self.trees
+        self.verts, self.norms, self.cols = (t.vector(3, ti.f32, nv) for _ in range(3))
+        self.idx = t.scalar(ti.i32, ni)
+        self.model = t.matrix(4, 4, ti.f32, 1)
+
+
 _POOL = Pool()
+
+
+def _lease_vehicles(owner, nv: int, ni: int) -> _Vehicles:
+    """A free set of vehicle fields of these sizes, or a new one."""
+    return _POOL.lease(owner, ("vehicles", nv, ni), lambda: _Vehicles(nv, ni))
 
 
 def _lease(owner, w, h, splat, shadows, n_slots) -> _Fields:

@@ -158,9 +158,8 @@ def test_a_placed_rock_is_turned_and_drawn_where_it_projects(tumbling_sim, q):
 def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
     """A simulation that does not tumble (no orientations) draws no mesh: the rock pass compiles them out. The
     renderer gives every SNode tree it made back when it closes (engine/trees.py: Taichi allows 512 a process):
-    its buffers to the pool, free for the next renderer of their sizes, the vehicles' fields retired; the next
-    renderer makes no new buffer."""
-    from taichi_rocks.engine.trees import retired_trees
+    its buffers and its vehicles' fields to the pool, free for the next renderer of their sizes; the next
+    renderer makes no new buffer and no new vehicle field."""
     from taichi_rocks.render import renderer as R
 
     gc.collect()  # the renderers of earlier tests are given back now, not during this one
@@ -175,20 +174,19 @@ def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
         _, count, meshes, counts = r._drawn
         assert not meshes.on and counts == (0, 0) and count == n > 0
         assert r._protos is None
-        fields, vehicles = r._f, r._v_trees.count
+        fields, vehicles = r._f, r._v
         made = fields.trees.count
-        assert made >= 4 and vehicles >= 3  # buffers, buckets, vehicles: each a tree of its own
-        assert not R._POOL.is_free(fields)
-        retired = retired_trees()
-    assert R._POOL.is_free(fields)  # kept for the next renderer (destroyed when the process runs short)
-    assert retired_trees() - retired >= vehicles  # the vehicles' fields retired
+        assert made >= 4 and vehicles.trees.count == 5  # buffers, buckets, vehicles: each a tree of its own
+        assert not R._POOL.is_free(fields) and not R._POOL.is_free(vehicles)
+    # kept for the next renderer (destroyed when the process runs short of trees)
+    assert R._POOL.is_free(fields) and R._POOL.is_free(vehicles) and vehicles.trees.count == 5
     with Renderer(sim, resolution=(W, H), window_every=0) as again:
-        assert again._f is fields and not R._POOL.is_free(fields)
+        assert again._f is fields and again._v is vehicles and not R._POOL.is_free(fields)
         r.close()  # a second close of the first renderer leaves the buffers with the second
-        assert not R._POOL.is_free(fields)
+        assert not R._POOL.is_free(fields) and not R._POOL.is_free(vehicles)
         assert _cull(again, eye, view.fwd, view.right, view.up) == n
-        assert fields.trees.count == made  # no new buffer
-    assert R._POOL.is_free(fields)
+        assert fields.trees.count == made and vehicles.trees.count == 5  # no new buffer
+    assert R._POOL.is_free(fields) and R._POOL.is_free(vehicles)
 
 
 class _Stop(Exception):
