@@ -40,7 +40,8 @@ from taichi.lang.util import to_numpy_type
 __all__ = ["FieldTrees", "Pool", "live_trees", "retired_trees", "on_pressure", "SOFT_LIMIT", "HARD_LIMIT"]
 
 TAICHI_LIMIT = 512  # SNode trees per process on the LLVM backends (Taichi 1.7.4, kMaxNumSnodeTreesLlvm)
-SOFT_LIMIT = 256  # live trees of the package past which an allocation first destroys the retired ones and evicts
+SOFT_LIMIT = 384  # live trees of the package past which an allocation first destroys the retired ones and evicts
+# (late: every kernel compiles again after that; 64 below HARD_LIMIT, the room the allocations after it need)
 HARD_LIMIT = 448  # live trees of the package past which an allocation fails (room left for Taichi's own roots)
 BATCH_TREES = 4  # the most trees one batch builds (element sizes 1, 2, 4, 8 bytes)
 
