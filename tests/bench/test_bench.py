@@ -312,6 +312,17 @@ def test_the_section_in_results_and_report(bench_run):
     # the tiny run measures its points in the test's process (but the profiled one): the report says so
     assert act["isolated"] is False and "the points in one process, one after another" in section
     assert [p["label"] for p in act["points"]] == [p["label"] for job in plan_jobs(cfg) for p in job]
+    # the profiled point (Taichi's kernel profiler, in a process of its own): active stepping's kernels and tasks,
+    # per step, with times; the report's table and task list carry them
+    assert [p["n"] for p in act["profile"]] == list(cfg.act_profile_n)
+    for p in act["profile"]:
+        assert "error" not in p and p["in_air"] > 0 and _positive_finite(p["step_ms"])
+        assert p["launches_per_step"] >= 1 and p["tasks_per_step"] >= p["parallel_tasks_per_step"] > 0
+        assert _positive_finite(p["device_ms"]) and p["host_ms"] >= 0 and p["passes_ms"]
+        kernels = [t["kernel"] for t in p["tasks"]]
+        assert kernels[0] == "active_step" and "active_finish" in kernels
+        assert all(t["per_step"] > 0 and 0 <= t["min_ms"] <= t["median_ms"] for t in p["tasks"])
+        assert f"Tasks of a step at N = {p['n']:,}" in section and f"| {p['n']:,} | {p['in_air']:,} |" in section
 
 
 def test_the_targets_have_verdicts(bench_run):
