@@ -15,7 +15,6 @@ Two kinds of scene keys, by how they reach the kernels:
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from ..config.keys import choices, scene_value

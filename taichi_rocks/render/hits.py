@@ -46,22 +46,24 @@ class _Buffer:
     """A GGUI vertex buffer and its colours that grows in powers of two (at least 64 entries)."""
 
     def __init__(self):
-        self.pos = self.col = self.rad = None
         self._f = None  # its fields, leased from the pool (given back when the buffer grows or closes)
         self._colours = None  # the key of the colours uploaded, if the caller gave one
+
+    pos = property(lambda self: self._f.pos)
+    col = property(lambda self: self._f.col)
+    rad = property(lambda self: self._f.rad)
 
     def put(self, pos: np.ndarray, col: np.ndarray, rad: np.ndarray = None, colour_key=None) -> int:
         """Upload ``pos``, ``col`` (skipped if ``colour_key`` is that of the last upload: an upload is a launch)
         and ``rad``; return the count."""
         n = len(pos)
-        if self.pos is None or self.pos.shape[0] < n:
+        if self._f is None or self.pos.shape[0] < n:
             self._colours = None
             cap = 64
             while cap < n:
                 cap *= 2
             self.close()
             self._f = _POOL.lease(self, ("hits", cap, rad is not None), lambda: _Fields(cap, rad is not None))
-            self.pos, self.col, self.rad = self._f.pos, self._f.col, self._f.rad
         cap = self.pos.shape[0]
         pad = lambda a, shape: np.concatenate([a, np.zeros((cap - n,) + shape, np.float32)]).astype(np.float32)
         self.pos.from_numpy(pad(pos, (3,)))
@@ -75,7 +77,7 @@ class _Buffer:
     def close(self) -> None:
         if self._f is not None:
             _POOL.give_back(self._f, self)
-        self._f = self.pos = self.col = self.rad = None
+        self._f = None
 
 
 class HitLayer:

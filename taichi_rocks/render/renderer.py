@@ -35,7 +35,7 @@ GGUI 1.7.4 quirks handled here (see also :mod:`.window`):
 * a plain ``scene.mesh`` now and then vanishes from a frame, and often again when drawn again: Mesh_vk.vert
   takes model = I * (1 - a) + M * a with a = 0 and M read from a buffer GGUI never fills without transforms, and
   NaN or Inf left in that memory survives the ``* 0``. So the vehicles' mesh is a ``mesh_instance`` with one
-  explicit identity matrix (``_v_model``); the lost-renderable guard (a frame whose vehicles are missing is
+  explicit identity matrix (``_Vehicles.model``); the lost-renderable guard (a frame whose vehicles are missing is
   drawn again) stays as a safety net.
 """
 
@@ -221,9 +221,8 @@ class Renderer:
         if self._v is not None:  # the fields of the last call go back (the same sizes take them again)
             _POOL.give_back(self._v, self)
         self._v = v = _lease_vehicles(self, len(vs), max(len(tri) for tri in self._layouts.values()))
-        self._v_verts, self._v_norms, self._v_cols, self._v_idx, self._v_model = v.verts, v.norms, v.cols, v.idx, v.model
         # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
-        put_whole([self._v_cols, self._v_model], [cs, np.eye(4)[None]], np.float32)
+        put_whole([v.cols, v.model], [cs, np.eye(4)[None]], np.float32)
         self._upload_layout(None)
         self._identity = host_buffer((1, 4, 4))  # the same, as GGUI's wrapper hands it over (never freed)
         self._identity[0] = np.eye(4, dtype=np.float32)
@@ -242,9 +241,9 @@ class Renderer:
 
     def _upload_layout(self, inside) -> None:
         ids = self._layouts[inside]
-        full = np.zeros(self._v_idx.shape[0], np.int32)
+        full = np.zeros(self._v.idx.shape[0], np.int32)
         full[:len(ids)] = ids
-        put_whole([self._v_idx], [full], np.float32)
+        put_whole([self._v.idx], [full], np.float32)
         self._layout = inside
 
     def wheel_angles(self, t: float) -> list:
@@ -533,11 +532,11 @@ class Renderer:
         out_v = np.concatenate([v for v, _ in posed])
         self._v_frame = out_v
         # both in one launch (engine/transfer.py): one compile a renderer, not one per field
-        put_whole([self._v_verts, self._v_norms], [out_v, np.concatenate([n for _, n in posed])], np.float32)
+        v = self._v
+        put_whole([v.verts, v.norms], [out_v, np.concatenate([n for _, n in posed])], np.float32)
         if self._inside != self._layout:
             self._upload_layout(self._inside)
-        scene.mesh_instance(self._v_verts, indices=self._v_idx, normals=self._v_norms,
-                            per_vertex_color=self._v_cols, transforms=self._v_model,
+        scene.mesh_instance(v.verts, indices=v.idx, normals=v.norms, per_vertex_color=v.cols, transforms=v.model,
                             index_count=len(self._layouts[self._layout]), show_wireframe=self._wireframe())
 
     def _wireframe(self) -> bool:
