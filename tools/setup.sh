@@ -5,32 +5,33 @@
 set -euo pipefail
 venv=${1:-.venv}
 
+# a Vulkan loader and at least one driver manifest (ICD) in either of the loader's folders; `ls` of both globs
+# would fail whenever one folder is empty, and the check then installed Mesa on every machine that had a driver
 have_vulkan() {
-  ls /usr/share/vulkan/icd.d/*.json /etc/vulkan/icd.d/*.json >/dev/null 2>&1 &&
+  { compgen -G '/usr/share/vulkan/icd.d/*.json' || compgen -G '/etc/vulkan/icd.d/*.json'; } >/dev/null &&
     ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1'
 }
 
+# what the machine lacks, installed with one `apt-get update` and one `apt-get install`:
+# - a Vulkan driver for the offscreen renderer (Mesa's software lavapipe when no device is present);
+# - `taichi-rocks view` opens an on-screen window; its tests run it under a virtual X display (Xvfb) and drive it
+#   with xdotool (x11-utils: xdpyinfo, to wait for the display)
+packages=()
 if ! have_vulkan; then
   echo "setup: no Vulkan driver found; installing Mesa lavapipe (mesa-vulkan-drivers libvulkan1)" >&2
-  if [ "$(id -u)" = 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else SUDO=""; fi
-  if command -v apt-get >/dev/null; then
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq mesa-vulkan-drivers libvulkan1 >/dev/null
-  else
-    echo "setup: no apt-get here: install a Vulkan driver (Mesa lavapipe) yourself to render" >&2
-  fi
+  packages+=(mesa-vulkan-drivers libvulkan1)
 fi
-
-# `taichi-rocks view` opens an on-screen window; its tests run it under a virtual X display (Xvfb) and drive it
-# with xdotool (x11-utils: xdpyinfo, to wait for the display)
 if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command -v xdpyinfo >/dev/null; then
   echo "setup: installing a virtual X display and input tools for the view tests (xvfb xdotool x11-utils)" >&2
+  packages+=(xvfb xdotool x11-utils)
+fi
+if [ ${#packages[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else SUDO=""; fi
   if command -v apt-get >/dev/null; then
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq xvfb xdotool x11-utils >/dev/null
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${packages[@]}" >/dev/null
   else
-    echo "setup: no apt-get here: install Xvfb, xdotool and xdpyinfo yourself to run the view tests" >&2
+    echo "setup: no apt-get here: install ${packages[*]} (or your system's equivalents) yourself" >&2
   fi
 fi
 
