@@ -1,6 +1,8 @@
 """Launch rules, flight against closed forms, effect switches, reproducibility, far from the origin."""
 
 import gc
+import warnings
+
 import numpy as np
 import pytest
 import taichi as ti
@@ -362,22 +364,65 @@ def test_released_fields_are_reused_zeroed_and_never_shared():
         for k in ("positions", "velocities", "phase"):
             np.testing.assert_array_equal(s[k], sa[k])
     # what a World is handed on with: zeros, their bits too (no NaN or -0.0 of the last owner: f * 0 keeps both),
-    # checked on a field of each kind the zeroing tells apart (a World has no matrix fields of several columns)
-    from taichi.lang.matrix import MatrixField
+    # in every element of every field, whatever its shape (world._zero_fields indexes them all from one loop)
     from taichi_rocks.engine.world import _zero
 
     fs = used.fields()
-    real = [f for f in fs if f.dtype in (ti.f32, ti.f64)]
-    picked = {"real scalar": (next(f for f in real if not isinstance(f, MatrixField)), np.nan),
-              "real vector": (next(f for f in real if isinstance(f, MatrixField)), -0.0),
-              "integer": (next(f for f in fs if f.dtype == ti.i32), -7)}
-    for f, bad in picked.values():
-        f.fill(bad)
-    for kind, (f, bad) in picked.items():  # the garbage is there, bit for bit
-        a = f.to_numpy()
-        assert np.array_equal(a, np.full(a.shape, bad), equal_nan=True) and (
-            np.signbit(a).all() == np.signbit(bad)), kind
-    _zero(used)
-    for kind, (f, _) in picked.items():
-        a = f.to_numpy()
-        assert np.all(a == 0) and not np.signbit(a).any(), kind
+    assert {len(f.shape) for f in fs} == {0, 1, 2, 3}  # every indexing the zeroing has: scalars to 3-D (step_rays)
+    total = sum(int(np.prod(f.shape)) for f in fs)
+    with warnings.catch_warnings():  # static loops over every field: Taichi warns past 32 of them
+        warnings.simplefilter("ignore", SyntaxWarning)
+        _soil(used)
+        assert _dirty(used) == total  # the garbage is in every element, its bits not zero
+        _zero(used)
+        assert _dirty(used) == 0
+
+
+@ti.func
+def _bits_nonzero(x, dt: ti.template()):
+    """1 if any bit of ``x`` (a scalar of type ``dt``) is set: NaN, -0.0 and -7 are, 0 is not."""
+    out = 0
+    if ti.static(dt == ti.f32):
+        out = ti.bit_cast(x, ti.i32) != 0
+    elif ti.static(dt == ti.f64):
+        out = ti.bit_cast(x, ti.i64) != 0
+    else:
+        out = x != 0
+    return out
+
+
+@ti.kernel
+def _soil(w: ti.template()):
+    """Garbage a World's last owner could leave, in every element of every field: NaN in reals, -0.0 in the
+    last component of vectors (a sign bit alone), -7 in integers. A loop per field, as world.py once zeroed."""
+    for f in ti.static(w.fields()):
+        for I in ti.grouped(f):
+            if ti.static(f.dtype in (ti.f32, ti.f64)):
+                if ti.static(isinstance(f, ti.lang.matrix.MatrixField)):
+                    v = f[I]
+                    for c in ti.static(range(f.n)):
+                        v[c] = ti.cast(-0.0, f.dtype) if ti.static(c == f.n - 1) else ti.math.nan
+                    f[I] = v
+                else:
+                    f[I] = ti.math.nan
+            else:
+                if ti.static(isinstance(f, ti.lang.matrix.MatrixField)):
+                    f[I] = ti.Vector([-7] * f.n, dt=f.dtype)
+                else:
+                    f[I] = -7
+
+
+@ti.kernel
+def _dirty(w: ti.template()) -> ti.i64:
+    """Elements of the World's fields with a bit set in any component."""
+    n = ti.i64(0)
+    for f in ti.static(w.fields()):
+        for I in ti.grouped(f):
+            bad = 0
+            if ti.static(isinstance(f, ti.lang.matrix.MatrixField)):
+                for c in ti.static(range(f.n)):
+                    bad |= _bits_nonzero(f[I][c], f.dtype)
+            else:
+                bad = _bits_nonzero(f[I], f.dtype)
+            n += bad
+    return n
