@@ -13,6 +13,8 @@ The values are copied, not converted (each array has its fields' dtype), so the 
 ``from_numpy`` / ``to_numpy``.
 """
 
+import math
+
 import numpy as np
 import taichi as ti
 from taichi.lang.util import to_numpy_type
@@ -112,6 +114,8 @@ def put_whole(fields: list, arrays: list, real_np) -> None:
     reals, ints, layout, r_at, k_at = [], [], [], 0, 0
     for f, a in zip(fields, arrays):
         elem = _element(f)
+        if not 1 <= len(f.shape) <= 3:
+            raise ValueError(f"a field of {len(f.shape)} dimensions (put_whole writes fields of one to three)")
         shape = tuple(f.shape) + elem
         is_int = f.dtype == ti.i32
         if not is_int and np.dtype(to_numpy_type(f.dtype)) != np.dtype(real_np):
@@ -130,23 +134,43 @@ def put_whole(fields: list, arrays: list, real_np) -> None:
     _put_whole(tuple(fields), tuple(layout), r, k)
 
 
+def _entries(f) -> int:
+    return math.prod(f.shape)
+
+
+def _most_entries(fields) -> int:
+    return max(_entries(f) for f in fields)
+
+
 @ti.kernel
 def _put_whole(fields: ti.template(), layout: ti.template(), r: ti.types.ndarray(ndim=1),
                k: ti.types.ndarray(ndim=1)):
     """Field f's entries, in row-major order, from ``r`` (real) or ``k`` (int32) at its offset (``layout[f]``:
-    (real?, offset, entry shape, values per entry))."""
-    for f in ti.static(range(len(fields))):
-        real, at, elem, size = ti.static(layout[f])
-        for I in ti.grouped(ti.ndrange(*fields[f].shape)):
-            lin = 0
-            for d in ti.static(range(len(fields[f].shape))):
-                lin = lin * fields[f].shape[d] + I[d]
-            base = at + lin * size
-            for j in ti.static(range(size)):
-                if ti.static(real):
-                    _set(fields[f], I, elem, j, r[base + j])
-                else:
-                    _set(fields[f], I, elem, j, k[base + j])
+    (real?, offset, entry shape, values per entry)). One parallel loop over the largest field's entries, each
+    field taking the entry of that index if it has one: one task to compile, where a loop per field would be a
+    task per field, each compiled on its own."""
+    for lin in range(ti.static(_most_entries(fields))):
+        for f in ti.static(range(len(fields))):
+            real, at, elem, size = ti.static(layout[f])
+            if lin < ti.static(_entries(fields[f])):
+                I = _index(lin, ti.static(tuple(fields[f].shape)))
+                base = at + lin * size
+                for j in ti.static(range(size)):
+                    if ti.static(real):
+                        _set(fields[f], I, elem, j, r[base + j])
+                    else:
+                        _set(fields[f], I, elem, j, k[base + j])
+
+
+@ti.func
+def _index(lin, shape: ti.template()):
+    """The index of entry ``lin`` (row-major) of a field of ``shape`` (one to three dimensions)."""
+    if ti.static(len(shape) == 1):
+        return ti.Vector([lin])
+    elif ti.static(len(shape) == 2):
+        return ti.Vector([lin // shape[1], lin % shape[1]])
+    else:
+        return ti.Vector([lin // (shape[1] * shape[2]), lin // shape[2] % shape[1], lin % shape[2]])
 
 
 @ti.func
