@@ -19,7 +19,7 @@ import numpy as np
 import taichi as ti
 from taichi.lang.util import to_numpy_type
 
-__all__ = ["Group", "put", "take", "put_whole"]
+__all__ = ["Group", "put", "take", "put_whole", "entries", "most_entries", "entry_index"]
 
 
 class Group:
@@ -134,12 +134,14 @@ def put_whole(fields: list, arrays: list, real_np) -> None:
     _put_whole(tuple(fields), tuple(layout), r, k)
 
 
-def _entries(f) -> int:
+def entries(f) -> int:
+    """Entries of field ``f`` (1 for a 0-D field)."""
     return math.prod(f.shape)
 
 
-def _most_entries(fields) -> int:
-    return max(_entries(f) for f in fields)
+def most_entries(fields) -> int:
+    """The entries of the largest of ``fields``: the range of a loop that visits every entry of each."""
+    return max(entries(f) for f in fields)
 
 
 @ti.kernel
@@ -149,11 +151,11 @@ def _put_whole(fields: ti.template(), layout: ti.template(), r: ti.types.ndarray
     (real?, offset, entry shape, values per entry)). One parallel loop over the largest field's entries, each
     field taking the entry of that index if it has one: one task to compile, where a loop per field would be a
     task per field, each compiled on its own."""
-    for lin in range(ti.static(_most_entries(fields))):
+    for lin in range(ti.static(most_entries(fields))):
         for f in ti.static(range(len(fields))):
             real, at, elem, size = ti.static(layout[f])
-            if lin < ti.static(_entries(fields[f])):
-                I = _index(lin, ti.static(tuple(fields[f].shape)))
+            if lin < ti.static(entries(fields[f])):
+                I = entry_index(lin, ti.static(tuple(fields[f].shape)))
                 base = at + lin * size
                 for j in ti.static(range(size)):
                     if ti.static(real):
@@ -163,7 +165,7 @@ def _put_whole(fields: ti.template(), layout: ti.template(), r: ti.types.ndarray
 
 
 @ti.func
-def _index(lin, shape: ti.template()):
+def entry_index(lin, shape: ti.template()):
     """The index of entry ``lin`` (row-major) of a field of ``shape`` (one to three dimensions)."""
     if ti.static(len(shape) == 1):
         return ti.Vector([lin])

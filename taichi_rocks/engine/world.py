@@ -20,6 +20,7 @@ from taichi.lang.field import Field
 from taichi.lang.matrix import MatrixField
 
 from .events import N_INT, N_REAL, EventBuffer
+from .transfer import entries, entry_index, most_entries
 from .trees import FieldTrees, Pool  # noqa: F401 - FieldTrees also imported from here
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
@@ -275,14 +276,6 @@ def _put_params(par: ti.template(), ipar: ti.template(), p: ti.types.ndarray(ndi
         ipar[i] = k[i]
 
 
-def _elements(f) -> int:
-    return math.prod(f.shape)
-
-
-def _largest(w) -> int:
-    return max(_elements(f) for f in w.fields())
-
-
 @ti.func
 def _zero_value(f: ti.template()):
     if ti.static(not isinstance(f, MatrixField)):
@@ -295,29 +288,24 @@ def _zero_value(f: ti.template()):
 
 @ti.func
 def _zero_at(f: ti.template(), i):
-    """Element ``i`` (row-major over ``f``'s static shape) of field ``f`` set to zero: a literal zero, not
+    """Element ``i`` (row-major, transfer.entry_index) of field ``f`` set to zero: a literal zero, not
     f[I] * 0 (without fast math NaN * 0 is NaN and -x * 0 is -0.0, so a World handed on would keep what its
     last owner left there)."""
-    z = _zero_value(f)
     if ti.static(len(f.shape) == 0):
         if i == 0:
-            f[None] = z
-    elif ti.static(len(f.shape) == 1):
-        f[i] = z
-    elif ti.static(len(f.shape) == 2):
-        f[i // f.shape[1], i % f.shape[1]] = z
+            f[None] = _zero_value(f)
     else:
-        f[i // (f.shape[1] * f.shape[2]), i // f.shape[2] % f.shape[1], i % f.shape[2]] = z
+        f[entry_index(i, ti.static(tuple(f.shape)))] = _zero_value(f)
 
 
 @ti.kernel
 def _zero_fields(w: ti.template()):
     # one parallel loop over the largest field's elements, zeroing the element of that index in every field that
     # has one: a kernel of one task compiles in a fraction of the time of a loop per field (each loop is a task
-    # of its own, ~10 ms of compiling apiece, 40-60 fields in a World), and it runs once per reuse of a World
-    for i in range(ti.static(_largest(w))):
+    # of its own, 10-20 ms of compiling apiece, 35-54 fields in a World), and it runs once per reuse of a World
+    for i in range(ti.static(most_entries(w.fields()))):
         for f in ti.static(w.fields()):
-            if i < ti.static(_elements(f)):
+            if i < ti.static(entries(f)):
                 _zero_at(f, i)
 
 
@@ -338,7 +326,7 @@ def acquire(owner, n: int, real, **layout) -> World:
 
 def _zero(w: World) -> None:
     if any(len(f.shape) > 3 for f in w.fields()):
-        raise ValueError("a World field of more than 3 dimensions: _zero_at cannot index it")
+        raise ValueError("a World field of more than 3 dimensions: transfer.entry_index cannot index it")
     with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
         warnings.simplefilter("ignore", SyntaxWarning)
         _zero_fields(w)
