@@ -114,8 +114,6 @@ def put_whole(fields: list, arrays: list, real_np) -> None:
     reals, ints, layout, r_at, k_at = [], [], [], 0, 0
     for f, a in zip(fields, arrays):
         elem = _element(f)
-        if not 1 <= len(f.shape) <= 3:
-            raise ValueError(f"a field of {len(f.shape)} dimensions (put_whole writes fields of one to three)")
         shape = tuple(f.shape) + elem
         is_int = f.dtype == ti.i32
         if not is_int and np.dtype(to_numpy_type(f.dtype)) != np.dtype(real_np):
@@ -167,6 +165,7 @@ def _put_whole(fields: ti.template(), layout: ti.template(), r: ti.types.ndarray
 @ti.func
 def entry_index(lin, shape: ti.template()):
     """The index of entry ``lin`` (row-major) of a field of ``shape`` (one to three dimensions)."""
+    ti.static_assert(1 <= len(shape) <= 3, "entry_index: a field of one to three dimensions")
     if ti.static(len(shape) == 1):
         return ti.Vector([lin])
     elif ti.static(len(shape) == 2):

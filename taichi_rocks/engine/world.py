@@ -325,8 +325,6 @@ def acquire(owner, n: int, real, **layout) -> World:
 
 
 def _zero(w: World) -> None:
-    if any(len(f.shape) > 3 for f in w.fields()):
-        raise ValueError("a World field of more than 3 dimensions: transfer.entry_index cannot index it")
     with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
         warnings.simplefilter("ignore", SyntaxWarning)
         _zero_fields(w)
