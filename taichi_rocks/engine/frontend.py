@@ -9,9 +9,14 @@ front end, 12 s of them in ``get_pos_info`` and 3 s in ``getsourcelines``.
 
 :func:`install` memoizes both, keyed by everything their results depend on:
 
-* the source of a function object (its code object does not change while the process runs);
+* the source of a function object (its code object does not change while the process runs), and its file;
 * a node's message by the file, the function, its first line, indentation, the node's kind and span and the text
-  of the lines the message quotes.
+  of the lines the message quotes;
+* the preparation of the source at every inlining (``kernel_impl._get_tree_and_ctx``): each line through
+  ``textwrap.fill`` and the joined text through ``textwrap.dedent`` (pure functions of their strings, so keyed by
+  them). Only ``ast.parse`` runs each time: the transformer writes into the tree it gets. Measured by cProfile on
+  convoy's second World (581 inlinings): the fills took 0.20 s, the file lookups 0.05 s, against 1.3 s for the
+  whole front end.
 
 The strings are the ones Taichi would have built (tests/engine/test_frontend.py compares them), so compile
 errors read the same. Idempotent; undone by :func:`uninstall` (tests).
@@ -30,6 +35,7 @@ from __future__ import annotations
 import functools
 import linecache
 import sys
+import textwrap
 
 from taichi.lang import kernel_impl
 from taichi.lang.ast import ast_transformer_utils as _ast_utils
@@ -38,6 +44,7 @@ __all__ = ["install", "install_decorators", "uninstall", "installed"]
 
 _BODY_KINDS = ("For", "While", "FunctionDef", "If")  # their message quotes only the lines before the body
 _original = {"pos": _ast_utils.ASTTransformerContext.get_pos_info, "lines": kernel_impl.getsourcelines,
+             "file": kernel_impl.getsourcefile, "textwrap": kernel_impl.textwrap,
              "inside_class": kernel_impl._inside_class}
 _messages: dict = {}
 _MAX_MESSAGES = 200_000  # a bound on the memo (a few tens of MB at most); cleared when full
@@ -54,6 +61,26 @@ def _cached_source_lines(func):
     except TypeError:  # unhashable: not a plain function
         return _original["lines"](func)
     return list(lines), start  # a copy: Taichi's caller may not change ours
+
+
+@functools.lru_cache(maxsize=4096)
+def _source_file(func):
+    return _original["file"](func)
+
+
+def _cached_source_file(func):
+    try:
+        return _source_file(func)
+    except TypeError:  # unhashable: not a plain function
+        return _original["file"](func)
+
+
+class _Textwrap:
+    """What ``kernel_impl._get_tree_and_ctx`` calls of :mod:`textwrap` (``fill`` of each source line, ``dedent`` of
+    the function's text), memoized by their arguments; the results are textwrap's own strings."""
+
+    fill = staticmethod(functools.lru_cache(maxsize=65536)(textwrap.fill))
+    dedent = staticmethod(functools.lru_cache(maxsize=4096)(textwrap.dedent))
 
 
 def _cached_pos_info(self, node):
@@ -92,14 +119,21 @@ def install() -> None:
     install_decorators()
     _ast_utils.ASTTransformerContext.get_pos_info = _cached_pos_info
     kernel_impl.getsourcelines = _cached_source_lines
+    kernel_impl.getsourcefile = _cached_source_file
+    kernel_impl.textwrap = _Textwrap
 
 
 def uninstall() -> None:
     kernel_impl._inside_class = _original["inside_class"]
     _ast_utils.ASTTransformerContext.get_pos_info = _original["pos"]
     kernel_impl.getsourcelines = _original["lines"]
+    kernel_impl.getsourcefile = _original["file"]
+    kernel_impl.textwrap = _original["textwrap"]
     _messages.clear()
     _source_lines.cache_clear()
+    _source_file.cache_clear()
+    _Textwrap.fill.cache_clear()
+    _Textwrap.dedent.cache_clear()
 
 
 def installed() -> bool:

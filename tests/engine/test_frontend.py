@@ -62,6 +62,34 @@ def test_messages_and_results_equal_taichis(taichi_cpu, monkeypatch):
     assert results[0].tolist() == pytest.approx([v - 1.0 if v > 2.5 else v for v in expected])
 
 
+def test_the_source_prepared_at_each_inlining_is_taichis(taichi_cpu):
+    """The memoized file lookup, fills and dedent give the tree, source lines and file Taichi's own do, for a
+    kernel and a func, a second time from the memo; and they are installed."""
+    import ast
+
+    from taichi.lang import kernel_impl
+
+    assert kernel_impl.textwrap is frontend._Textwrap and kernel_impl.getsourcefile is frontend._cached_source_file
+    _, fill = _kernel()
+    funcs = [(fill._primal, {"is_kernel": False}), (_clamped.func, {"is_kernel": False})]  # no template args
+
+    def prepared():
+        out = []
+        for f, kw in funcs:
+            tree, ctx = kernel_impl._get_tree_and_ctx(f, **kw)
+            out.append((ast.dump(tree, include_attributes=True), ctx.src, ctx.file, ctx.lineno_offset))
+        return out
+
+    ours = [prepared(), prepared()]
+    frontend.uninstall()
+    try:
+        theirs = prepared()
+    finally:
+        frontend.install()
+    assert ours[0] == ours[1] == theirs
+    assert any("_clamped(scale * i - 2.0," in line for line in theirs[0][1])  # the kernel's own lines
+
+
 def _broken():
     @ti.kernel
     def bad() -> ti.i32:
