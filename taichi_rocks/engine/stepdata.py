@@ -54,22 +54,27 @@ def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays, start=N
 
 
 # What each offloaded task of load_batch does (the kernel profiler names tasks by index; see active.TASKS)
-TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames", "(serial: bounds)",
-                        "batch upload: tire rays")}
+TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames, tire rays, pose rows")}
 
 
 @ti.kernel
 def load_batch(w: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=3),
                frame: ti.types.ndarray(dtype=vec2, ndim=2), bodies: ti.types.ndarray(dtype=vec2, ndim=2)):
-    """A batch's rows into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per batch)."""
-    for k, r in ti.ndrange(frame.shape[0], FRAME_ROWS):
-        w.step_frame[k, r] = frame[k, r]
-    if ti.static(w.n_tires > 0):
-        for k, t, f in ti.ndrange(rays.shape[0], w.n_tires, RAY_FIELDS):
-            w.step_rays[k, t, f] = rays[k, t, f]
-    if ti.static(w.impacts):
-        for k, r in ti.ndrange(bodies.shape[0], bodies.shape[1]):
-            w.step_bodies[k, r] = bodies[k, r]
+    """A batch's rows into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per batch): one
+    parallel loop over the batch's steps, each copying its rows (a loop per field would be a task per field
+    to compile with every World, for a few kilobytes). ``rays`` and ``bodies`` may be one-row dummies
+    (:func:`batch_arrays`): only the rows they have are copied."""
+    for k in range(frame.shape[0]):
+        for r in range(FRAME_ROWS):
+            w.step_frame[k, r] = frame[k, r]
+        if ti.static(w.n_tires > 0):
+            if k < rays.shape[0]:
+                for t, f in ti.ndrange(w.n_tires, RAY_FIELDS):
+                    w.step_rays[k, t, f] = rays[k, t, f]
+        if ti.static(w.impacts):
+            if k < bodies.shape[0]:
+                for r in range(bodies.shape[1]):
+                    w.step_bodies[k, r] = bodies[k, r]
 
 
 def put_t_ref(w, t_ref: float) -> None:
