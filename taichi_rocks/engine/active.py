@@ -40,6 +40,10 @@ the rim tiles' rocks (a band one tile wide along half the rim), the tire tiles' 
 slots; not N.
 Every loop is parallel (atomic counters, parallel compaction); the serial loops are the hash's prefix sum over
 its table (sized to the active list) and the tire pass over tires, as in "full" stepping.
+
+Loaded rocks (a new Simulation, a restored checkpoint) all start in the active list with the tiles empty: the
+first step takes every rock through its rock pass, a step of "full", and its step 5 settles the resting ones.
+After coasting (engine/kernels.py ``coast_pass``, over the active list), :func:`settle` runs steps 5 and 6 alone.
 """
 
 
@@ -538,7 +542,7 @@ def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32
 
 @ti.kernel
 def settle(w: ti.template(), tiles: vec2):
-    """Steps 5 and 6 alone: after rocks were loaded into the active list, and after coasting."""
+    """Steps 5 and 6 alone, after coasting."""
     reset_counts(w)
     settle_rocks(w, ti.cast(tiles, ti.i32), False)
     compact(w)

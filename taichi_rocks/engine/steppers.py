@@ -180,19 +180,19 @@ class ActiveStepper(Stepper):
         return self.host.shift / self.world.store_tile
 
     def start(self) -> None:
-        self._settle_all()
+        self._all_active()
 
     def load(self, arrays: dict) -> None:
-        """Into the rock arrays, and from there the resting ones into the emptied tiles."""
+        """Into the rock arrays, the tiles emptied: every rock active until the next step settles."""
         self.world.ts_count.fill(0)
         super().load(arrays)
-        self._settle_all()
+        self._all_active()
 
-    def _settle_all(self) -> None:
-        """Every rock is in the active list (just loaded); the resting ones go to the tiles."""
-        w = self.world
-        w.ipar[IPar.N_ROCKS] = self.n_rocks
-        active.settle(w, self.tile_shift())
+    def _all_active(self) -> None:
+        """Every rock is in the active list (just loaded). The next step takes them all through its rock pass
+        and its finish settles the resting ones into the tiles (steps 5 and 6, as for rocks that land): full
+        stepping's step of every rock, so the same bits, and no kernel of its own to compile with every World."""
+        self.world.ipar[IPar.N_ROCKS] = self.n_rocks
         self.check_all = True
         self._fit_table()
 
@@ -222,9 +222,9 @@ class ActiveStepper(Stepper):
         with self.timer("active step"):
             active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
             launched = active.active_finish(self.world, self.switches["active_finish"], row, s.step)
-        self.check_all = False
-        if s.step % 32 == 0:
+        if self.check_all or s.step % 32 == 0:  # and after the first step: the loaded rocks have settled
             self._fit_table()
+        self.check_all = False
         return launched
 
     def _upload(self, s) -> int:

@@ -819,12 +819,14 @@ def test_runtime_guard_sees_the_tiles():
     assert sim.plan.active
     sim.step(3)
     sim.check_health()
-    p = sim.state()["positions"][23].copy()
-    c = sim.bed_center
-    set_rocks(sim, [23], pos=[[c[0] + 3.5, c[1], p[2]]])
-    assert sim.active_count == 0  # it rests in a tile
+    assert sim.active_count == 0  # every rock rests in a tile
+    w = sim.world
+    j = int(np.flatnonzero(w.ts_rock_id.to_numpy() == 23)[0])  # rock 23's place in the tiles
+    p = w.ts_pos[j].to_numpy()
+    c = sim.bed_center - sim.origin
+    w.ts_pos[j] = [float(c[0] + 3.5), float(c[1]), float(p[2])]
     with pytest.raises(HealthError) as err:
         sim.check_health()
     assert re.search(r"\brock 23\b", str(err.value)) and "outside the bed" in str(err.value), str(err.value)
-    set_rocks(sim, [23], pos=[p])
+    w.ts_pos[j] = p.tolist()
     sim.check_health()
