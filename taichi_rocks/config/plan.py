@@ -31,10 +31,12 @@ class Plan:
     impacts: bool = False  # flying rocks against the vehicles' bodies (engine/impact_pass.py); see impacts_on
     targets: tuple = ()  # with impacts: the vehicles (scene indices) whose bodies stones hit
     spin: bool = False  # each rock's angular velocity and orientation (engine/tumble.py); see spin_on
+    drawn: bool = False  # a mirror of each rock's drawn state for Simulation.changes() (engine/changes.py)
 
     @classmethod
-    def from_scene(cls, scene, tumble: bool = False) -> "Plan":
-        """The plan of ``scene``; ``tumble``: the caller draws or exports the rocks' orientations (spin_on)."""
+    def from_scene(cls, scene, tumble: bool = False, changes: bool = True) -> "Plan":
+        """The plan of ``scene``; ``tumble``: the caller draws or exports the rocks' orientations (spin_on);
+        ``changes``: the caller reads what changed (``Simulation.changes()``), so the World keeps its mirror."""
         fx, sim = scene.effects, scene.sim
         n = scene.bed.rocks
         splash = bool(fx.splash and any(v.splash for v in scene.vehicles) and n > 0)
@@ -50,7 +52,7 @@ class Plan:
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
                    cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0,
                    impacts=impacts_on(scene, splash), targets=impact_targets(scene, splash),
-                   spin=spin_on(scene, tumble))
+                   spin=spin_on(scene, tumble), drawn=bool(changes and n > 0))
 
     def passes(self) -> list[str]:
         out = []

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import taichi as ti
 
-from . import hashgrid, stepdata, tires
+from . import changes, hashgrid, stepdata, tires
 from .bed import outside_bed
 from .kernels import impacts_loop, rock_step
 from .patch import footprint_box
@@ -436,6 +436,7 @@ def settle_rocks(w: ti.template(), shift_tiles, clear_hash: ti.template()):
         total = ti.max(n, hashgrid.table_n(w) + 1)
     for i in range(total):
         if i < n:
+            changes.note(w, i)  # what a reader of changes() sees: this step's state, before the rock leaves
             if w.phase[i] == RESTING:
                 key = tile_key(w, w.pos[i], shift_tiles)
                 sl = slot_of(w, key)

@@ -52,7 +52,7 @@ def world_layout(scene, plan, radius) -> tuple[dict, object]:
     layout = dict(hash_table=sizing.table, hash_entries=sizing.entries, n_tires=n_tires, substeps=plan.substeps,
                   ray_capacity=hashgrid.ray_capacity(ray_len, plan.cell_size), reorder=plan.reorder_every > 0,
                   tiles=sizing.tiles, tile_size=sizing.tile, store=store,
-                  rocks=present(plan, "active" if plan.active else "full"))
+                  rocks=present(plan, "active" if plan.active else "full"), drawn=plan.drawn)
     if plan.impacts:  # the bodies stones hit and the event buffer (engine/impact_pass.py)
         layout.update(bodies=body_table(scene, plan).counts, events=event_capacity(scene, plan))
     return layout, sizing

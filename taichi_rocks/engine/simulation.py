@@ -25,7 +25,7 @@ import taichi as ti
 from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
-from . import rocks
+from . import changes, rocks
 from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
@@ -52,10 +52,12 @@ class Simulation:
     ``[effects] tumble = "always"``) they are neither allocated nor compiled."""
 
     @classmethod
-    def from_scene(cls, path, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False) -> "Simulation":
-        return cls(load_scene(path), arch=arch, seed=seed, timer=timer, tumble=tumble)
+    def from_scene(cls, path, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False,
+                   track_changes: bool = True) -> "Simulation":
+        return cls(load_scene(path), arch=arch, seed=seed, timer=timer, tumble=tumble, track_changes=track_changes)
 
-    def __init__(self, scene, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False):
+    def __init__(self, scene, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False,
+                 track_changes: bool = True):
         if seed is not None:
             scene = scene_with(scene, {"seed": int(seed)})
         check_fits(scene)  # a scene too big for this machine is refused before anything is allocated
@@ -68,7 +70,8 @@ class Simulation:
         self.fleet = Fleet(scene)
         self.follow = scene.vehicle_index(scene.bed.follow)
         self.tumble = bool(tumble)  # the caller draws or exports orientations (config/plan.py spin_on)
-        self.plan = plan = Plan.from_scene(scene, self.tumble)
+        self.track_changes = bool(track_changes)  # keep the mirror changes() reads (engine/changes.py)
+        self.plan = plan = Plan.from_scene(scene, self.tumble, self.track_changes)
         self.cell_size = plan.cell_size
         self._switches = switches(plan)  # what each kernel reads from the plan (engine/kernels.py)
         start = initial_rocks(scene)
@@ -93,6 +96,7 @@ class Simulation:
                          [i for i in self.fleet.splashing for _ in range(2)])
             self._impacts = ImpactLog(self.world.events)
         self._stepper.start()
+        self._stepper.sync_drawn()
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
         self._matter = sorted({self.follow, *(self.fleet.splashing if plan.splash else ())})
@@ -283,6 +287,7 @@ class Simulation:
             a[ids] = (v.reshape(shape) if v.size == np.prod(shape) else np.broadcast_to(v, shape)).astype(a.dtype)
         r[ID] = np.arange(self.n_rocks, dtype=np.int32)
         self._stepper.load(r)
+        self._stepper.sync_drawn()
 
     def state(self) -> dict:
         """The current state as NumPy arrays, rocks in their original order (by rock id)."""
@@ -299,6 +304,42 @@ class Simulation:
             "launches_total": self.launches_total,
             "recycles_total": self.recycles_total,
         }
+
+    def changes(self) -> dict:
+        """The rocks whose drawn state changed since the previous call (every rock the first time, and after
+        ``restore`` or ``set_rocks``), one row per rock in id order: "ids" (int32), "positions" (float64, world
+        coordinates: the numbers ``state()`` gives), "phase" (int8) and, when the simulation tumbles,
+        "orientations" (quaternions x, y, z, w, as ``rock_arrays()["orient"]``). Applied to a mirror of the
+        bed (``mirror[ids] = positions``), the rows reproduce ``state()`` exactly at every call. Its cost follows
+        the rows it returns, not the bed (engine/changes.py). Needs ``track_changes`` (the default).
+
+        Example::
+
+            sim = Simulation.from_scene("scenes/convoy.toml")
+            for f in range(600):
+                sim.advance_to(f / 60)
+                rows = sim.changes()
+                positions[rows["ids"]] = rows["positions"]
+        """
+        if not self.plan.drawn:
+            if self.n_rocks:
+                raise RuntimeError("changes() needs a Simulation made with track_changes=True")
+            return self._rows(np.zeros((0, 2), np.int32), np.zeros((0, 3), self.world.np_real()))
+        w = self.world
+        k = int(changes.listed_count(w))
+        ints = np.empty((k, 2), np.int32)
+        reals = np.empty((k, 7 if self.plan.spin else 3), w.np_real())
+        if k:
+            changes.gather(w, k, ints, reals)
+        return self._rows(ints, reals)
+
+    def _rows(self, ints: np.ndarray, reals: np.ndarray) -> dict:
+        order = np.argsort(ints[:, 0], kind="stable")
+        out = {"ids": ints[order, 0], "positions": reals[order, :3].astype(np.float64) + self.origin,
+               "phase": ints[order, 1].astype(np.int8)}
+        if self.plan.spin:
+            out["orientations"] = reals[order, 3:7]
+        return out
 
     # ------------------------------------------------------------------------------------------ checkpoints
     def checkpoint(self) -> dict:
@@ -330,6 +371,7 @@ class Simulation:
             data = {**data, "rock_orient": initial_orientations(self.scene.seed, self.n_rocks),
                     "rock_spin": np.zeros((self.n_rocks, 3))}
         self._stepper.load(rocks.from_checkpoint(w, data))  # after the origin: the tiles are keyed by its shift
+        self._stepper.sync_drawn()
         self._host_side.resume(h)
         if self.plan.splash:
             self._put_rays()

@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import active, hashgrid, rocks, stepdata, tires
+from . import active, changes, hashgrid, rocks, stepdata, tires
 from .impact_pass import time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
+from .runtime import current_arch, on_cpu
 from .world import IPar, next_prime
 
 __all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for"]
@@ -93,11 +94,32 @@ class Stepper:
             for s in range(0, n, 1 << 30):
                 coast_pass(self.world, self.switches["coast_pass"], min(n - s, 1 << 30), dt, centre, lead,
                            step0 + s)
+        self.note_all()
+
+    def note_all(self) -> None:
+        """What changed for changes() (engine/changes.py), over every rock of the rock arrays: full stepping's
+        steps and coasts (active stepping notes inside its settling loop instead)."""
+        if self.world.drawn and not self.world.stored:
+            with self.timer("note changes"):
+                changes.note_listed(self.world)
+
+    def sync_drawn(self) -> None:
+        """Every rock was just loaded into the rock arrays: the mirror of changes() from them, every rock listed."""
+        if self.world.drawn:
+            changes.sync_drawn(self.world)
 
     def shift_origin(self, d: np.ndarray) -> None:
         """The local frame's origin moved by ``d`` (XY, whole multiples of ORIGIN_SNAP): every rock moves by -d."""
         with self.timer("origin shift"):
             shift_origin(self.world, d)
+            self._shift_drawn(d)
+
+    def _shift_drawn(self, d: np.ndarray) -> None:
+        """The mirror of changes() moves with the rocks; the host's origin has already moved by ``d``."""
+        if self.world.drawn:
+            h = self.host
+            before = h.anchor[:2] + (h.shift - np.asarray(d, np.float64))  # as HostState.set_shift adds them
+            changes.shift_drawn(self.world, d, before, h.origin[:2], on_cpu() or current_arch() == "cuda")
 
     # -------------------------------------------------------------------------------------------- guard
     def health(self, centre: np.ndarray, slack: float):
@@ -140,7 +162,10 @@ class FullStepper(Stepper):
                 frame = np.array([s.centre, s.move, s.lead, self.grid_origin(s.centre)])  # kernels.CENTRE..GRID
                 frame = self.with_bodies(frame, s)
                 rock_pass(self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
-        return self._hash_and_tires(s.step) if self.plan.splash else 0
+        launched = self._hash_and_tires(s.step) if self.plan.splash else 0
+        if self.moves:
+            self.note_all()
+        return launched
 
     def _hash_and_tires(self, step: int) -> int:
         """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs by
@@ -258,6 +283,7 @@ class ActiveStepper(Stepper):
         with self.timer("origin shift"):
             shift_origin(self.world, d)
             active.shift_store(self.world, d)
+            self._shift_drawn(d)
 
     def health(self, centre: np.ndarray, slack: float):
         health(self.world, self.switches["health"], centre, slack)

@@ -39,7 +39,7 @@ def set_runtime(sim, values: dict):
     if other:
         raise ValueError(f"not a runtime key: {', '.join(other)} (runtime keys: {', '.join(RUNTIME_KEYS)})")
     scene = scene_with(sim.scene, dict(values))
-    if Plan.from_scene(scene, sim.tumble) != sim.plan:  # cannot happen for these keys; a guard for new ones
+    if Plan.from_scene(scene, sim.tumble, sim.track_changes) != sim.plan:  # cannot happen for these keys; a guard for new ones
         raise ValueError("these values change what the kernels compile: build a new Simulation")
     par, _ = scene_params(scene, sim.plan, sim._sizing, ground_z=scene.world.ground_z - sim.origin[2])
     sim.scene = scene

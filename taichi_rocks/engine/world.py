@@ -90,11 +90,12 @@ class FieldSpec:
 
 def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                 substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None, store=None,
-                rocks=None, bodies=None, events: int = 0, **_switches) -> list[FieldSpec]:
+                rocks=None, bodies=None, events: int = 0, drawn: bool = False, **_switches) -> list[FieldSpec]:
     """Every field of the World of this layout (``real``: "f32" | "f64"; the arguments are World's), in the
     order they are allocated: the one list both the World and the memory estimate (engine/layout.py) read.
     ``rocks``: the rock fields (engine/rockfields.py ``present``; default: those of this layout's mode);
-    ``bodies``: (vehicles hit, their parts) with impacts, and ``events`` the event buffer's capacity."""
+    ``bodies``: (vehicles hit, their parts) with impacts, and ``events`` the event buffer's capacity; ``drawn``:
+    the mirror of each rock's drawn state that ``Simulation.changes()`` reads (engine/changes.py)."""
     cap = max(n, 1)  # Taichi fields cannot be empty
     hashed = hash_table > 0
     rocks = default_rock_fields(hashed, store is not None) if rocks is None else rocks
@@ -121,8 +122,19 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
         out += _impact_specs(bodies, n_tires, events, cap)
         if store is not None:  # active stepping: the batch's pose rows beside its step_frame
             out.append(FieldSpec("step_bodies", "f64", 2, (BATCH_ROWS, POSE_ROWS * max(int(bodies[0]), 1))))
+    if drawn:
+        out += _drawn_specs(cap, rocks)
     out.append(FieldSpec("health_out", "i32", 1, (6,)))  # the runtime guard's counts (Simulation.check_health)
     return out
+
+
+def _drawn_specs(cap: int, rocks) -> list[FieldSpec]:
+    """The mirror of the drawn state by rock id, and the ids listed since the last read (engine/changes.py)."""
+    out = [FieldSpec("drawn_pos", "real", 3, (cap,)), FieldSpec("drawn_phase", "i32", 1, (cap,))]
+    if any(f.name == "orient" for f in rocks):
+        out.append(FieldSpec("drawn_orient", "real", 4, (cap,)))
+    return out + [FieldSpec("drawn_flag", "i32", 1, (cap,)), FieldSpec("drawn_list", "i32", 1, (cap,)),
+                  FieldSpec("drawn_count", "i32", 1, ())]
 
 
 def _store_specs(store, cap: int, n_tires: int, rocks) -> list[FieldSpec]:
@@ -200,8 +212,10 @@ class World:
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
-                 tile_size: float = 1.0, store=None, rocks=None, bodies=None, events: int = 0):
+                 tile_size: float = 1.0, store=None, rocks=None, bodies=None, events: int = 0,
+                 drawn: bool = False):
         self.n = n
+        self.drawn = bool(drawn)  # the mirror changes() reads (engine/changes.py)
         self.stored = store is not None  # active stepping's tile store (below)
         self.real = real
         self.vec3 = ti.types.vector(3, real)
@@ -236,7 +250,7 @@ class World:
         for spec in field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table,
                                 hash_entries=hash_entries, n_tires=n_tires, substeps=substeps,
                                 ray_capacity=ray_capacity, reorder=reorder, tiles=tiles, store=store,
-                                rocks=self.rocks, bodies=bodies, events=events):
+                                rocks=self.rocks, bodies=bodies, events=events, drawn=drawn):
             setattr(self, spec.name, trees.place(spec, real))
         trees.finalize()
         self.trees = trees  # destroyed by the pool when the process runs short of trees (_evict)
