@@ -140,9 +140,10 @@ def _bench_parser(sub, arches, backends) -> None:
     b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
     b.add_argument("--out", type=Path, default=Path("renders/bench"))
     b.add_argument("--arch", choices=arches, default="cpu")
-    b.add_argument("--only", choices=("launch", "activity", "impacts"),
-                   help="run one study only: launch (what the tread throws), activity (cost against activity) or "
-                        "impacts (stones that hit the vehicle behind)")
+    b.add_argument("--only", choices=("launch", "activity", "impacts", "frame"),
+                   help="run one study only: launch (what the tread throws), activity (cost against activity), "
+                        "impacts (stones that hit the vehicle behind) or frame (the default scene in a 60 Hz game "
+                        "loop)")
     b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     b.add_argument("--backend", choices=backends, help="where the activity study's processes run: here, "
                                                                 "one at a time (default), or on a Ray cluster")
@@ -323,7 +324,7 @@ def cmd_bench(args) -> int:
     if args.address and backend != "ray":
         raise UsageError("--address is for --backend ray")
     where = dict(backend=backend, address=args.address)
-    if args.only in ("launch", "impacts") and backend != "local":
+    if args.only in ("launch", "impacts", "frame") and backend != "local":
         raise UsageError(f"the {args.only} study runs on this machine; --backend is for the activity study's processes")
     if args.only == "launch":
         from .bench.launch import run_launch_study
@@ -335,6 +336,12 @@ def cmd_bench(args) -> int:
         from .bench.impacts import run_impacts_study
         info = run_impacts_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
                                  overwrite=args.overwrite)
+        print(f"wrote {info['report']}")
+        return EXIT_OK
+    if args.only == "frame":
+        from .bench.frame import run_frame_study
+        info = run_frame_study(out_dir=args.out, quick=args.quick, arch=args.arch, progress=None,
+                               overwrite=args.overwrite)
         print(f"wrote {info['report']}")
         return EXIT_OK
     if args.only == "activity":

@@ -14,8 +14,11 @@ id and a list of the ids flagged since the last read (``drawn_flag``, ``drawn_li
   when the anchor has a fraction): a few to all rocks, once per shift (every 3-6 s at 20 m/s);
 * :func:`sync_drawn` - rocks were loaded (a new Simulation, restore, set_rocks): the mirror from the rock arrays,
   every id listed (the next read gives every rock);
-* :func:`gather` - the read: the k listed ids' mirror rows into arrays of k rows (on the CPU Taichi writes into
-  the NumPy arrays themselves), the flags and the count cleared. k is read first (one scalar).
+* :func:`gather_packed` (CPU) - the read in one launch: the k listed ids' mirror rows into a float64 NumPy array
+  the host keeps (Taichi writes into it in place; every int32 id and f32 value is exact in float64), the flags
+  and the count cleared, k returned; a buffer too small for k is grown and the launch repeated;
+* :func:`gather` (GPU backends) - k read first (one scalar), then the rows into NumPy arrays of k rows (Taichi
+  copies k rows back, not the bed).
 
 Between two steps the mirror equals every rock's drawn state, so a read applied to a mirror of the bed
 reproduces ``Simulation.state()`` exactly (tests/engine/test_changes.py, every frame, both stepping modes, with
@@ -31,7 +34,7 @@ from .params import IPar
 
 vec2 = ti.types.vector(2, ti.f64)
 
-__all__ = ["note", "note_listed", "shift_drawn", "sync_drawn", "listed_count", "gather", "DRAWN"]
+__all__ = ["note", "note_listed", "shift_drawn", "sync_drawn", "listed_count", "gather", "gather_packed", "DRAWN"]
 
 #: the rock fields the mirror holds, as (rock field, mirror field); "orient" only where the World has it
 DRAWN = (("pos", "drawn_pos"), ("phase", "drawn_phase"), ("orient", "drawn_orient"))
@@ -124,6 +127,36 @@ def sync_drawn(w: ti.template()):
 @ti.kernel
 def listed_count(w: ti.template()) -> ti.i32:
     return w.drawn_count[None]
+
+
+@ti.func
+def _packed_row(w: ti.template(), out: ti.template(), j, rid):
+    out[j, 0] = ti.cast(rid, ti.f64)
+    out[j, 1] = ti.cast(w.drawn_phase[rid], ti.f64)
+    p = w.drawn_pos[rid]
+    for c in ti.static(range(3)):
+        out[j, 2 + c] = ti.cast(p[c], ti.f64)
+    if ti.static(len(mirrored(w)) == 3):
+        q = w.drawn_orient[rid]
+        for c in ti.static(range(4)):
+            out[j, 5 + c] = ti.cast(q[c], ti.f64)
+
+
+@ti.kernel
+def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2)) -> ti.i32:
+    """Rows (id, phase, position in the local frame, orientation x, y, z, w with tumbling) of every listed id
+    into ``out`` (float64), the flags and the count cleared; returns the count. If ``out`` has fewer rows than
+    the count, nothing is written or cleared (the caller grows it and calls again)."""
+    k = w.drawn_count[None]
+    fits = k <= out.shape[0]
+    for j in range(k):
+        if fits:
+            rid = w.drawn_list[j]
+            _packed_row(w, out, j, rid)
+            w.drawn_flag[rid] = 0
+    if fits:
+        w.drawn_count[None] = 0
+    return k
 
 
 @ti.kernel

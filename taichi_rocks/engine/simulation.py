@@ -32,7 +32,7 @@ from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
 from .kernels import count_flying, shift_origin, switches
 from .layout import check_fits, world_layout
 from .rockfields import ID
-from .runtime import init_taichi
+from .runtime import init_taichi, on_cpu
 from .setup import initial_orientations, initial_rocks, scene_params
 from .steppers import stepper_for
 from .timing import NO_TIMER
@@ -90,6 +90,7 @@ class Simulation:
             given["orient"] = initial_orientations(scene.seed, self.n_rocks)
         rocks.write(self.world, rocks.initial_arrays(self.world, self.n_rocks, given), self.n_rocks)
         self._put_rays()
+        self._changes_buf = np.empty((4096, 9 if plan.spin else 5))  # changes()' rows on the CPU, grown as needed
         self._impacts = None  # with impacts: the events' host side (engine/impact_pass.py ImpactLog)
         if plan.impacts:
             write_bodies(self.world, body_table(scene, plan, self._par[Par.GROUND_Z]),
@@ -307,13 +308,16 @@ class Simulation:
 
     def changes(self) -> dict:
         """The rocks whose drawn state changed since the previous call (every rock the first time, and after
-        ``restore`` or ``set_rocks``), one row per rock in id order: "ids" (int32), "positions" (float64, world
-        coordinates: the numbers ``state()`` gives), "phase" (int8) and, when the simulation tumbles,
-        "orientations" (quaternions x, y, z, w, as ``rock_arrays()["orient"]``). Applied to a mirror of the
-        bed (``mirror[ids] = positions``), the rows reproduce ``state()`` exactly at every call. Its cost follows
-        the rows it returns, not the bed (engine/changes.py). Needs ``track_changes`` (the default).
+        ``restore`` or ``set_rocks``), one row per rock, in no particular order.
 
-        Example::
+        Returns:
+            A dict of arrays with one row per rock: "ids" (int32), "positions" (float64, world coordinates: the
+            numbers ``state()`` gives), "phase" (int8) and, when the simulation tumbles, "orientations"
+            (quaternions x, y, z, w, as ``rock_arrays()["orient"]``). Applied to a mirror of the bed
+            (``mirror[ids] = positions``), the rows reproduce ``state()`` exactly at every call.
+
+        Its cost follows the rows it returns, not the bed (engine/changes.py). Needs ``track_changes`` (the
+        default). Example::
 
             sim = Simulation.from_scene("scenes/convoy.toml")
             for f in range(600):
@@ -324,21 +328,27 @@ class Simulation:
         if not self.plan.drawn:
             if self.n_rocks:
                 raise RuntimeError("changes() needs a Simulation made with track_changes=True")
-            return self._rows(np.zeros((0, 2), np.int32), np.zeros((0, 3), self.world.np_real()))
+            return self._rows(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 4)))
         w = self.world
-        k = int(changes.listed_count(w))
-        ints = np.empty((k, 2), np.int32)
-        reals = np.empty((k, 7 if self.plan.spin else 3), w.np_real())
-        if k:
-            changes.gather(w, k, ints, reals)
-        return self._rows(ints, reals)
+        if not on_cpu():  # a device: the count, then exactly its rows back to the host
+            k = int(changes.listed_count(w))
+            ints = np.empty((k, 2), np.int32)
+            reals = np.empty((k, 7 if self.plan.spin else 3), w.np_real())
+            if k:
+                changes.gather(w, k, ints, reals)
+            return self._rows(ints[:, 0], ints[:, 1], reals[:, :3], reals[:, 3:])
+        buf = self._changes_buf  # the CPU: one launch writing into this array in place
+        k = int(changes.gather_packed(w, buf))
+        if k > len(buf):
+            buf = self._changes_buf = np.empty((max(k, 2 * len(buf)), buf.shape[1]))
+            changes.gather_packed(w, buf)
+        return self._rows(buf[:k, 0], buf[:k, 1], buf[:k, 2:5], buf[:k, 5:9])
 
-    def _rows(self, ints: np.ndarray, reals: np.ndarray) -> dict:
-        order = np.argsort(ints[:, 0], kind="stable")
-        out = {"ids": ints[order, 0], "positions": reals[order, :3].astype(np.float64) + self.origin,
-               "phase": ints[order, 1].astype(np.int8)}
+    def _rows(self, ids, phase, local, orient) -> dict:
+        out = {"ids": ids.astype(np.int32), "positions": local.astype(np.float64) + self.origin,
+               "phase": phase.astype(np.int8)}
         if self.plan.spin:
-            out["orientations"] = reals[order, 3:7]
+            out["orientations"] = orient.astype(self.world.np_real())
         return out
 
     # ------------------------------------------------------------------------------------------ checkpoints

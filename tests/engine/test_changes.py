@@ -43,7 +43,7 @@ class Mirror:
     def apply(self, rows):
         ids = rows["ids"]
         assert ids.dtype == np.int32 and rows["positions"].dtype == np.float64 and rows["phase"].dtype == np.int8
-        assert np.all(np.diff(ids) > 0)  # one row per rock, in id order
+        assert len(np.unique(ids)) == len(ids)  # one row per rock
         self.pos[ids] = rows["positions"]
         self.phase[ids] = rows["phase"]
         if self.orient is not None:
@@ -79,7 +79,7 @@ def test_rows_reproduce_state_every_frame(stepping, tumble):
         if prev is None:
             assert len(rows["ids"]) == sim.n_rocks  # the first read gives every rock
         else:
-            assert np.array_equal(rows["ids"], _diff(prev, st, tumble))  # exactly the rocks that changed
+            assert np.array_equal(np.sort(rows["ids"]), _diff(prev, st, tumble))  # exactly the rocks that changed
             moved += len(rows["ids"])
         shifts += int(not np.array_equal(origin, sim.origin))
         origin, prev = sim.origin.copy(), st

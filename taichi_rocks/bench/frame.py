@@ -1,0 +1,294 @@
+"""The frame in a game's budget (``taichi-rocks bench --only frame``): the default scene in a 60 Hz game loop.
+
+A game calls, every frame f, ``advance_to(f / 60)``, ``impacts()`` and ``changes()`` (the rocks whose drawn state
+changed: engine/changes.py), and draws. This study times each of the three per frame (median and 95th
+percentile over the frames after a warm-up, the clock read around each call with the device synchronised), and
+for comparison ``state()`` (every rock, O(N)) on every 10th frame, for:
+
+* ``[sim] accuracy = "game"`` (one step per frame, dt = 1/60 s) and the default dt = 2 ms (8-9 steps a frame);
+* Taichi's CPU thread pool of 1 thread, of every core, and the engine's choice (engine/runtime.py
+  ``auto_threads``), each in a process of its own (the pool is sized once per process);
+* the step's tasks (Taichi's kernel profiler: kind, launches and median time per task, per step), with the
+  game preset, in a process of its own (the profiler slows every launch);
+* what the game preset costs in accuracy beside the other presets: the flight error of a 2 s flight against its
+  closed form (gravity, quadratic drag; bench/flight.py), the recall of the tire contacts at 60 m/s in the lanes
+  scene (bench/detection.py), the launch-time bound v_launch dt (modelled, v_launch <= 30 m/s) and the frame's
+  cost.
+
+Writes ``frame.json`` and ``frame.md`` into the output folder (atomically).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+PREFIX = "frame-result: "
+SCENE = Path(__file__).resolve().parents[2] / "scenes" / "convoy.toml"
+CASES = (("game", {"sim.accuracy": "game"}), ("dt = 2 ms", {}))
+OUTPUTS = ("frame.json", "frame.md")
+
+
+def _stats(ms: list) -> dict:
+    a = np.asarray(ms, float)
+    return {"median_ms": float(np.median(a)), "p95_ms": float(np.percentile(a, 95)), "max_ms": float(a.max())}
+
+
+def _scene(overrides: dict, path=SCENE):
+    """The scene file with ``overrides``; ``sim.accuracy`` as if written in the file (a preset is applied when
+    the file is read, and keys the file sets win)."""
+    import tomllib
+
+    from ..config.scene import load_scene, parse_scene, scene_with
+
+    path = Path(path)
+    sc = load_scene(path)
+    if "sim.accuracy" in overrides:
+        data = tomllib.loads(path.read_text())
+        data.setdefault("sim", {})["accuracy"] = overrides["sim.accuracy"]
+        sc = parse_scene(data, source=str(path))
+        overrides = {k: v for k, v in overrides.items() if k != "sim.accuracy"}
+    return scene_with(sc, overrides) if overrides else sc
+
+
+def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float = 60.0, path=SCENE) -> dict:
+    """The game loop in this process: ``warm`` frames, then ``frames`` timed ones."""
+    import taichi as ti
+
+    from ..engine.simulation import Simulation
+
+    def timed(fn):
+        ti.sync()
+        t0 = time.perf_counter()
+        out = fn()
+        ti.sync()
+        return out, 1e3 * (time.perf_counter() - t0)
+
+    sim = Simulation(_scene(overrides, path), arch=arch)
+    sim.changes()
+    for f in range(warm):
+        sim.advance_to(f / fps)
+        sim.impacts()
+        sim.changes()
+    parts = {"advance_to": [], "impacts": [], "changes": [], "frame": []}
+    state_ms, rows, hits = [], [], 0
+    for f in range(warm, warm + frames):
+        _, a = timed(lambda: sim.advance_to(f / fps))
+        ev, b = timed(sim.impacts)
+        ch, c = timed(sim.changes)
+        for k, v in zip(parts, (a, b, c, a + b + c)):
+            parts[k].append(v)
+        rows.append(len(ch["ids"]))
+        hits += len(ev)
+        if f % 10 == 0:
+            state_ms.append(timed(sim.state)[1])
+    out = {k: _stats(v) for k, v in parts.items()}
+    out["state"] = _stats(state_ms)
+    out.update(rows_median=float(np.median(rows)), rows_max=int(max(rows)), impact_events=hits, dt=sim.dt,
+               steps_per_frame=(1.0 / fps) / sim.dt, rocks=sim.n_rocks, frames=frames, warm=warm,
+               detection=sim.scene.sim.detection, integrator=sim.scene.sim.integrator)
+    return out
+
+
+def measure_tasks(overrides: dict, arch: str, steps: int, warm: int, path=SCENE) -> dict:
+    """The step's tasks with Taichi's kernel profiler (this process must have started it)."""
+    import taichi as ti
+
+    from ..engine.simulation import Simulation
+    from ..engine.timing import clear_kernel_tasks, kernel_tasks
+    from .activity import _task_rows
+
+    sim = Simulation(_scene(overrides, path), arch=arch)
+    sim.step(warm)
+    ti.sync()
+    clear_kernel_tasks()
+    sim.step(steps)
+    ti.sync()
+    records = kernel_tasks()
+    rows = _task_rows(records, steps)
+    serial = [r for r in rows if r["kind"] == "serial"]
+    return {"steps": steps, "tasks": rows, "tasks_per_step": len(records) / steps,
+            "launches_per_step": sum(1 for r in records if r.task == 0) / steps,
+            "device_ms_per_step": sum(r.ms for r in records) / steps,
+            "largest_serial_us": 1e3 * max((r["median_ms"] for r in serial), default=0.0)}
+
+
+def worker(job: dict) -> dict:
+    """One job in this process (``python -m taichi_rocks.bench.frame JOB``)."""
+    from ..engine.runtime import init_taichi, threads_in_use
+
+    arch = init_taichi(job["arch"], profiler=job["kind"] == "tasks")
+    if job["kind"] == "tasks":
+        out = measure_tasks(job["overrides"], arch, job["steps"], job["warm"], job["scene"])
+    else:
+        out = measure_loop(job["overrides"], arch, job["frames"], job["warm"], path=job["scene"])
+    out["threads"] = threads_in_use()
+    out["arch"] = arch
+    return out
+
+
+def _run_job(job: dict, threads) -> dict:
+    env = dict(os.environ)
+    env.pop("TAICHI_ROCKS_THREADS", None)
+    if threads is not None:
+        env["TAICHI_ROCKS_THREADS"] = str(threads)
+    p = subprocess.run([sys.executable, "-m", "taichi_rocks.bench.frame", json.dumps(job)], env=env,
+                       capture_output=True, text=True, timeout=3600)
+    for line in p.stdout.splitlines():
+        if line.startswith(PREFIX):
+            return json.loads(line[len(PREFIX):])
+    tail = (p.stderr.strip().splitlines() or ["no output"])[-1]
+    return {"error": f"exit {p.returncode}: {tail}"}
+
+
+def accuracy_rows(arch: str, quick: bool) -> list:
+    """Flight error, recall at 60 m/s, launch-time bound of each preset (module docstring)."""
+    from ..config.presets import PRESETS
+    from .config import PRESET_SPEED, V_LAUNCH_MAX, make_config
+    from .detection import detection_runs
+    from .flight import exact_gravity, exact_quadratic_vertical, fly
+    from .measure import Built
+    from .scenes import probe_scene
+
+    cfg = make_config(quick=True)
+    rows = []
+    for name, p in PRESETS.items():
+        if quick and p["precision"] == "f64" and arch not in ("cpu", "cuda"):
+            continue
+        ov = {"sim.dt": p["dt"], "sim.integrator": p["integrator"], "sim.detection": p["detection"],
+              "sim.precision": p["precision"]}
+        b = Built(probe_scene(cfg, ov), arch, f"preset {name}")
+        err = _flight_error(b.sim, p, fly, exact_gravity, exact_quadratic_vertical)
+        det = detection_runs({name: b}, cfg, lambda *a: None)[name]
+        top = [x["recall"] for x in det["per_speed"] if x["speed_m_s"] == PRESET_SPEED and x["contacts"]]
+        rows.append({"preset": name, **p, "flight_error_m": err, "recall_at_60": top[0] if top else None,
+                     "launch_time_bound_m": V_LAUNCH_MAX * p["dt"], "steps_per_60hz_frame": (1 / 60) / p["dt"]})
+        del b
+    return rows
+
+
+def _flight_error(sim, p: dict, fly, exact_gravity, exact_quadratic_vertical) -> float:
+    """The largest error of a 2 s flight (gravity only from an oblique throw, quadratic drag straight up)."""
+    from ..engine.params import drag_coefficients
+    from .config import SAMPLE_EVERY
+
+    dt = p["dt"]
+    if abs(round(SAMPLE_EVERY / dt) * dt - SAMPLE_EVERY) > 1e-9:
+        return float("nan")
+    x0, r = np.array([0.0, 0.0, 50.0]), 0.03
+    t, xs = fly(sim, x0[None], np.array([[12.0, 3.0, 15.0]]), np.array([r]), dt, p["integrator"], "none")
+    e = float(np.max(np.linalg.norm(xs[0] - exact_gravity(x0, np.array([12.0, 3.0, 15.0]), t), axis=1)))
+    _, quad = drag_coefficients(sim.scene)
+    r_stored = float(np.float32(r)) if p["precision"] == "f32" else r
+    vt = float(np.sqrt(9.81 * r_stored / quad))
+    t, xs = fly(sim, x0[None], np.array([[0.0, 0.0, 20.0]]), np.array([r]), dt, p["integrator"], "quadratic")
+    ref = exact_quadratic_vertical(x0[2], 20.0, vt, t)
+    return max(e, float(np.max(np.abs(xs[0][:, 2] - ref))))
+
+
+def run_frame_study(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=None,
+                    overwrite: bool = False, tiny: bool = False) -> dict:
+    """Run the study (module docstring); write frame.json and frame.md into ``out_dir``; return the results."""
+    from ..engine.runtime import auto_threads
+    from ..output.atomic import new_folders, write_atomically
+    from .machine import Progress, loadavg, machine
+    from .report import check_out_dir
+
+    out = Path(out_dir)
+    check_out_dir(out, OUTPUTS, overwrite)
+    frames, warm = (20, 5) if tiny else (120, 60) if quick else (270, 60)
+    scene = Path(__file__).resolve().parents[2] / "scenes" / "minimal.toml" if tiny else SCENE
+    cores = os.cpu_count() or 1
+    threads = [] if tiny or arch != "cpu" else sorted({1, cores})
+    loops = [(name, ov, t) for name, ov in CASES for t in threads + [None]]
+    prog = Progress(len(loops) + 2, progress)
+    res = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine(arch), "load_average_start": loadavg(),
+           "scene": scene.name, "fps": 60.0, "auto_threads": auto_threads(), "loops": [], "errors": []}
+    with new_folders(out):
+        for name, ov, t in loops:
+            job = {"kind": "loop", "arch": arch, "overrides": ov, "frames": frames, "warm": warm, "scene": str(scene)}
+            r = _run_job(job, t)
+            res["loops"].append({"case": name, "threads_asked": t if t is not None else "auto", **r})
+            if "error" in r:
+                res["errors"].append(f"{name}, {t} threads: {r['error']}")
+            prog(f"frame: {name}, {t or 'auto'} threads")
+        steps = 20 if tiny else 120
+        job = {"kind": "tasks", "arch": arch, "overrides": dict(CASES[0][1]), "steps": steps, "warm": 30,
+               "scene": str(scene)}
+        res["tasks"] = _run_job(job, None)
+        prog("frame: tasks")
+        res["accuracy"] = [] if tiny else accuracy_rows(arch, quick)
+        prog("frame: accuracy")
+        res["load_average_end"] = loadavg()
+        write_atomically(out / "frame.json", lambda f: f.write(json.dumps(res, indent=1).encode()))
+        write_atomically(out / "frame.md", lambda f: f.write(("\n".join(report_lines(res)) + "\n").encode()))
+    prog.close()
+    res["report"] = str(out / "frame.md")
+    return res
+
+
+def _f(x, nd=3) -> str:
+    return "n/a" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}g}"
+
+
+def frame_table(res: dict) -> list:
+    """The frame per case and thread count (README and docs/performance.md, tools/readme_tables.py)."""
+    L = ["| case | threads | steps / frame | `advance_to` | `impacts()` | `changes()` (rows) | frame median | "
+         "frame p95 | `state()` |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in res["loops"]:
+        if "error" in r:
+            L.append(f"| {r['case']} | {r['threads_asked']} | {r['error']} |||||||")
+            continue
+        t = f"{r['threads']}" + (" (auto)" if r["threads_asked"] == "auto" else "")
+        L.append(f"| {r['case']} | {t} | {r['steps_per_frame']:.3g} | {_f(r['advance_to']['median_ms'])} ms | "
+                 f"{_f(r['impacts']['median_ms'])} ms | {_f(r['changes']['median_ms'])} ms "
+                 f"({r['rows_median']:,.0f}) | **{_f(r['frame']['median_ms'])} ms** | {_f(r['frame']['p95_ms'])} ms "
+                 f"| {_f(r['state']['median_ms'])} ms |")
+    return L
+
+
+def task_table(res: dict) -> list:
+    t = res.get("tasks", {})
+    if "tasks" not in t:
+        return [f"(task table: {t.get('error', 'not measured')})"]
+    L = ["| kernel | task | what | kind | per step | median (µs) |", "|---|---|---|---|---|---|"]
+    for r in t["tasks"]:
+        L.append(f"| {r['kernel']} | {r['task']} | {r['what']} | {r['kind']} | {r['per_step']:.3g} | "
+                 f"{1e3 * r['median_ms']:.3g} |")
+    return L
+
+
+def accuracy_table(res: dict) -> list:
+    L = ["| preset | dt (s) | steps / 60 Hz frame | integrator, detection, precision | flight error, 2 s (m) | "
+         "recall at 60 m/s | launch-time bound (m) |", "|---|---|---|---|---|---|---|"]
+    for r in res.get("accuracy", []):
+        L.append(f"| {r['preset']} | {r['dt']:.4g} | {r['steps_per_60hz_frame']:.3g} | {r['integrator']}, "
+                 f"{r['detection']}, {r['precision']} | {_f(r['flight_error_m'])} | {_f(r['recall_at_60'])} | "
+                 f"{_f(r['launch_time_bound_m'])} |")
+    return L
+
+
+def report_lines(res: dict) -> list:
+    m = res["machine"]
+    L = [f"# The frame in a game loop ({res['scene']}, 60 Hz)", "",
+         f"{res['started']}, {m.get('cpu', '?')}, {m.get('cores', '?')} cores, arch {m.get('arch', '?')}, load "
+         f"{res['load_average_start']} -> {res.get('load_average_end')}; the engine's thread choice here: "
+         f"{res['auto_threads']}.", "",
+         "Per frame: `advance_to(f / 60)`, `impacts()`, `changes()`; medians (and the frame's 95th percentile) "
+         "over the timed frames. `state()` (every rock) for comparison.", ""]
+    L += frame_table(res)
+    L += ["", "## The step's tasks, game preset (kernel profiler)", ""] + task_table(res)
+    L += ["", "## What each preset costs in accuracy", ""] + accuracy_table(res)
+    if res["errors"]:
+        L += ["", "Errors: " + "; ".join(res["errors"])]
+    return L
+
+
+if __name__ == "__main__":
+    print(PREFIX + json.dumps(worker(json.loads(sys.argv[1]))), flush=True)
