@@ -1,5 +1,5 @@
 """``taichi-rocks sweep`` / ``run_sweep``: every run of a sweep file, on local processes or a Ray cluster, and
-its results (README, "Sweeps").
+its results (docs/sweeps.md).
 
     DIR/sweep.json          the sweep file (text and values), its fingerprint, the versions, the machine,
                             where it ran (backend, workers x threads)
