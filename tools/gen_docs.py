@@ -79,8 +79,8 @@ INTRO = """\
 
 One scene per file (the shipped ones are in `scenes/`), UTF-8 text (a leading byte-order mark is ignored; other
 encodings are refused with the offending byte's offset). SI units, world Z up, angles in degrees in files (radians
-in code). Every key has a default except the `[[vehicle]]` tables (at least one vehicle is required) and a
-vehicle's `name`. Unknown keys and values are errors with a close-match suggestion
+in code). Every key has a default except the `[[vehicle]]` tables (at least one vehicle is required) and the
+keys marked "required" below. Unknown keys and values are errors with a close-match suggestion
 (`sim.integrator: unknown value "rk5", did you mean "rk4"?`). Arrays and inline tables may be nested at most 32
 levels inside one another (a scene needs 5); a deeper value is refused with its line before the file is parsed.
 `taichi-rocks schema` prints the JSON Schema made from the same models; with the *Even Better TOML* extension (VS
