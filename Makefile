@@ -4,7 +4,7 @@ PY    := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 SCENE ?= scenes/convoy.toml
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test lint bench clean
 
 setup: $(STAMP)
 
@@ -22,6 +22,10 @@ TEST_WORKERS ?= 2
 
 test: setup
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+
+# ruff with the rules of pyproject.toml ([tool.ruff]); .ci/run runs it before the tests
+lint: setup
+	$(VENV)/bin/ruff check taichi_rocks tests tools examples
 
 bench: setup
 	$(VENV)/bin/pip install -q -e '.[bench]'

@@ -123,7 +123,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _view_parser(sub, arches) -> None:
-    v = sub.add_parser("view", help="the simulation in a window: look, scrub and tweak (keys: README)")
+    v = sub.add_parser("view", help="the simulation in a window: look, scrub and tweak (keys: docs/rendering.md)")
     v.add_argument("scene", metavar="SCENE")
     v.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend (gpu falls back to cpu)")
     v.add_argument("--seed", type=int, help="override the scene's seed")
@@ -153,7 +153,7 @@ def _bench_parser(sub, arches, backends) -> None:
 def _sweep_parser(sub, arches, backends) -> None:
     w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
                                      "cluster, into results.csv, sweep.json, runs/ and plots/")
-    w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; README, \"Sweeps\")")
+    w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; docs/sweeps.md)")
     w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
     w.add_argument("--backend", choices=backends, help="local processes (default) or a Ray cluster "
                                                                 "(default with --address)")

@@ -8,7 +8,6 @@ being written, every time, however fast or slow the machine. Nothing else differ
 ``python -m taichi_rocks`` is run as the main module, with its handling of Ctrl-C, exit codes and outputs.
 """
 
-import os
 import runpy
 import sys
 import time

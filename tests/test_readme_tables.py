@@ -1,7 +1,8 @@
-"""README.md's measured tables are what tools/readme_tables.py makes of the committed results (docs/results/
-bench.json from ``taichi-rocks bench``, launch.json from ``taichi-rocks bench --only launch``, impacts.json from
-``taichi-rocks bench --only impacts``): every number in
-them traces to an artefact. After a new run: copy its results there and run ``python tools/readme_tables.py``."""
+"""The measured tables of README.md and docs/ are what tools/readme_tables.py makes of the committed results
+(docs/results/ bench.json from ``taichi-rocks bench``, launch.json from ``taichi-rocks bench --only launch``,
+impacts.json from ``taichi-rocks bench --only impacts``, frame.json from ``taichi-rocks bench --only frame`` when
+it is committed): every number in them traces to an artefact. After a new run: copy its results there and run
+``python tools/readme_tables.py``."""
 
 import copy
 import importlib.util
@@ -13,17 +14,28 @@ tables = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(tables)
 
 
-def test_readme_blocks_equal_what_the_script_makes_of_the_committed_results():
-    text = tables.README.read_text()
+def _all_text() -> str:
+    return "\n".join(page.read_text() for page in tables.PAGES)
+
+
+def test_every_page_holds_what_the_script_makes_of_the_committed_results():
     generated = tables.blocks(*tables.load())
-    assert tables.rewrite(text, generated) == text, "run: python tools/readme_tables.py"
-    for name, body in generated.items():
-        assert body.strip() and f"<!-- results:{name} -->\n{body}\n<!-- /results:{name} -->" in text, name
+    assert set(generated) == {name for names in tables.PAGES.values() for name in names}, "a block on no page"
+    for page, names in tables.PAGES.items():
+        text = page.read_text()
+        assert tables.rewrite(text, generated, names, page.name) == text, f"{page}: run python tools/readme_tables.py"
+        for name in names:
+            body = generated[name]
+            if name == "frame" and not (tables.RESULTS / "frame.json").exists():
+                # the frame run is not committed yet: its blocks are there and empty
+                assert f"<!-- results:frame -->\n<!-- /results:frame -->" in text, page
+                continue
+            assert body.strip() and f"<!-- results:{name} -->\n{body}\n<!-- /results:{name} -->" in text, (page, name)
 
 
-def test_every_target_of_the_results_is_in_the_readme():
+def test_every_target_of_the_results_is_on_a_page():
     launch, bench = tables.load()
-    text = tables.README.read_text()
+    text = _all_text()
     for row in launch["table"]:
         assert f"| {row['target']} | {row['shown']} |" in text, row["target"]
     judged = [t for t in bench["targets"] if t["target"].startswith(tables.SPEED_TARGETS + tables.ACTIVITY_TARGETS)]
@@ -36,16 +48,45 @@ def test_every_target_of_the_results_is_in_the_readme():
         assert f"| {t['target']} | {t['shown']} |" in text, t["target"]
 
 
-def test_a_changed_result_changes_the_readme():
-    launch, bench = tables.load()
+def test_the_readme_shows_the_headline_figures():
     text = tables.README.read_text()
+    for name in ("headline-speed", "frame", "presets"):
+        assert f"<!-- results:{name} -->" in text, name
+    launch, bench = tables.load()
+    peers = tables._grid(bench)[tuple(bench["config"]["main"])]["peers"]
+    assert f"| {tables._num(peers['warp_ms'])} |" in text and f"| {tables._num(peers['numpy_ms'])} |" in text
+
+
+def _changes_a_page(launch, bench) -> bool:
+    generated = tables.blocks(launch, bench)
+    return any(tables.rewrite(p.read_text(), generated, names) != p.read_text() for p, names in tables.PAGES.items())
+
+
+def test_a_changed_result_changes_a_page():
+    launch, bench = tables.load()
     changed = copy.deepcopy(bench)
     t = next(t for t in changed["targets"] if t["target"].startswith(tables.SPEED_TARGETS))
     t["met"] = not t["met"]
-    assert tables.rewrite(text, tables.blocks(launch, changed)) != text
+    assert _changes_a_page(launch, changed)
     changed = copy.deepcopy(launch)
     changed["stats"]["V20 dry gravel"]["launches"] += 1
-    assert tables.rewrite(text, tables.blocks(changed, bench)) != text
+    assert _changes_a_page(changed, bench)
     changed = copy.deepcopy(bench)
     changed["impacts_run"]["impacts"]["targets"][0]["met"] = not changed["impacts_run"]["impacts"]["targets"][0]["met"]
-    assert tables.rewrite(text, tables.blocks(launch, changed)) != text
+    assert _changes_a_page(launch, changed)
+    changed = copy.deepcopy(bench)
+    n, t = changed["config"]["main"]
+    tables._grid(changed)[(n, t)]["peers"]["warp_ms"] *= 2
+    assert _changes_a_page(launch, changed)
+
+
+def test_a_frame_run_fills_the_frame_blocks_and_its_absence_empties_them():
+    launch, bench = tables.load()
+    frame_run = {"frame": {"cases": [{"preset": "game", "median_ms": 0.8, "p95_ms": 1.25},
+                                     {"preset": "dt 2 ms", "median_ms": 3.5, "p95_ms": 4.0}]}}
+    body = tables.blocks(launch, dict(bench, frame_run=frame_run))["frame"]
+    assert "| preset | median ms | p95 ms |" in body and "| game | 0.8 | 1.25 |" in body
+    without = {k: v for k, v in bench.items() if k != "frame_run"}
+    assert tables.blocks(launch, without)["frame"] == ""
+    text = "a\n<!-- results:frame -->\nold\n<!-- /results:frame -->\nb\n"
+    assert tables.rewrite(text, {"frame": ""}) == "a\n<!-- results:frame -->\n<!-- /results:frame -->\nb\n"

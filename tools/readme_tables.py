@@ -1,4 +1,4 @@
-"""The README's measured tables, generated from the benchmark results committed under docs/results/:
+"""The measured tables of README.md and docs/, generated from the benchmark results committed under docs/results/:
 
     docs/results/bench.json    ``taichi-rocks bench`` (its results.json): speed and activity targets, presets
     docs/results/activity.json ``taichi-rocks bench --only activity`` (its activity.json): when present, the
@@ -6,14 +6,16 @@
     docs/results/launch.json   ``taichi-rocks bench --only launch`` (its launch_study.json): what the tread throws
     docs/results/impacts.json  ``taichi-rocks bench --only impacts [--quick]`` (its impacts.json): the impacts
                                study's targets (its plots and impacts.md sit beside it)
+    docs/results/frame.json    ``taichi-rocks bench --only frame`` (its frame.json), when present: the frame of a
+                               game loop; without it the ``frame`` blocks stay empty
 
-    python tools/readme_tables.py            # rewrite the marked blocks of README.md from those files
-    python tools/readme_tables.py --check    # exit 1 (and say which) if README.md differs from them
+    python tools/readme_tables.py            # rewrite the marked blocks of the pages (PAGES) from those files
+    python tools/readme_tables.py --check    # exit 1 (and say which) if a page differs from them
 
-Each generated block of README.md sits between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->``; the
-text outside the blocks is left alone, and nothing inside them is written by hand. To show a new run: copy
-its results.json (activity.json, launch_study.json) over the files above, run this script, commit them together.
-tests/test_readme_tables.py checks that the README's blocks are what this script makes of the committed files.
+Each generated block sits between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->``; the text outside the
+blocks is left alone, and nothing inside them is written by hand. To show a new run: copy its results.json
+(activity.json, launch_study.json, ...) over the files above, run this script, commit them together.
+tests/test_readme_tables.py checks that the pages' blocks are what this script makes of the committed files.
 """
 
 from __future__ import annotations
@@ -29,7 +31,14 @@ from taichi_rocks.bench.machine import was_busy
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-RESULTS = ROOT / "docs" / "results"
+DOCS = ROOT / "docs"
+RESULTS = DOCS / "results"
+# the pages that hold generated blocks, and their blocks (a block may sit in several pages)
+PAGES = {README: ("headline-speed", "frame", "presets"),
+         DOCS / "performance.md": ("frame", "activity-targets", "activity-notes", "activity-breakdown",
+                                   "speed-targets", "speed-notes", "presets"),
+         DOCS / "physics.md": ("launch-targets", "launch-cases"),
+         DOCS / "impacts.md": ("impacts-targets",)}
 
 # the per-case rows of the launch study the README shows (the study's report has all 18)
 LAUNCH_CASES = ("V10 dry gravel", "V20 dry gravel", "V30 dry gravel", "V20 wet gravel", "V30 wet gravel",
@@ -292,7 +301,74 @@ def impacts_targets(launch: dict, bench: dict) -> list:
     return rows
 
 
-BLOCKS = {"launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
+# ------------------------------------------------------------------------------------------------ headline
+def headline_speed(launch: dict, bench: dict) -> list:
+    """The README's speed against peers: the main point's full step against Warp, NumPy and the streaming floor
+    (the full benchmark, run B), and the active step against the full step at the same N (the activity run, A).
+    Each ratio is within one run."""
+    n, t = bench["config"]["main"]
+    main = _grid(bench)[(n, t)]
+    peers, fs = main["peers"], main["step_ms"]
+    act = bench.get("activity_run", bench)
+    row = next((r for r in bench["activity"]["series"]["a"] if r["n"] == n and "error" not in (r.get("active") or
+                {"error": 1}) and "error" not in (r.get("full") or {"error": 1})), None)
+    rows = [f"| {n:,} rocks, {t} rear tires | ms per step | against the full step of the same run | run |",
+            "|---|---|---|---|"]
+    if row:
+        a, f = row["active"]["step_ms"], row["full"]["step_ms"]
+        rows.append(f"| taichi_rocks, active stepping (the default) | {_num(a)} | {f / a:.1f}x faster | A |")
+        rows.append(f"| taichi_rocks, full stepping (every rock, every step) | {_num(f)} | 1x | A |")
+    rows.append(f"| taichi_rocks, full stepping | {_num(fs)} | 1x | B |")
+    rows.append(f"| NVIDIA Warp {bench['warp'].get('version', '')}, HashGrid build + query | "
+                f"{_num(peers['warp_ms'])} | {peers['warp_ms'] / fs:.1f}x slower | B |")
+    rows.append(f"| NumPy, brute force | {_num(peers['numpy_ms'])} | {peers['numpy_ms'] / fs:.0f}x slower | B |")
+    rows.append(f"| streaming floor: one pass over positions and velocities | {_num(peers['floor_ms'])} | "
+                f"{fs / peers['floor_ms']:.1f}x less time | B |")
+    rows.append("")
+    runs = ([f"A: {_short_run(act)}"] if row else []) + [f"B: {_short_run(bench)}"]
+    rows.append("Runs: " + "; ".join(runs) + ".")
+    return rows
+
+
+def _short_run(res: dict) -> str:
+    m = res["machine"]
+    la0, la1 = res.get("load_average_start"), res.get("load_average_end")
+    busy = la0 and la1 and was_busy(la0, la1, m["usable_cores"])
+    return (f"{res['started'][:10]}, {m['cpu_model']}, {m['usable_cores']} cores, Taichi {m['taichi']} "
+            f"({m['taichi_arch']})" + (", the machine busy with other work (noisy, pessimistic)" if busy else ""))
+
+
+def frame(launch: dict, bench: dict) -> list:
+    """The frame of a game loop (``bench --only frame``: docs/results/frame.json); nothing without that file.
+    Every list of rows in it becomes a table, its keys the columns."""
+    res = bench.get("frame_run")
+    if not res:
+        return []
+    try:
+        rows = [run_line(dict(res, config=res.get("config", {"mode": "--only frame"}),
+                              elapsed_s=res.get("elapsed_s", 0.0)))]
+    except (KeyError, TypeError):  # a run without the machine record: its tables alone
+        rows = []
+    body = res.get("frame", res)
+    for name, table in body.items():
+        if not (isinstance(table, list) and table and all(isinstance(r, dict) for r in table)):
+            continue
+        cols = list(dict.fromkeys(k for r in table for k in r if not isinstance(r[k], (dict, list))))
+        rows += ["", f"*{name}*", "", "| " + " | ".join(c.replace("_", " ") for c in cols) + " |",
+                 "|" + "---|" * len(cols)]
+        rows += ["| " + " | ".join(_cell_value(r.get(c)) for c in cols) + " |" for r in table]
+    return rows
+
+
+def _cell_value(v) -> str:
+    if isinstance(v, bool) or v is None:
+        return {True: "yes", False: "no", None: "-"}[v]
+    if isinstance(v, (int, float)):
+        return _num(v)
+    return str(v).replace("|", "\\|")
+
+
+BLOCKS = {"headline-speed": headline_speed, "frame": frame, "launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
           "speed-notes": speed_notes, "presets": presets, "activity-targets": activity_targets,
           "activity-notes": activity_notes, "activity-breakdown": activity_breakdown,
           "impacts-targets": impacts_targets}
@@ -307,6 +383,8 @@ def load(results: Path = RESULTS) -> tuple:
         speed = [t for t in bench["targets"] if t["target"].startswith(SPEED_TARGETS)]
         bench = dict(bench, activity=act["activity"], targets=speed + act["targets"], activity_run=act)
     bench = dict(bench, impacts_run=json.loads((results / "impacts.json").read_text()))
+    if (results / "frame.json").exists():
+        bench = dict(bench, frame_run=json.loads((results / "frame.json").read_text()))
     return launch, bench
 
 
@@ -314,34 +392,40 @@ def blocks(launch: dict, bench: dict) -> dict:
     return {name: "\n".join(fn(launch, bench)) for name, fn in BLOCKS.items()}
 
 
-def rewrite(text: str, generated: dict) -> str:
-    """``text`` with every marked block replaced by its generated content; a block missing from ``text`` or
-    present twice is an error."""
-    for name, body in generated.items():
+def rewrite(text: str, generated: dict, names=None, where: str = "README.md") -> str:
+    """``text`` with each marked block of ``names`` (default: all) replaced by its generated content (an empty
+    block where that is empty); a block missing from ``text`` or present twice is an error."""
+    for name in names or generated:
+        body = generated[name]
         pattern = re.compile(rf"(<!-- results:{re.escape(name)} -->\n)(?:.*?\n)?(<!-- /results:{re.escape(name)} -->)",
                              re.S)
         found = len(pattern.findall(text))
         if found != 1:
-            raise ValueError(f"README.md: block results:{name} found {found} times (expected once)")
-        text = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
+            raise ValueError(f"{where}: block results:{name} found {found} times (expected once)")
+        text = pattern.sub(lambda m: m.group(1) + (body + "\n" if body else "") + m.group(2), text)
     return text
+
+
+def pages(generated: dict) -> dict:
+    """Each page of PAGES and the text it should have."""
+    return {page: rewrite(page.read_text(), generated, names, str(page.relative_to(ROOT)))
+            for page, names in PAGES.items()}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--check", action="store_true", help="only compare; exit 1 if README.md differs")
+    ap.add_argument("--check", action="store_true", help="only compare; exit 1 if a page differs")
     args = ap.parse_args(argv)
-    old = README.read_text()
-    new = rewrite(old, blocks(*load()))
+    wanted = pages(blocks(*load()))
+    differ = [p for p, text in wanted.items() if p.read_text() != text]
     if args.check:
-        if new != old:
-            print("README.md: the measured tables differ from docs/results/ (run python tools/readme_tables.py)",
-                  file=sys.stderr)
-            return 1
-        return 0
-    if new != old:
-        README.write_text(new)
-        print("README.md: tables rewritten from docs/results/")
+        for p in differ:
+            print(f"{p.relative_to(ROOT)}: the measured tables differ from docs/results/ (run python "
+                  "tools/readme_tables.py)", file=sys.stderr)
+        return 1 if differ else 0
+    for p in differ:
+        p.write_text(wanted[p])
+        print(f"{p.relative_to(ROOT)}: tables rewritten from docs/results/")
     return 0
 
 

@@ -27,6 +27,31 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
                  window_every=WINDOW_EVERY, on_frame=None, checkpoint_every=None) -> dict:
     """Simulate a scene and render it offscreen to PNG frames plus an MP4 or GIF (``fmt="png"``: frames only).
 
+    Args:
+        scene_or_path: a scene file (TOML) or a validated Scene.
+        out_dir: the output folder (default ``renders/<scene name>/``).
+        frames: frames to draw (default: round(duration * fps)).
+        resolution: (width, height), even, overriding ``[render] resolution``.
+        fps: frames per second, overriding ``[render] fps``.
+        fmt: "mp4", "gif" or "png" (frames only).
+        arch: the Taichi backend (as for ``Simulation``).
+        overwrite: replace existing outputs (else FileExistsError).
+        progress: a tqdm bar on stderr (None: only on a terminal).
+        profile: also return where the time went.
+        resume: continue an interrupted render in ``out_dir``.
+        rocks: "splat" or "particles".
+        window_every: frames between re-creations of the hidden window (0: never).
+        on_frame: called as ``on_frame(k, image)`` with every frame drawn (tests).
+        checkpoint_every: frames between saved simulation states, for ``resume`` (default 30).
+
+    Returns:
+        A summary dict (below).
+
+    Raises:
+        FileExistsError: outputs exist and ``overwrite`` is off.
+        ValueError: an odd resolution, or a resume that does not match the interrupted render.
+        RuntimeError: no Vulkan on this machine (the message names the packages to install).
+
     ``scene_or_path``: a scene file (TOML) or a validated :class:`~taichi_rocks.config.scene.Scene`. Frame k shows the
     simulation at t = k / fps; ``frames`` defaults to round(duration * fps). ``resolution`` and ``fps`` override
     the scene's [render] table. Outputs go to ``out_dir`` (default ``renders/<scene name>/``): ``frames/``

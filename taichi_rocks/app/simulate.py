@@ -59,12 +59,30 @@ def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", se
 def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool = True, layout: str = "light",
            only: str = "flying", crop=None) -> dict:
     """Run ``sim`` for ``frames`` frames and write ``out`` (its missing folders are created, and removed
-    again if the run fails or is interrupted). Returns a small summary.
+    again if the run fails or is interrupted). The file is written under a temporary name and renamed when
+    complete; ``taichi_rocks.load_run`` reads it back (docs/export.md, "Run files").
 
-    ``layout``: "full" (every rock of every frame, float64 world positions) or "light" (output/runs.py; with
-    ``only`` "flying" or "all" and ``crop`` a radius in metres or None). With ``guard``, the state is checked
-    after every frame (see Simulation.check_health); on failure the HealthError propagates and nothing is
-    written under ``out``.
+    Args:
+        sim: a Simulation at time 0.
+        out: the .npz file to write.
+        frames: frames to record; frame f is the state at f / fps.
+        fps: frames per second of simulated time.
+        progress: a tqdm bar (its ``update(1)`` is called once a frame is done), or None.
+        guard: check every rock after every frame (``Simulation.check_health``); on failure the HealthError
+            propagates and nothing is written under ``out``.
+        layout: "full" (every rock of every frame, float64 world positions) or "light" (the rocks that changed
+            in each frame, output/runs.py).
+        only: light layout: "flying" (the rocks that changed) or "all" (every rock every frame).
+        crop: light layout: keep only the rocks within this many metres of the camera's followed vehicle, or
+            None.
+
+    Returns:
+        A summary: "frames", "rocks", "path", "bytes", "layout", and with impacts "impacts" (the events, a
+        structured array) and "impacts_dropped".
+
+    Raises:
+        HealthError: the runtime guard found a rock in an impossible state.
+        ValueError: an unknown layout.
     """
     out = Path(out)
     if layout not in ("full", "light"):

@@ -20,7 +20,7 @@ Vulkan arch alike, for particles, meshes and lines; ``malloc_trim`` and a new Sc
 back; destroying the window does). So once the process has grown by REFRESH_MB since its window opened, the
 window is destroyed and opened again between two frames (a blink; the HUD says so, the panel keeps its
 values, the simulation and the camera are not touched), and frames are shown at most MAX_FPS times a second (each one drawn costs memory until then).
-RSS over a long session: README, "Looking around".
+RSS over a long session: docs/rendering.md, "Memory".
 """
 
 import json
@@ -46,7 +46,7 @@ from ..render.renderer import SHOTS, Renderer
 from ..render.window import ShownWindow, trim_heap
 from .timeline import Timeline
 
-__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "VIEW_SWITCHES", "check_record_dir",
+__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "VIEW_SWITCHES", "KEYS", "check_record_dir",
            "screenshot_path"]
 
 STATUS_ENV = "TAICHI_ROCKS_VIEW_STATUS"
@@ -56,6 +56,21 @@ REFRESH_MB = 300.0  # growth of the resident set since the window opened that ma
 MAX_FPS = 30.0  # more would only feed GGUI's memory (the scene's fps is 30)
 # the panel's recompile buttons: the engine's switches and whether stones hit the vehicles' bodies
 VIEW_SWITCHES = {**SWITCH_KEYS, "effects.impacts": choices("effects.impacts")}
+# the keys :meth:`Viewer._keys` answers: (GGUI's names of them, as the docs name them, what they do); docs/rendering.md
+# is generated from it (tools/gen_docs.py) and tests/test_gen_docs.py checks that _keys answers exactly these
+KEYS = (
+    ((ti.ui.SPACE,), "space", "play / pause"),
+    ((ti.ui.RIGHT, ti.ui.LEFT), "Right / Left", "one frame forward / back (pauses)"),
+    ((ti.ui.UP, ti.ui.DOWN), "Up / Down", "speed x2 / x1/2, from x1/4 to x4"),
+    (("c",), "c", "next camera: the scene's shots (\"shots\", first, if it has `[[camera.shot]]` tables; they play on "
+                  "it), then the presets chase, side, low, orbit, driver, bonnet (the panel has a button for each)"),
+    (("f",), "f", "free camera: W/A/S/D forward, left, back, right, E/Q up and down, the mouse with the right button "
+                  "held to look round; f again goes back to the preset"),
+    (("h",), "h", "hide / show the panel and HUD"),
+    (("p",), "p", "screenshot of what the window shows: `<scene>_t<time>.png` in the current folder (e.g. "
+                  "`convoy_t003.25.png`; never overwritten: `_2`, `_3` ...)"),
+    ((ti.ui.ESCAPE,), "Escape", "quit (exit status 0; closing the window does the same)"),
+)
 
 
 def check_record_dir(path, overwrite: bool) -> None:

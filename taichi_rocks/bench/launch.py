@@ -13,7 +13,7 @@ the bed, then every few steps until the thrown rocks have landed, and records fo
   * the launch speed over V; the apex above its resting height on its first arc; where it first lands
     relative to the tire (m behind it at that moment); rocks the bed recycles in the air are counted apart.
 Cases: V in {10, 20, 30} m/s, dry and wet (wetness 1), small (1.5-2.5 cm), large (3-5 cm) and the default
-gravel (1.5-5 cm). Targets (at V = 20 m/s, dry gravel, defaults) are those of README.md, "The throw", with
+gravel (1.5-5 cm). Targets (at V = 20 m/s, dry gravel, defaults) are those of docs/physics.md, "The throw", with
 the reference bands of the field reports drawn on the histograms. Also: launches per metre driven with
 "patch" and "swept" detection, in a bed that follows the car.
 """
@@ -45,7 +45,7 @@ TRACK_EVERY = 4  # steps between reads once the car has left the bed
 SIZES_OF_RUN = {"full": (40000, 3, 2.0, 4.0), "quick": (6000, 1, 0.5, 4.0), "tiny": (1500, 1, 0.25, 2.0)}
 # per run size: rocks, seeds of the reference case, seconds of the launch-rate runs, seconds followed after the
 # car has left the bed
-# reference bands (README, "The throw"): proxies from field reports
+# reference bands (docs/physics.md, "The throw"): proxies from field reports
 BANDS = {"Berner 2003: >20 mm stones at 70 km/h bounced ~0.6 m": 0.6,
          "Albert 2006: 2-8 mm pebbles at 80 km/h rose to ~1.4 m": 1.4,
          "target: 95 % below 1.5 m": 1.5, "target: 99.9 % below 3 m": 3.0}
@@ -209,7 +209,7 @@ def launch_stats(d: dict) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------ targets
-# the bands one case is held to (README, "The throw"; stated for V 20, dry gravel): what, statistic, limit,
+# the bands one case is held to (docs/physics.md, "The throw"; stated for V 20, dry gravel): what, statistic, limit,
 # whether the statistic must be at most (True) or at least (False) the limit
 BAND_TARGETS = (
     (": >= 95 % of launched rocks peak below 1.5 m", "below_1_5", 0.95, False),

@@ -41,7 +41,7 @@ class Bed(_Table):
 
 
 class Launch(_Table):
-    """How the rear tires throw rocks (README, "The throw")."""
+    """How the rear tires throw rocks (docs/physics.md, "The throw")."""
     model: Literal["tread", "uniform"] = _f("tread", "tread: capture and force balance; uniform: release "
                                                      "angle uniform in release_angle")
     groove: Float = _f(0.012, "m, stone radius the tread's grooves hold (tread)", gt=0)

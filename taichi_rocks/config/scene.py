@@ -113,7 +113,18 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
 
 
 def load_scene(path: Union[str, os.PathLike]) -> Scene:
-    """Read and validate a scene file; its name defaults to the file stem."""
+    """Read and validate a scene file (docs/scene-format.md).
+
+    Args:
+        path: the scene file (TOML, UTF-8; a leading byte-order mark is ignored).
+
+    Returns:
+        The validated, frozen Scene; its name defaults to the file stem.
+
+    Raises:
+        SceneError: the file cannot be read, is not TOML, or holds bad keys or values (one line per problem,
+            naming the file and the key).
+    """
     source = str(path)
     try:
         # a byte-order mark (Windows editors write one) is not TOML's: dropped, not "line 1: Invalid statement"
@@ -145,6 +156,16 @@ def scene_with(scene: Scene, overrides: dict) -> Scene:
     key that is not a key path, an index past a list's end ("no such item"), a key below a value that is not a
     table ("not inside a table") and on invalid values.
     Keys that default from others (bed.follow, camera.follow) keep their resolved values.
+
+    Args:
+        scene: the Scene to start from (it is not changed).
+        overrides: {dotted key: value}, file key names ("vehicle[0].path.speed", "sim.accuracy").
+
+    Returns:
+        A new, validated Scene.
+
+    Raises:
+        SceneError: a bad key path or value (one line per problem).
     """
     data = scene_to_dict(scene)
     for key, value in overrides.items():

@@ -1,4 +1,4 @@
-"""Sweep files: a base scene, a grid of scene keys, seeds and what to measure (README, "Sweeps").
+"""Sweep files: a base scene, a grid of scene keys, seeds and what to measure (docs/sweeps.md).
 
     scene = "../scenes/minimal.toml"     # the base scene, relative to the sweep file
     seeds = [1, 2, 3]                    # optional: default the base scene's seed

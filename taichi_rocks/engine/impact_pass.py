@@ -52,7 +52,7 @@ import taichi as ti
 
 from ..config.plan import Plan
 from ..config.scene import SceneError
-from ..motion.bodies import LABELS, body_parts, hexahedron_planes, label_table
+from ..motion.bodies import body_parts, hexahedron_planes, label_table
 from .events import EVENT_DTYPE, append
 from . import transfer, tumble
 from .impacts import bounce, damage_class, stone_mass, surface_velocity, swept_sphere_hull

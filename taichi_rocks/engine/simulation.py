@@ -46,14 +46,59 @@ class HealthError(RuntimeError):
 
 
 class Simulation:
-    """A rock bed following a vehicle, with splashing rear tires. See the module docstring. ``tumble``: also
-    track each rock's spin and orientation (engine/tumble.py; ``state()`` then has "angular_velocities" and
-    "orientations"), as the commands that draw or export them ask; without it (and without the scene's
-    ``[effects] tumble = "always"``) they are neither allocated nor compiled."""
+    """A bed of rocks following a vehicle, with the rear tires of the splashing vehicles throwing rocks.
+
+    Build one from a scene, move it forward in time, read what happened::
+
+        sim = Simulation.from_scene("scenes/convoy.toml")
+        sim.advance_to(1 / 60)      # or sim.step(n)
+        hits = sim.impacts()        # stones that hit a vehicle since the last call
+        state = sim.state()         # every rock, world coordinates
+
+    How a step runs: the module docstring. A Simulation that is no longer referenced hands its Taichi fields
+    (and so its compiled kernels) to the next one of the same layout (engine/world.py ``acquire``).
+
+    Args:
+        scene: a validated ``Scene`` (``load_scene``, ``parse_scene``, ``scene_with``).
+        arch: the Taichi backend: "cpu", "gpu" or "cuda" (CUDA, else the CPU with one warning line) or
+            "vulkan". Taichi starts once per process, on the first Simulation's arch; later ones run on it.
+        seed: overrides the scene's seed (None: the scene's).
+        timer: the timing hook (engine/timing.py): ``PassTimer()`` times every pass of a step; the default
+            times nothing.
+        tumble: also track each rock's spin and orientation (engine/tumble.py; ``state()`` then has
+            "angular_velocities" and "orientations"), as the commands that draw or export them ask; without it
+            (and without the scene's ``[effects] tumble = "always"``) they are neither allocated nor compiled.
+        track_changes: keep a mirror of each rock's drawn state by id, so that ``changes()`` costs the rows it
+            returns (engine/changes.py; about 24 bytes a rock); False: neither allocated nor compiled.
+
+    Raises:
+        SceneError: the scene does not fit this machine's memory, or resting rocks would lie inside a body
+            that stones hit.
+
+    Attributes:
+        scene: the Scene (with ``seed`` applied).
+        n_rocks: the number of rocks N; rock ids are 0 .. N-1.
+        dt: the time step, s.
+        plan: the compile-time Plan: which passes run (config/plan.py).
+        coast: when True (default), steps after every vehicle that matters has stopped for good run as one
+            launch, bit-identical to stepping.
+    """
 
     @classmethod
     def from_scene(cls, path, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False,
                    track_changes: bool = True) -> "Simulation":
+        """A Simulation of the scene file ``path``.
+
+        Args:
+            path: a scene file (TOML; docs/scene-format.md).
+            arch, seed, timer, tumble, track_changes: as for ``Simulation``.
+
+        Returns:
+            The Simulation at time 0.
+
+        Raises:
+            SceneError: the file cannot be read or is not a valid scene (one line per problem).
+        """
         return cls(load_scene(path), arch=arch, seed=seed, timer=timer, tumble=tumble, track_changes=track_changes)
 
     def __init__(self, scene, arch: str = "cpu", seed=None, timer=NO_TIMER, tumble: bool = False,
@@ -113,10 +158,12 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ the host state
     @property
     def time(self) -> float:
+        """The simulated time, s."""
         return self._host.time
 
     @property
     def step_count(self) -> int:
+        """Steps taken since time 0 (a coasted step counts as one)."""
         return self._host.step_count
 
     @property
@@ -126,14 +173,17 @@ class Simulation:
 
     @property
     def anchor(self) -> np.ndarray:
+        """The floating origin's anchor in world coordinates (float64, m): the followed vehicle's path start."""
         return self._host.anchor
 
     @property
     def bed_center(self) -> np.ndarray:
+        """The bed's centre in world coordinates (float64, m, (3,))."""
         return self._host.bed_center
 
     @property
     def steps_coasted(self) -> int:
+        """Steps run as coasting (one launch for many steps) since time 0."""
         return self._host.steps_coasted
 
     @property
@@ -152,6 +202,7 @@ class Simulation:
 
     @property
     def timer(self):
+        """The timing hook (engine/timing.py); set it to time the passes of the coming steps."""
         return self._timer
 
     @timer.setter
@@ -165,6 +216,7 @@ class Simulation:
 
     @property
     def launches_total(self) -> int:
+        """Rocks launched by a tire since time 0."""
         return int(self.world.launches[None])
 
     @property
@@ -173,15 +225,29 @@ class Simulation:
         return int(self.world.recycles[None])
 
     def vehicle_poses(self):
+        """The vehicles' poses now.
+
+        Returns:
+            A list of motion/vehicles.py ``VehiclePose``, in scene order: name, position (world, m, the body
+            centre at ground level), heading (rad), speed (m/s), yaw_rate (rad/s), velocity.
+        """
         return self._host.poses
 
     def tile_shift(self) -> np.ndarray:
         """The floating origin's shift in tiles of active stepping's store (whole numbers, float64; zeros with
-        full stepping): what drawing the tiles needs (engine/drawing.py)."""
+        full stepping): what drawing the tiles needs (engine/drawing.py).
+
+        Returns:
+            (2,) float64.
+        """
         return self._stepper.tile_shift()
 
     def rocks_in_air(self) -> int:
-        """How many rocks fly now (phase FLYING), counted in a kernel."""
+        """How many rocks fly now (phase FLYING), counted in a kernel.
+
+        Returns:
+            The count (0 without rocks).
+        """
         return int(count_flying(self.world)) if self.n_rocks else 0
 
     def _put_rays(self) -> None:
@@ -191,6 +257,11 @@ class Simulation:
 
     # ------------------------------------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> None:
+        """Take ``n`` steps of dt.
+
+        Args:
+            n: the number of steps (>= 0).
+        """
         n = int(n)
         while n > 0:
             if self._can_coast():
@@ -201,7 +272,11 @@ class Simulation:
 
     def advance_to(self, t: float) -> None:
         """Step to exactly time ``t``: whole steps of dt, then one shorter step if dt does not divide the
-        interval (so frame f is the state at f / fps for any fps)."""
+        interval (so frame f is the state at f / fps for any fps). A game calls it once per frame.
+
+        Args:
+            t: the time to reach, s; a time at or before ``time`` takes no step.
+        """
         tol = 1e-9 * max(1.0, abs(t))
         while self.time + self.dt <= t + tol:
             if self._can_coast():
@@ -250,8 +325,12 @@ class Simulation:
         """The impact events since the last call (all of them the first time), a structured array of
         engine/events.py ``EVENT_DTYPE`` in (step, rock, vehicle) order: time, step, vehicle, part (an index into
         ``motion.bodies.LABELS``), damage (into ``DAMAGE_CLASSES``), point and normal (the hit vehicle's frame),
-        speed, normal_speed, normal_momentum, energy, radius, rock, thrower. Empty without impacts. A game loop
-        calls it every frame."""
+        speed, normal_speed, normal_momentum, energy, radius, rock, thrower. A game loop calls it every frame.
+
+        Returns:
+            The events as a structured NumPy array (empty without ``[effects] impacts``). Events lost to a full
+            buffer are counted in ``impacts_dropped``.
+        """
         if self._impacts is None:
             return np.empty(0, EVENT_DTYPE)
         return self._impacts.take(self.time)
@@ -267,13 +346,25 @@ class Simulation:
         """Every rock's fields in id order, wherever the rock is (active list or tiles): every rock field the
         checkpoints carry (engine/rockfields.py) but the id: "pos" (local frame), "vel", "radius", "friction"
         (the World's precision), "phase", "hit_step" (splashing scenes: the step it was last launched at,
-        -1 if never), and with tumbling (``tumble``) "spin" (rad/s) and "orient" (quaternions x, y, z, w)."""
+        -1 if never), and with tumbling (``tumble``) "spin" (rad/s) and "orient" (quaternions x, y, z, w).
+
+        Returns:
+            A dict of NumPy arrays, one row per rock (N rows), by rock id.
+        """
         return self._stepper.rock_arrays()
 
     def set_rocks(self, ids, positions=None, velocities=None, phase=None, **fields) -> None:
         """Set rocks ``ids``' positions (world coordinates, m), velocities (m/s) and phases (engine/world.py
         codes), or any rock field by its name (``fields``; "pos" in the local frame), whichever are given, in
-        either stepping mode (tests and probes put rocks in flight this way; O(N): every rock is reloaded)."""
+        either stepping mode (tests and probes put rocks in flight this way; O(N): every rock is reloaded).
+
+        Args:
+            ids: rock ids (an int or an array of them).
+            positions: (len(ids), 3) world coordinates, m, or None.
+            velocities: (len(ids), 3) m/s, or None.
+            phase: phase codes (0 resting, 1 flying, 2 sliding), or None.
+            **fields: any rock field of ``rock_arrays()`` by its name, one value per id or one for all.
+        """
         r = self.rock_arrays()
         ids = np.atleast_1d(np.asarray(ids, np.int64))
         if positions is not None:
@@ -291,7 +382,15 @@ class Simulation:
         self._stepper.sync_drawn()
 
     def state(self) -> dict:
-        """The current state as NumPy arrays, rocks in their original order (by rock id)."""
+        """The current state of every rock and vehicle, rocks in their original order (by rock id). It reads the
+        whole bed from the device: for a check or a save, not for every frame of a game.
+
+        Returns:
+            A dict: "time" (s), "step", "positions" (N, 3) float64 world m, "velocities" (N, 3) m/s, "radii" (N,)
+            m, "phase" (N,) int8 (0 resting, 1 flying, 2 sliding), with tumbling "angular_velocities" and
+            "orientations" (quaternions x, y, z, w), "bed_center" (3,), "vehicle_positions" (V, 3),
+            "vehicle_headings" (V,) rad, "vehicle_names" (V,), "launches_total", "recycles_total".
+        """
         r = self.rock_arrays()
         poses = self._host.poses
         return {
@@ -355,7 +454,11 @@ class Simulation:
     def checkpoint(self) -> dict:
         """Everything needed to continue bit-identically: every rock's fields in id order (the same for both
         stepping modes: a checkpoint of one restores into the other), clock, origin. The events recorded so far
-        are drained first (a checkpoint holds none: a restore records the steps after it again)."""
+        are drained first (a checkpoint holds none: a restore records the steps after it again).
+
+        Returns:
+            A dict of NumPy arrays and scalars for ``restore`` (``np.savez`` can store it).
+        """
         if self._impacts is not None:
             self._impacts.drain(self.time)
         data = rocks.checkpoint_arrays(self.world, self.rock_arrays(), self.n_rocks)
@@ -366,7 +469,14 @@ class Simulation:
 
     def restore(self, data: dict) -> None:
         """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint
-        without orientations, of a simulation without tumbling, restores them as they were at the start)."""
+        without orientations, of a simulation without tumbling, restores them as they were at the start).
+
+        Args:
+            data: what ``checkpoint()`` returned (or its ``np.load``).
+
+        Raises:
+            ValueError: the checkpoint belongs to another scene (rock count or seed differ).
+        """
         self._host_side.ahead.clear()
         if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
             raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
@@ -391,7 +501,11 @@ class Simulation:
     # ------------------------------------------------------------------------------------------ guard, probes
     def check_health(self) -> None:
         """The runtime guard: raise HealthError naming the step, the rock and the value when a rock is
-        non-finite, outside the bed (with recycling) or below the ground (with ground contact)."""
+        non-finite, outside the bed (with recycling) or below the ground (with ground contact).
+
+        Raises:
+            HealthError: a rock in an impossible state (the message is one line).
+        """
         if not self.n_rocks:
             return
         lc = self._host.local_centre()
@@ -411,11 +525,20 @@ class Simulation:
             f"{np.array2string(v, precision=4)} m/s")
 
     def tire_rays(self) -> np.ndarray:
-        """The rear tires' rays (centre, bottom) now, world coordinates, (T, 2, 3)."""
+        """The rear tires' rays now.
+
+        Returns:
+            (T, 2, 3) float64: each splashing rear tire's centre and bottom, world coordinates, m.
+        """
         t = self._host.tires_prev
         return np.stack([t.center, t.bottom], axis=1) + self.anchor if len(t.spin) else np.zeros((0, 2, 3))
 
     def queried_cells(self) -> np.ndarray:
+        """The hash cells the tire rays visited in the last step (the renderer's overlay).
+
+        Returns:
+            (K, 3) int64 cell indices; empty without splashing tires or with swept detection.
+        """
         w = self.world
         if not self.plan.splash or self.plan.swept:
             return np.zeros((0, 3), np.int64)

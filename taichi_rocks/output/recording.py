@@ -2,7 +2,7 @@
 never holds all frames in memory; ``simulate`` (app/simulate.py ``record``) runs the frames and writes the
 file atomically (temporary name, then rename).
 
-Two layouts (README, "Run files"). ``layout="full"``: every rock of every frame, as the engine gives it. Frame
+Two layouts (docs/export.md, "Run files"). ``layout="full"``: every rock of every frame, as the engine gives it. Frame
 f is the state at time f / fps. Arrays: time (F,), positions (F, N, 3) float64 world metres, velocities
 (F, N, 3) float32, phase (F, N) int8 (0 resting, 1 flying, 2 sliding), radii (N,), bed_center (F, 3),
 vehicle_positions (F, V, 3), vehicle_headings (F, V), vehicle_names (V,), launches (F,) = rocks launched

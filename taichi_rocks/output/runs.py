@@ -166,9 +166,18 @@ def _write_rows(files: dict, idx: np.ndarray, st: dict, origin: np.ndarray, insi
 
 
 def load_run(path) -> dict:
-    """The arrays of a run file under the full layout's names (positions (F, N, 3) float64 world metres,
-    velocities, phase, radii, bed_center, vehicle_positions, vehicle_headings, vehicle_names, launches, time,
-    fps, dt, seed, scene), from either layout: code written against full files reads light ones through it."""
+    """The arrays of a run file under the full layout's names, from either layout: code written against full
+    files reads light ones through it (docs/export.md, "Run files").
+
+    Args:
+        path: a run file written by ``taichi-rocks simulate`` or ``record``.
+
+    Returns:
+        A dict: "positions" (F, N, 3) float64 world metres, "velocities" (F, N, 3), "phase" (F, N) (0 resting,
+        1 flying, 2 sliding; -1 outside a crop), "radii" (N,), "bed_center" (F, 3), "vehicle_positions"
+        (F, V, 3), "vehicle_headings" (F, V), "vehicle_names" (V,), "launches" (F,), "time" (F,), "fps", "dt",
+        "seed", "scene", and "impacts" when the run recorded them.
+    """
     with np.load(path) as z:
         if "layout" not in z.files:
             return {k: z[k] for k in z.files}

@@ -278,7 +278,7 @@ class UsdWriter(FileWriter):
             xf.GetPrim().SetCustomDataByKey("taichi_rocks:name", str(spec.name))
             ops = [xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble),
                    xf.AddRotateZOp(UsdGeom.XformOp.PrecisionDouble)]
-            r, z0 = float(spec.tire_radius), 0.8 * float(spec.tire_radius)
+            r = float(spec.tire_radius)
             for name, (mesh, colors) in _body_meshes(spec).items():
                 _mesh(self.stage, f"{root}/{name}", mesh, colors, GLASS if name == "Glass" else MATERIAL)
             tire = cylinder_mesh(r, float(spec.tire_width))

@@ -111,7 +111,7 @@ def _lower_priority(niceness: int = ENCODER_NICENESS) -> None:
     """Lower the calling thread's scheduling priority (Linux: niceness is per thread, and a process the thread
     starts inherits it). The render loop's kernels run on every core in bursts; an encoder at the same priority
     took half of them for its whole frame. Measured on 2 cores (the default scene, 300 frames at 720p): see the
-    README's frame rates. No-op where unsupported."""
+    frame rates of docs/performance.md. No-op where unsupported."""
     try:
         os.setpriority(os.PRIO_PROCESS, 0, os.getpriority(os.PRIO_PROCESS, 0) + niceness)
     except (AttributeError, OSError):

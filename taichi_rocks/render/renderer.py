@@ -106,6 +106,21 @@ class Renderer:
     :class:`.window.HiddenWindow`, read back); a :class:`.window.ShownWindow` gets the frame declared and
     nothing read back (:meth:`render_frame` returns None; never recreated). ``flags`` (bed_edge, tire_rays,
     hash_cells, tread_patch) may change between frames.
+
+    Args:
+        sim: the Simulation to draw (its scene gives the camera, the light and the defaults below).
+        resolution: (width, height), even; default ``[render] resolution``.
+        fps: frames per second of the frames drawn (the camera's smoothing and shots follow it); default
+            ``[render] fps``.
+        rocks: "splat" or "particles".
+        lod_pixels: "particles" only: the projected radius below which resting rocks are thinned (0: never).
+        window_every: frames between re-creations of the hidden window (0: never).
+        shadows: draw shadows; default ``[render] shadows``.
+        target: the window to draw into (default: a hidden one, read back).
+
+    ``render_frame(view=None)`` returns the frame as a (H, W, 3) uint8 array (None for a shown window);
+    ``close()`` gives the renderer's buffers back to its pool (the next renderer of the same sizes starts
+    with its kernels compiled).
     """
 
     def __init__(self, sim, resolution=None, fps=None, *, rocks: str = "splat",

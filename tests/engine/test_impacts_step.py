@@ -270,10 +270,10 @@ def test_active_steps_read_the_rows_full_stepping_gets(scene):
     targets = sim.plan.targets
     bad, checked = [], 0
     for j in range(230):
-        if j == 150:
-            sim.restore(saved)
         if j == 100:
             saved = sim.checkpoint()
+        if j == 150:
+            sim.restore(saved)
         prev, t_ref = sim._host.poses, sim.world.events.t_ref
         sim.step()
         want = np.concatenate([time_row(sim._host.time - sim.dt - t_ref),

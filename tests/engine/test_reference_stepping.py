@@ -94,7 +94,7 @@ class Reference:
         return a
 
     def fly(self):
-        dt, g = self.dt, self.g
+        dt = self.dt
         f = np.flatnonzero(self.phase == FLYING)
         s = np.flatnonzero(self.phase == SLIDING)
         if len(f):  # symplectic Euler: v += a dt, x += v dt

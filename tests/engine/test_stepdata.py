@@ -11,7 +11,7 @@ import pytest
 
 from scenes_util import scene
 from taichi_rocks.config.plan import Plan
-from taichi_rocks.config.scene import load_scene, scene_with
+from taichi_rocks.config.scene import load_scene
 from taichi_rocks.engine.host import HostSide, HostState
 from taichi_rocks.engine.impact_pass import batch_pose_rows, pose_rows
 from taichi_rocks.engine.stepdata import batch_arrays

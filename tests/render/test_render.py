@@ -744,7 +744,7 @@ def test_view_preset_shows_the_target_rear_tires_unoccluded(scenes_dir, name):
     meshes = scene_meshes(scene)
     tan_x, tan_y, _ = Lens.of(scene.camera.fov, *scene.render.resolution)
     fps = scene.render.fps
-    checked, due = 0, 0
+    checked = 0
     for k in range(int(scene.duration * fps) + 1):
         t = k / fps
         poses = fleet.poses(t)

@@ -1,4 +1,4 @@
-"""What a sweep run measures: the metric registry (README, "Sweeps").
+"""What a sweep run measures: the metric registry (docs/sweeps.md).
 
 A metric is one generator function of the run (worker.py's :class:`Run`: the Simulation, its scene, its folder
 and its clock). It yields once before the run starts, ``EVERY_STEP`` to be resumed after every step (with

@@ -1,5 +1,5 @@
 """``taichi-rocks sweep`` / ``run_sweep``: every run of a sweep file, on local processes or a Ray cluster, and
-its results (README, "Sweeps").
+its results (docs/sweeps.md).
 
     DIR/sweep.json          the sweep file (text and values), its fingerprint, the versions, the machine,
                             where it ran (backend, workers x threads)
@@ -153,9 +153,29 @@ def _bar(total: int, initial: int, progress):
 
 def run_sweep(path, out, backend: str = "local", workers=None, threads=None, address=None, resume: bool = False,
               overwrite: bool = False, arch: str = "cpu", progress=None, retries: int = 2) -> list[dict]:
-    """Run the sweep file ``path`` into the folder ``out`` (module docstring); returns the table, one dict per
-    run in run order (status "ok" or "failed"). Raises SweepError (a SceneError) for a bad sweep file and
-    SweepOutputError for results that may not be touched, before anything is written."""
+    """Run the sweep file ``path`` into the folder ``out`` (module docstring; docs/sweeps.md).
+
+    Args:
+        path: the sweep file (TOML).
+        out: the results folder (results.csv, sweep.json, runs/, plots/).
+        backend: "local" (worker processes of this machine) or "ray" (actors on a Ray cluster).
+        workers: worker processes or actors (default: one per core, at most one per run).
+        threads: Taichi threads per worker (default: cores / workers).
+        address: the Ray cluster to join (host:port); with the ray backend and no address, a local cluster is
+            started for the run.
+        resume: run only the runs without a row in ``out`` (the sweep file and base scene must be unchanged).
+        overwrite: replace the results in ``out``.
+        arch: the Taichi backend of the runs.
+        progress: a tqdm bar on stderr (None: only on a terminal).
+        retries: times a run whose worker was killed is tried again on another worker.
+
+    Returns:
+        The table, one dict per run in run order (the columns of results.csv; "status" "ok" or "failed").
+
+    Raises:
+        SweepError: a bad sweep file (a SceneError), before anything is written.
+        SweepOutputError: results in ``out`` that may not be touched, before anything is written.
+    """
     path, out = Path(path), Path(out)
     sweep, base = load_sweep(path, METRICS)
     runs = sweep_runs(sweep, base, str(path))

@@ -1,7 +1,8 @@
 """The launch models ([launch] model): how a tread throws a rock it runs over. One module per model, each
 with the same interface:
 
-    NAME             its name in scene files (one of the choices of ``launch.model`` in config/scene.py)
+    NAME             its name in scene files (one of the choices of ``launch.model``: the
+                     ``Launch`` model's ``Literal`` in config/models.py)
     PARAMS           the rows of engine/params.py it reads (``w.par[Par.X]``)
     STREAMS          the random-stream ids it draws, from the launch models' block (config/streams.py LAUNCH)
     launch(w, plan, t, i, step)
@@ -16,7 +17,8 @@ with the same interface:
     its docstring    the physics: what it computes, the equations, the sources
 
 The tire pass (engine/tires.py ``try_launch``) picks the model at compile time: ``MODELS[plan.throw].launch``. A new
-model is a module here, its line in :data:`MODELS` and its name among the scene's choices (config/scene.py).
+model is a module here, its line in :data:`MODELS` and its name among the choices of ``Launch.model``
+(config/models.py).
 """
 
 from . import tread, uniform

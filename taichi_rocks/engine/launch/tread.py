@@ -5,7 +5,7 @@ Sources. Chen, Fu & Wegman 1999, "A cellular automata model of vehicle-generated
 the stones stick to the tread by its adhesive forces and friction and leave it at a height that depends on the
 tire's speed and angular speed, the ground's wetness and the stone's weight. Plocher, Browand & Radovich 2014,
 Tire Sci. Tech. 42(3): what a tread throws leaves near the contact patch. The constants below are proxies,
-tuned to the field reports quoted in README.md, "The throw" (Berner et al. 2003; Albert, Nover & Nover 2006;
+tuned to the field reports quoted in docs/physics.md, "The throw" (Berner et al. 2003; Albert, Nover & Nover 2006;
 Strobl 1996), not measured on a tire.
 
 Symbols: tire radius R, tread speed omega R = spin (signed; |spin| = V (1 + slip)), stone radius r, density
