@@ -26,9 +26,9 @@ def test_every_page_holds_what_the_script_makes_of_the_committed_results():
         assert tables.rewrite(text, generated, names, page.name) == text, f"{page}: run python tools/readme_tables.py"
         for name in names:
             body = generated[name]
-            if name == "frame" and not (tables.RESULTS / "frame.json").exists():
+            if name in ("frame", "frame-details") and not (tables.RESULTS / "frame.json").exists():
                 # the frame run is not committed yet: its blocks are there and empty
-                assert f"<!-- results:frame -->\n<!-- /results:frame -->" in text, page
+                assert f"<!-- results:{name} -->\n<!-- /results:{name} -->" in text, page
                 continue
             assert body.strip() and f"<!-- results:{name} -->\n{body}\n<!-- /results:{name} -->" in text, (page, name)
 
@@ -82,11 +82,22 @@ def test_a_changed_result_changes_a_page():
 
 def test_a_frame_run_fills_the_frame_blocks_and_its_absence_empties_them():
     launch, bench = tables.load()
-    frame_run = {"frame": {"cases": [{"preset": "game", "median_ms": 0.8, "p95_ms": 1.25},
-                                     {"preset": "dt 2 ms", "median_ms": 3.5, "p95_ms": 4.0}]}}
-    body = tables.blocks(launch, dict(bench, frame_run=frame_run))["frame"]
-    assert "| preset | median ms | p95 ms |" in body and "| game | 0.8 | 1.25 |" in body
+    stats = {"median_ms": 0.25, "p95_ms": 0.5, "max_ms": 1.0}
+    loop = {"case": "game", "threads_asked": "auto", "threads": 2, "steps_per_frame": 1.0, "rows_median": 2786.0,
+            **{k: stats for k in ("advance_to", "impacts", "changes", "state")},
+            "frame": {"median_ms": 0.8, "p95_ms": 1.25, "max_ms": 2.0}}
+    frame_run = {"started": "2026-12-04 20:00:00", "load_average_start": [0.1, 0.1, 0.1],
+                 "machine": {"cpu_model": "X", "usable_cores": 2, "taichi": "1.7.4", "taichi_arch": "cpu"},
+                 "loops": [loop], "tasks": {"tasks": [{"kernel": "active_step", "task": 0, "what": "rays in",
+                                                       "kind": "serial", "per_step": 1.0, "median_ms": 0.002}]},
+                 "accuracy": [{"preset": "game", "dt": 1 / 60, "steps_per_60hz_frame": 1.0, "integrator": "heun",
+                               "detection": "patch", "precision": "f32", "flight_error_m": 1e-3,
+                               "recall_at_60": 1.0, "launch_time_bound_m": 0.5}]}
+    got = tables.blocks(launch, dict(bench, frame_run=frame_run))
+    assert "| game | 2 (auto) | 1 | 0.25 ms | 0.25 ms | 0.25 ms (2,786) | **0.8 ms** | 1.25 ms | 0.25 ms |" in got["frame"]
+    assert "| active_step | 0 | rays in | serial | 1 | 2 |" in got["frame-details"]
+    assert "| game | 0.01667 | 1 | heun, patch, f32 | 0.001 | 1 | 0.5 |" in got["frame-details"]
     without = {k: v for k, v in bench.items() if k != "frame_run"}
-    assert tables.blocks(launch, without)["frame"] == ""
+    assert tables.blocks(launch, without)["frame"] == "" == tables.blocks(launch, without)["frame-details"]
     text = "a\n<!-- results:frame -->\nold\n<!-- /results:frame -->\nb\n"
     assert tables.rewrite(text, {"frame": ""}) == "a\n<!-- results:frame -->\n<!-- /results:frame -->\nb\n"

@@ -35,7 +35,7 @@ DOCS = ROOT / "docs"
 RESULTS = DOCS / "results"
 # the pages that hold generated blocks, and their blocks (a block may sit in several pages)
 PAGES = {README: ("headline-speed", "frame", "presets"),
-         DOCS / "performance.md": ("frame", "activity-targets", "activity-notes", "activity-breakdown",
+         DOCS / "performance.md": ("frame", "frame-details", "activity-targets", "activity-notes", "activity-breakdown",
                                    "speed-targets", "speed-notes", "presets"),
          DOCS / "physics.md": ("launch-targets", "launch-cases"),
          DOCS / "impacts.md": ("impacts-targets",)}
@@ -172,14 +172,16 @@ def presets(launch: dict, bench: dict) -> list:
     rows = ["| preset | meets: flight error / recall at 60 m/s / launch-time bound | settings | measured flight "
             f"error | ms per simulated second ({n:,} rocks, {t} tires) |", "|---|---|---|---|---|"]
     for p in acc["presets"]:
-        meets = (f"{_length(p['target_flight_error_m'])} / {p['target_recall']:g} / "
+        meets = ("one step per 60 Hz frame (no targets)" if p["target_recall"] is None else
+                 f"{_length(p['target_flight_error_m'])} / {p['target_recall']:g} / "
                  f"{_length(p['target_launch_time_bound_m'])}")
         if "integrator" not in p:
             rows.append(f"| `{p['name']}` | {meets} | {p['none']} | | |")
             continue
         det = p["detection"] + (f" x{p['substeps']}" if p["substeps"] > 1 else "")
         rows.append(f"| `{p['name']}` | {meets} | {INTEGRATOR[p['integrator']]}, dt {p['dt']:g} s, {det}, "
-                    f"{p['precision']} | {_length(p['flight_error_m'])} | {_num(p['ms_per_simulated_s'])} |")
+                    f"{p['precision']} | {_length(p['flight_error_m']) if p['flight_error_m'] is not None else 'n/a'} | "
+                    f"{_num(p['ms_per_simulated_s']) if p['ms_per_simulated_s'] is not None else 'n/a'} |")
     rows.append("")
     rows.append(f"The defaults (symplectic Euler, dt 0.002 s, a single ray, f32): flight error "
                 f"{_length(_default_error(bench))}, recall {_num(_default_recall(bench), 2)} at 60 m/s, "
@@ -339,36 +341,32 @@ def _short_run(res: dict) -> str:
 
 
 def frame(launch: dict, bench: dict) -> list:
-    """The frame of a game loop (``bench --only frame``: docs/results/frame.json); nothing without that file.
-    Every list of rows in it becomes a table, its keys the columns."""
+    """The frame of a game loop (``bench --only frame``: docs/results/frame.json, bench/frame.py's tables);
+    nothing without that file."""
     res = bench.get("frame_run")
     if not res:
         return []
-    try:
-        rows = [run_line(dict(res, config=res.get("config", {"mode": "--only frame"}),
-                              elapsed_s=res.get("elapsed_s", 0.0)))]
-    except (KeyError, TypeError):  # a run without the machine record: its tables alone
-        rows = []
-    body = res.get("frame", res)
-    for name, table in body.items():
-        if not (isinstance(table, list) and table and all(isinstance(r, dict) for r in table)):
-            continue
-        cols = list(dict.fromkeys(k for r in table for k in r if not isinstance(r[k], (dict, list))))
-        rows += ["", f"*{name}*", "", "| " + " | ".join(c.replace("_", " ") for c in cols) + " |",
-                 "|" + "---|" * len(cols)]
-        rows += ["| " + " | ".join(_cell_value(r.get(c)) for c in cols) + " |" for r in table]
-    return rows
+    from taichi_rocks.bench.frame import frame_table
+
+    m = res["machine"]
+    return frame_table(res) + ["", f"Run: {res['started'][:10]}, {m.get('cpu_model', '?')}, "
+                                   f"{m.get('usable_cores', '?')} cores, Taichi {m.get('taichi', '?')} "
+                                   f"({m.get('taichi_arch', '?')}), load average {res['load_average_start']}."]
 
 
-def _cell_value(v) -> str:
-    if isinstance(v, bool) or v is None:
-        return {True: "yes", False: "no", None: "-"}[v]
-    if isinstance(v, (int, float)):
-        return _num(v)
-    return str(v).replace("|", "\\|")
+def frame_details(launch: dict, bench: dict) -> list:
+    """The frame study's task table and its accuracy per preset (docs/performance.md)."""
+    res = bench.get("frame_run")
+    if not res:
+        return []
+    from taichi_rocks.bench.frame import accuracy_table, task_table
+
+    return (["*The step's tasks with the game preset (Taichi's kernel profiler, per step):*", ""] + task_table(res)
+            + ["", "*What each preset costs in accuracy (the frame study's own measurements):*", ""]
+            + accuracy_table(res))
 
 
-BLOCKS = {"headline-speed": headline_speed, "frame": frame, "launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
+BLOCKS = {"headline-speed": headline_speed, "frame": frame, "frame-details": frame_details, "launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
           "speed-notes": speed_notes, "presets": presets, "activity-targets": activity_targets,
           "activity-notes": activity_notes, "activity-breakdown": activity_breakdown,
           "impacts-targets": impacts_targets}

@@ -277,7 +277,8 @@ def accuracy_table(res: dict) -> list:
 def report_lines(res: dict) -> list:
     m = res["machine"]
     L = [f"# The frame in a game loop ({res['scene']}, 60 Hz)", "",
-         f"{res['started']}, {m.get('cpu', '?')}, {m.get('cores', '?')} cores, arch {m.get('arch', '?')}, load "
+         f"{res['started']}, {m.get('cpu_model', '?')}, {m.get('usable_cores', '?')} cores, arch "
+         f"{m.get('taichi_arch', '?')}, load "
          f"{res['load_average_start']} -> {res.get('load_average_end')}; the engine's thread choice here: "
          f"{res['auto_threads']}.", "",
          "Per frame: `advance_to(f / 60)`, `impacts()`, `changes()`; medians (and the frame's 95th percentile) "

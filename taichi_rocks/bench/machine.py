@@ -82,7 +82,7 @@ def machine(arch: str) -> dict:
             "memory_gb": round(mem, 1) if mem else None, "python": platform.python_version(),
             "platform": platform.platform(), "taichi": ".".join(str(x) for x in ti.__version__),
             "numpy": np.__version__, "scipy": scipy.__version__, "taichi_arch": arch,
-            "taichi_threads": os.environ.get("TAICHI_ROCKS_THREADS", "default (all cores)")}
+            "taichi_threads": os.environ.get("TAICHI_ROCKS_THREADS", "default (every core up to 4)")}
     try:
         import matplotlib
 

@@ -33,7 +33,8 @@ TAB10 = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:br
          "tab:olive", "tab:cyan")
 COLORS = {name: TAB10[i % len(TAB10)] for i, name in enumerate(INTEGRATORS)}
 LINES = ("-", "--", ":", "-.")  # one per precision, stepping mode, ...
-PRESET_MARK = {"draft": ("*", "tab:red"), "balanced": ("P", "tab:purple"), "reference": ("X", "black")}
+PRESET_MARK = {"draft": ("*", "tab:red"), "balanced": ("P", "tab:purple"), "reference": ("X", "black"),
+               "game": ("D", "tab:green")}
 
 
 def _save(plt, fig, out: Path, name: str) -> str:

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ..config.keys import choices
+from ..config.presets import PRESETS
 from ..config.scene import scene_with
 from .config import PRESET_SPEED, PRESET_TARGETS, V_LAUNCH_MAX, Config
 from .detection import detection_runs
@@ -109,6 +110,23 @@ def _best(x: dict, name: str, e_target: float, r_target: float, q_target: float)
     return best
 
 
+def fixed_preset(x: dict, name: str, p: dict) -> dict:
+    """A preset set by its purpose, not chosen by targets ("game": one step per 60 Hz frame), measured as the
+    chosen ones are: flight error at its (precision, integrator, dt), recall (patch detection finds what swept
+    finds and more: swept's measured recall is its bound), launch-time bound and cost."""
+    detection = "swept" if p["detection"] in ("swept", "patch") else p["detection"]
+    e = x["err"].get((p["precision"], p["integrator"], p["dt"]))
+    c = _step_cost(x, detection, 1, p["integrator"], p["precision"])
+    recall = x["swept_recall"] if detection == "swept" else x["model"](PRESET_SPEED * p["dt"])
+    return {"name": name, "target_flight_error_m": None, "target_recall": None, "target_launch_time_bound_m": None,
+            "launch_time_bound_m": V_LAUNCH_MAX * p["dt"], "integrator": p["integrator"], "dt": p["dt"],
+            "detection": p["detection"], "substeps": 1, "precision": p["precision"], "origin": "floating",
+            "flight_error_m": e, "precision_error_far_m": x["prec_err"].get(p["precision"]), "far_m": x["far"],
+            "error_m": None if e is None else max(e, x["prec_err"].get(p["precision"], 0.0)),
+            "recall_at_60": recall, "recall_source": "measured, swept" if detection == "swept" else "modelled",
+            "step_ms": c, "ms_per_simulated_s": None if c is None else c / p["dt"]}
+
+
 def choose_presets(res: dict) -> list:
     x = _inputs(res)
     out = []
@@ -119,6 +137,7 @@ def choose_presets(res: dict) -> list:
                             "none": "no measured setting meets this target"
                                     + ("" if any(k[0] == "f64" for k in x["err"]) else " (f64 flights are measured "
                                                                                       "in the full run only)")})
+    out.append(fixed_preset(x, "game", PRESETS["game"]))
     return out
 
 

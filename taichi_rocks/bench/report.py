@@ -98,7 +98,8 @@ def _presets(res: dict, plots: list) -> list:
              "ms/step | ms per simulated s |")
     L.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for p in res["accuracy"]["presets"]:
-        tg = (f"{_fmt(p['target_flight_error_m'])} m / {p['target_recall']} / "
+        tg = ("one step per 60 Hz frame" if p["target_recall"] is None else
+              f"{_fmt(p['target_flight_error_m'])} m / {p['target_recall']} / "
               f"{_fmt(p.get('target_launch_time_bound_m'))} m")
         if "integrator" not in p:
             L.append(f"| {p['name']} | {tg} | {p['none']} |||||||||||")
