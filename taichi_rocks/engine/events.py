@@ -92,14 +92,24 @@ class EventBuffer:
 
     def drain(self, t_now: float | None = None) -> np.ndarray:
         """The events since the last drain as a structured array of :data:`EVENT_DTYPE`; empties the buffer and,
-        given ``t_now`` (the simulation time), makes it the reference of the times appended from now on."""
-        appended = int(self.count[None])
-        n = min(appended, self.capacity)
+        given ``t_now`` (the simulation time), makes it the reference of the times appended from now on. On the
+        CPU one launch writes them into host arrays kept for it (Taichi writes NumPy arrays in place there); on a
+        device the count is read first and exactly that many rows come back."""
+        if ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64):
+            if getattr(self, "_host", None) is None:
+                self._host = (np.empty((self.capacity, N_INT), np.int32),
+                              np.empty((self.capacity, N_REAL), self.np_real))
+            appended = int(_take_all(self, *self._host))
+            n = min(appended, self.capacity)
+            ints, reals = self._host[0][:n], self._host[1][:n]
+        else:
+            appended = int(self.count[None])
+            n = min(appended, self.capacity)
+            ints = np.empty((n, N_INT), np.int32)
+            reals = np.empty((n, N_REAL), self.np_real)
+            if appended:
+                _gather(self, n, ints, reals)
         self.dropped += appended - n
-        ints = np.empty((n, N_INT), np.int32)
-        reals = np.empty((n, N_REAL), self.np_real)
-        if appended:
-            _gather(self, n, ints, reals)
         out = np.empty(n, EVENT_DTYPE)
         for name, is_int, col, width, vector in COLUMNS:
             src = ints if is_int else reals
@@ -123,6 +133,20 @@ def _gather(buf: ti.template(), n: ti.i32, ints: ti.types.ndarray(), reals: ti.t
         for c in ti.static(range(N_REAL)):
             reals[k, c] = buf.reals[k, c]
     buf.count[None] = 0
+
+
+@ti.kernel
+def _take_all(buf: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndarray()) -> ti.i32:
+    """Every event kept (at most the capacity) into ``ints`` and ``reals`` (capacity rows each), the count
+    cleared; returns the count appended since the last drain (kept or not)."""
+    appended = buf.count[None]
+    for k in range(ti.min(appended, buf.capacity)):
+        for c in ti.static(range(N_INT)):
+            ints[k, c] = buf.ints[k, c]
+        for c in ti.static(range(N_REAL)):
+            reals[k, c] = buf.reals[k, c]
+    buf.count[None] = 0
+    return appended
 
 
 @ti.kernel
