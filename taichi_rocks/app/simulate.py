@@ -19,7 +19,7 @@ from ..output.atomic import new_folders, remove_stale_temporaries, temp_name, wr
 from ..output.npz import write_npz
 from ..output.recording import record_full
 from ..output.runs import impacts_csv, record_light
-from .frames import frame_count, frame_states
+from .frames import frame_count, frame_mirrors, frame_states
 
 __all__ = ["simulate_scene", "record"]
 
@@ -93,7 +93,8 @@ def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool =
         try:
             work.mkdir(mode=0o700)
             chunks = []
-            states = _draining(sim, frame_states(sim, frames, fps, guard, progress), chunks)
+            each = frame_states if layout == "full" or not sim.plan.drawn else frame_mirrors
+            states = _draining(sim, each(sim, frames, fps, guard, progress), chunks)
             if layout == "full":
                 members = record_full(sim, work, frames, fps, states)
             else:

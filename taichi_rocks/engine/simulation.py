@@ -26,6 +26,7 @@ from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
 from . import changes, rocks
+from .rocks import state_arrays
 from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
@@ -381,9 +382,13 @@ class Simulation:
         self._stepper.load(r)
         self._stepper.sync_drawn()
 
-    def state(self) -> dict:
+    def state(self, rocks: bool = True) -> dict:
         """The current state of every rock and vehicle, rocks in their original order (by rock id). It reads the
         whole bed from the device: for a check or a save, not for every frame of a game.
+
+        Args:
+            rocks: False leaves out the rocks' arrays (nothing is read from the device): the clock, the bed and
+                the vehicles alone, for a reader that takes the rocks from ``changes()``.
 
         Returns:
             A dict: "time" (s), "step", "positions" (N, 3) float64 world m, "velocities" (N, 3) m/s, "radii" (N,)
@@ -391,12 +396,11 @@ class Simulation:
             "orientations" (quaternions x, y, z, w), "bed_center" (3,), "vehicle_positions" (V, 3),
             "vehicle_headings" (V,) rad, "vehicle_names" (V,), "launches_total", "recycles_total".
         """
-        r = self.rock_arrays()
         poses = self._host.poses
         return {
             "time": self.time,
             "step": self.step_count,
-            **rocks.state_arrays(self.world, r, self.origin),
+            **(state_arrays(self.world, self.rock_arrays(), self.origin) if rocks else {}),
             "bed_center": self.bed_center.copy(),
             "vehicle_positions": np.array([p.position for p in poses]).reshape(-1, 3),
             "vehicle_headings": np.array([p.heading for p in poses]),
@@ -405,9 +409,13 @@ class Simulation:
             "recycles_total": self.recycles_total,
         }
 
-    def changes(self) -> dict:
+    def changes(self, velocities: bool = False) -> dict:
         """The rocks whose drawn state changed since the previous call (every rock the first time, and after
         ``restore`` or ``set_rocks``), one row per rock, in no particular order.
+
+        Args:
+            velocities: also give each row's velocity ("velocities", m/s, as ``state()``), read from the rocks
+                that move (the active list: O(rocks in it); every rock with full stepping).
 
         Returns:
             A dict of arrays with one row per rock: "ids" (int32), "positions" (float64, world coordinates: the
@@ -435,19 +443,21 @@ class Simulation:
             reals = np.empty((k, 7 if self.plan.spin else 3), w.np_real())
             if k:
                 changes.gather(w, k, ints, reals)
-            return self._rows(ints[:, 0], ints[:, 1], reals[:, :3], reals[:, 3:])
+            return self._rows(ints[:, 0], ints[:, 1], reals[:, :3], reals[:, 3:], velocities)
         buf = self._changes_buf  # the CPU: one launch writing into this array in place
         k = int(changes.gather_packed(w, buf))
         if k > len(buf):
             buf = self._changes_buf = np.empty((max(k, 2 * len(buf)), buf.shape[1]))
             changes.gather_packed(w, buf)
-        return self._rows(buf[:k, 0], buf[:k, 1], buf[:k, 2:5], buf[:k, 5:9])
+        return self._rows(buf[:k, 0], buf[:k, 1], buf[:k, 2:5], buf[:k, 5:9], velocities)
 
-    def _rows(self, ids, phase, local, orient) -> dict:
+    def _rows(self, ids, phase, local, orient, velocities: bool = False) -> dict:
         out = {"ids": ids.astype(np.int32), "positions": local.astype(np.float64) + self.origin,
                "phase": phase.astype(np.int8)}
         if self.plan.spin:
             out["orientations"] = orient.astype(self.world.np_real())
+        if velocities:
+            out["velocities"] = self._stepper.velocities_of(out["ids"])
         return out
 
     # ------------------------------------------------------------------------------------------ checkpoints

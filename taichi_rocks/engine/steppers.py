@@ -23,6 +23,7 @@ import numpy as np
 from . import active, changes, hashgrid, rocks, stepdata, tires
 from .impact_pass import time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
+from .rockfields import ID
 from .runtime import current_arch, on_cpu
 from .world import IPar, next_prime
 
@@ -56,6 +57,21 @@ class Stepper:
     def rock_arrays(self) -> dict:
         """Every rock's saved fields but the id, in id order, wherever the rock is."""
         return rocks.in_id_order(self.n_rocks, rocks.read_listed(self.world, self.n_rocks))
+
+    def velocities_of(self, ids: np.ndarray) -> np.ndarray:
+        """The velocities of rocks ``ids`` as ``rock_arrays()`` gives them: from the rock arrays where a rock is
+        listed there (O(their count)), else the rest value (a rock in the tiles rests)."""
+        w = self.world
+        vel = next(f for f in w.rocks if f.name == "vel")
+        out = np.full((len(ids), 3), vel.rest, w.np_real())
+        if len(ids):
+            listed = rocks.read_listed(w, self.active_count)
+            order = np.argsort(listed[ID], kind="stable")
+            have = listed[ID][order]
+            at = np.minimum(np.searchsorted(have, ids), max(len(have) - 1, 0))
+            hit = (have[at] == ids) if len(have) else np.zeros(len(ids), bool)
+            out[hit] = listed["vel"][order[at[hit]]]
+        return out
 
     @property
     def active_count(self) -> int:

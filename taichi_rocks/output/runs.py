@@ -96,7 +96,8 @@ def check_selection(only: str, crop) -> None:
 
 
 def record_light(sim, work: Path, frames: int, fps: float, states, only: str = "flying", crop=None) -> dict:
-    """Write the frames ``states`` yields ((f, ``sim.state()``), app/frames.py ``frame_states``) into ``work``
+    """Write the frames ``states`` yields ((f, ``sim.state()``), app/frames.py ``frame_states``, or ``frame_mirrors``
+    whose states say which rocks "changed") into ``work``
     (memory-mapped .npy files and row files appended frame by frame); returns the members of the light .npz
     (see the module docstring), in its order."""
     check_selection(only, crop)
@@ -122,7 +123,11 @@ def record_light(sim, work: Path, frames: int, fps: float, states, only: str = "
             arrays["launches"][f] = st["launches_total"] - previous
             previous = st["launches_total"]
             inside = crop_mask(st, follow, crop)
-            changed = changes.update(st)
+            if "changed" in st:  # the rows of Simulation.changes() (app/frames.py frame_mirrors)
+                changed = np.zeros(n, bool)
+                changed[st["changed"]] = True
+            else:
+                changed = changes.update(st)
             entered = np.ones(n, bool) if present is None else inside != present
             keep = entered | (inside & (changed if only == "flying" else True))
             present = inside
