@@ -28,8 +28,8 @@ def main() -> int:
     args = ap.parse_args()
 
     scene = load_scene(args.scene)
-    if args.accuracy == "game":  # the preset's keys, as [sim] accuracy = "game" in the file would set them
-        scene = scene_with(scene, {"sim.dt": 1 / 60, "sim.integrator": "heun", "sim.detection": "patch"})
+    if args.accuracy != "custom":  # as [sim] accuracy = "game" in the file: dt = 1/60 s, one step per frame
+        scene = scene_with(scene, {"sim.accuracy": args.accuracy})
     sim = Simulation(scene)
 
     positions = np.zeros((sim.n_rocks, 3))  # the game's mirror of the bed

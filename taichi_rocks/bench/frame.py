@@ -41,19 +41,10 @@ def _stats(ms: list) -> dict:
 
 
 def _scene(overrides: dict, path=SCENE):
-    """The scene file with ``overrides``; ``sim.accuracy`` as if written in the file (a preset is applied when
-    the file is read, and keys the file sets win)."""
-    import tomllib
+    """The scene file with ``overrides`` (``sim.accuracy`` applies its preset: config/scene.py scene_with)."""
+    from ..config.scene import load_scene, scene_with
 
-    from ..config.scene import load_scene, parse_scene, scene_with
-
-    path = Path(path)
     sc = load_scene(path)
-    if "sim.accuracy" in overrides:
-        data = tomllib.loads(path.read_text())
-        data.setdefault("sim", {})["accuracy"] = overrides["sim.accuracy"]
-        sc = parse_scene(data, source=str(path))
-        overrides = {k: v for k, v in overrides.items() if k != "sim.accuracy"}
     return scene_with(sc, overrides) if overrides else sc
 
 

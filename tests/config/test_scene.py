@@ -191,6 +191,16 @@ def test_summary_prints_the_memory_it_is_given():
     assert math.isclose(float(summarise(scene, 12_345_678).split("about ")[-1].split()[0]), 12.3, abs_tol=0.05)
 
 
+def test_an_accuracy_override_applies_its_preset():
+    car = [{"name": "car", "path": {"points": [[0, 0], [10, 0]], "speed": 1.0}}]
+    base = parse_scene({"sim": {"dt": 0.004, "detection": "ray"}, "vehicle": car})
+    game = scene_with(base, {"sim.accuracy": "game"})
+    assert (game.sim.accuracy, game.sim.dt, game.sim.integrator, game.sim.detection) == ("game", 1 / 60, "heun", "patch")
+    mixed = scene_with(base, {"sim.accuracy": "draft", "sim.dt": 0.01})  # keys given beside it win
+    assert (mixed.sim.dt, mixed.sim.detection) == (0.01, "swept")
+    assert scene_with(base, {"sim.accuracy": "custom"}).sim.dt == 0.004  # custom: the keys as they are
+
+
 def test_accuracy_presets_fill_unset_keys_only():
     from taichi_rocks.config.scene import PRESETS, parse_scene
 
