@@ -42,7 +42,8 @@ def export_scene(scene, out=None, fmt: str = "usd", frames=None, fps=None, arch:
     out = Path(out) if out is not None else default_out(scene, fmt)
     writer.check_target(out, overwrite)
     frames, fps = frame_count(scene, frames, fps)
-    sim = Simulation(scene, arch=arch, seed=seed, tumble=True)  # the instances' orientations are the engine's
+    # the instances' orientations are the engine's; every frame's whole state is exported (no changes() mirror)
+    sim = Simulation(scene, arch=arch, seed=seed, tumble=True, track_changes=False)
     with tqdm(total=frames, unit="frame", desc=f"export {scene.name}", file=sys.stderr,
               disable=None if progress is None else not progress) as bar:
         return export_run(sim, out, frames, fps, fmt=fmt, only=only or "all", crop=crop, progress=bar)

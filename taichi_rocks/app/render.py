@@ -172,7 +172,9 @@ def _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume)
     """Taichi, the simulation, the renderer (its window) and the checkpoints; the old outputs are removed only
     once all of these stand."""
     init_taichi(arch)
-    sim = Simulation(job.scene, arch=arch, tumble=True)  # the flying rocks are drawn turned (render/tumbling.py)
+    # the flying rocks are drawn turned (render/tumbling.py); the renderer reads the rocks on the device, culled by
+    # tiles (engine/drawing.py), not through changes(): no mirror to keep
+    sim = Simulation(job.scene, arch=arch, tumble=True, track_changes=False)
     renderer = Renderer(sim, resolution=resolution, fps=job.video_fps, rocks=rocks, window_every=window_every)
     every = CHECKPOINT_EVERY if checkpoint_every is None else int(checkpoint_every)
     checkpoints = RenderCheckpoints(job.out_dir, fingerprint(job.scene, job.video_fps, renderer.resolution, rocks),

@@ -100,7 +100,8 @@ class Viewer:
     """A window on a live simulation of ``scene``. See the module docstring."""
 
     def __init__(self, scene, arch="cpu", resolution=None, record=None, status_path=None):
-        self.sim = Simulation(scene, arch=arch, tumble=True)  # the flying rocks are drawn turned
+        # the flying rocks are drawn turned; drawn from the device (engine/drawing.py), no changes() mirror
+        self.sim = Simulation(scene, arch=arch, tumble=True, track_changes=False)
         res = tuple(resolution) if resolution is not None else tuple(int(x) for x in scene.render.resolution)
         self.win = ShownWindow(res, title=f"taichi-rocks view: {scene.name}")
         self.renderer = Renderer(self.sim, resolution=res, target=self.win)

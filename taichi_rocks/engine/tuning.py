@@ -62,16 +62,16 @@ def runtime_values(sim) -> dict:
 
 def rebuilder(sim, changes: dict):
     """Validate ``changes`` (dotted scene keys, any: switches included) and checkpoint ``sim``; return
-    ``make()``, which builds the Simulation of the changed scene (same arch, timer and tumble) continuing from the
+    ``make()``, which builds the Simulation of the changed scene (same arch, timer, tumble and change tracking) continuing from the
     checkpoint. Drop every reference to ``sim`` before calling ``make()``, so that its World goes back to the
     pool and the new one reuses it when the layout allows (no new fields; kernels compiled once per switch
     set). SceneError if a value is invalid."""
     scene = scene_with(sim.scene, dict(changes))
     state, arch, timer, tumble = sim.checkpoint(), sim.arch, sim.timer, sim.tumble
-    coast = sim.coast
+    coast, track = sim.coast, sim.track_changes
 
     def make():  # the pool collects a dropped sim still in a reference cycle (engine/trees.py Pool.lease)
-        new = Simulation(scene, arch=arch, timer=timer, tumble=tumble)
+        new = Simulation(scene, arch=arch, timer=timer, tumble=tumble, track_changes=track)
         new.restore(state)
         new.coast = coast
         return new
