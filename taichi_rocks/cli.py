@@ -1,8 +1,9 @@
 """Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench | sweep``.
 
 Exit status: 0 success; 1 the simulation went wrong (runtime guard; a sweep: a run failed); 2 bad input (scene, arguments,
-existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
-never a traceback.
+existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C); 128 + N ended by signal N
+(SIGTERM 143, SIGHUP 129), cleaned up as after a Ctrl-C. Errors are one line per problem on stderr, never a
+traceback.
 """
 
 from __future__ import annotations
@@ -24,11 +25,26 @@ class UsageError(Exception):
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C, with what the user can do next (``hint``: the rest of the message's line)."""
+    """Ctrl-C (or SIGTERM, SIGHUP: ``signum``), with what the user can do next (``hint``: the rest of the
+    message's line)."""
 
-    def __init__(self, hint: str = ""):
+    def __init__(self, hint: str = "", signum: int = signal.SIGINT):
         super().__init__()
         self.hint = hint
+        self.signum = int(signum)
+
+
+# Signals that end a run as Ctrl-C does: the same clean-up (every writer removes its temporaries on a
+# KeyboardInterrupt), a line saying so, exit 128 + the signal's number.
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
+def _raise_stop(signum, frame):
+    raise Interrupted(signum=signum)
+
+
+def _signal_name(signum: int) -> str:
+    return signal.Signals(signum).name
 
 
 def _positive_int(text: str) -> int:
@@ -266,9 +282,10 @@ def cmd_render(args) -> int:
         kwargs["resume"] = True
     try:
         info = render_scene(scene, **kwargs)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         # render leaves saved states only beside finished frames: only then is there something to resume
-        raise Interrupted("; run the same command with --resume to continue" if resumable(out_dir) else "") from None
+        raise Interrupted("; run the same command with --resume to continue" if resumable(out_dir) else "",
+                          signum=getattr(e, "signum", signal.SIGINT)) from None
     if info.get("replayed_from") is not None:
         how = (f"restored the state saved after frame {info['replayed_from'] - 1}" if info["replayed_from"]
                else "simulated from the start")
@@ -426,26 +443,39 @@ def _start(argv):
 
 
 def main(argv=None, *, held=None, restore=None) -> int:
-    """The command line. ``held``: Ctrl-C presses already held back (``python -m taichi_rocks`` holds them
-    from its first line); ``restore``: the SIGINT handler to put back after start-up (default: the one
-    found)."""
+    """The command line. ``held``: Ctrl-C presses (and SIGTERM, SIGHUP) already held back (``python -m
+    taichi_rocks`` holds them from its first line); ``restore``: the SIGINT handler to put back after start-up
+    (default: the one found). SIGTERM and SIGHUP end the command as Ctrl-C does (module docstring); their
+    handlers found are put back when it returns."""
     held = [] if held is None else held
     if restore is None:
         restore = signal.getsignal(signal.SIGINT)
         if not callable(restore) and restore not in (signal.SIG_IGN, signal.SIG_DFL):
             restore = signal.default_int_handler
-    signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    before = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    for s in (signal.SIGINT, *STOP_SIGNALS):
+        signal.signal(s, lambda signum, frame: held.append(signum))
     try:
-        args = _start(argv)
+        try:
+            args = _start(argv)
+        finally:
+            signal.signal(signal.SIGINT, restore)
+            for s in STOP_SIGNALS:
+                signal.signal(s, _raise_stop)
+        return _run(args, held)
     finally:
-        signal.signal(signal.SIGINT, restore)
+        for s, h in before.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def _run(args, held) -> int:
     from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
                "render": cmd_render, "view": cmd_view, "bench": cmd_bench, "sweep": cmd_sweep}[args.command]
     try:
         if held:
-            raise KeyboardInterrupt
+            raise Interrupted(signum=held[-1])
         return handler(args)
     except SceneError as e:
         _err(str(e))
@@ -454,8 +484,13 @@ def main(argv=None, *, held=None, restore=None) -> int:
         _err(f"taichi-rocks {args.command}: {e}")
         return EXIT_USAGE
     except KeyboardInterrupt as e:
-        _err(f"taichi-rocks {args.command}: interrupted{getattr(e, 'hint', '')}")
-        return EXIT_INTERRUPTED
+        signum = getattr(e, "signum", signal.SIGINT)
+        if signum == signal.SIGINT:
+            _err(f"taichi-rocks {args.command}: interrupted{getattr(e, 'hint', '')}")
+            return EXIT_INTERRUPTED
+        _err(f"taichi-rocks {args.command}: interrupted by {_signal_name(signum)}, temporaries removed"
+             f"{getattr(e, 'hint', '')}")
+        return 128 + int(signum)
     except Exception as e:  # noqa: BLE001 - one line, no traceback, for anything the engine raises
         from .engine.simulation import HealthError
 
