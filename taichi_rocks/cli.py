@@ -468,6 +468,16 @@ def main(argv=None, *, held=None, restore=None) -> int:
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
+def _check_seed(args) -> None:
+    """``--seed`` within the scene's range (config/values.py SEED_MAX), named in the refusal."""
+    seed = getattr(args, "seed", None)
+    if seed is not None:
+        from .config.values import SEED_MAX
+
+        if not 0 <= seed <= SEED_MAX:
+            raise UsageError(f"--seed: must be an integer from 0 to {SEED_MAX} (2^63 - 1), got {seed}")
+
+
 def _run(args, held) -> int:
     from .config.scene import SceneError
 
@@ -476,6 +486,7 @@ def _run(args, held) -> int:
     try:
         if held:
             raise Interrupted(signum=held[-1])
+        _check_seed(args)
         return handler(args)
     except SceneError as e:
         _err(str(e))

@@ -8,7 +8,7 @@ from typing import Any, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
-                     _f, _follow, _is_list, _raise_problems, _show, _Table)
+                     _f, _follow, _is_list, _raise_problems, _show, _Table, SEED_MAX)
 from .resolution import MIN_SIDE
 from .impacts import Impacts
 from .presets import PRESETS
@@ -279,7 +279,7 @@ class Scene(_Table):
     SI units, world Z up, angles in degrees."""
     name: Name = _f("scene", "scene name; defaults to the file stem")
     duration: Float = _f(10.0, "s of simulated time", gt=0)
-    seed: Int = _f(1, "random seed", ge=0)
+    seed: Int = _f(1, "random seed", ge=0, le=SEED_MAX)
     world: Environment = _f(Environment(), Environment.__doc__)
     bed: Bed = _f(Bed(), Bed.__doc__)
     launch: Launch = _f(Launch(), Launch.__doc__)

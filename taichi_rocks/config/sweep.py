@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from .scene import Scene, SceneError, load_scene, scene_to_dict, scene_with
 from .tomltext import TomlTextError, loads as toml_loads
+from .values import SEED_MAX
 
 __all__ = ["Sweep", "SweepError", "SweepRun", "load_sweep", "parse_sweep", "sweep_runs"]
 
@@ -51,7 +52,7 @@ class Measure(_Table):
 class Sweep(_Table):
     """A sweep: the base scene, seeds, an optional duration, the grid and the metrics."""
     scene: Annotated[str, Strict()] = Field(description="the base scene file, relative to the sweep file")
-    seeds: Optional[tuple[Annotated[int, Strict(), Field(ge=0)], ...]] = Field(
+    seeds: Optional[tuple[Annotated[int, Strict(), Field(ge=0, le=SEED_MAX)], ...]] = Field(
         None, min_length=1, description="seeds of every combination (default: the base scene's)")
     duration: Optional[Annotated[float, Field(gt=0)]] = Field(None, description="s simulated per run")
     grid: dict[str, tuple[Any, ...]] = Field(description="scene key -> the values it takes", min_length=1)

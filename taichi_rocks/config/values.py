@@ -21,6 +21,7 @@ Bool = Annotated[bool, Strict()]
 Name = Annotated[str, Strict(), Field(min_length=1)]
 Vec2 = tuple[Float, Float]
 Vec3 = tuple[Float, Float, Float]
+SEED_MAX = 2**63 - 1  # run files and checkpoints store the seed as an int64
 
 
 def _f(default: Any, description: str, **constraints) -> Any:
