@@ -17,3 +17,19 @@ def test_seed_out_of_range_names_the_flag(capsys, tmp_path, command):
         r = cli_here(capsys, command, MINIMAL, "--seed", seed, "--out", tmp_path / "o")
         refused(r, "--seed", seed)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["simulate", "render", "export"])
+def test_runs_of_too_many_steps_are_refused_with_the_estimate(capsys, tmp_path, command):
+    """--fps 1e-9 or --frames 2e9 (years of stepping): refused before anything runs, naming the flag and the
+    estimate; a scene file with sim.dt = 1e-12 the same, naming sim.dt, and `check` says so too."""
+    out = tmp_path / ("o.usdc" if command == "export" else "o")
+    for flags, words in ((("--fps=1e-9", "--frames", 5), ("--fps 1e-09", "1e+12 steps", "years")),
+                         (("--frames", 2_000_000_000), ("--frames 2000000000", "steps", "days"))):
+        refused(cli_here(capsys, command, MINIMAL, *flags, "--out", out), *words)
+    scene = tmp_path / "s" / "dt.toml"
+    scene.parent.mkdir()
+    scene.write_text(MINIMAL.read_text().replace("dt = 0.004", "dt = 1e-12"))
+    line = refused(cli_here(capsys, command, scene, "--frames", 5, "--out", out), "sim.dt", "2e+12 steps")
+    assert refused(cli_here(capsys, "check", scene)) == line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]

@@ -18,6 +18,7 @@ from ..output.atomic import new_folders
 from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint, resume_dir
 from ..output.video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
 from ..render.renderer import WINDOW_EVERY, Renderer, check_rocks
+from .frames import check_steps
 
 __all__ = ["render_scene", "render_dir", "resumable"]
 
@@ -125,6 +126,7 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
     paths = output_paths(out_dir, scene.name, fmt)  # ValueError on an unknown format
     video_fps = float(fps if fps is not None else scene.render.fps)
     n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))
+    check_steps(scene, n_frames, video_fps, frames, fps)
     old = _existing_outputs(paths)
     start = 0
     if resume:

@@ -11,6 +11,7 @@ from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Spe
                      _f, _follow, _is_list, _raise_problems, _show, _Table, SEED_MAX)
 from .resolution import MIN_SIDE
 from .impacts import Impacts
+from .limits import MAX_STEPS, steps_estimate
 from .presets import PRESETS
 
 
@@ -302,6 +303,18 @@ class Scene(_Table):
         _raise_problems([(("camera", "shot", i, "at"), f"must be < duration ({self.duration:g}): a shot that starts "
                                                        f"after the end is never seen, got {shot.at:g}")
                          for i, shot in enumerate(self.camera.shots) if not shot.at < self.duration])
+        return self
+
+    @model_validator(mode="after")
+    def _steps_in_reach(self) -> Scene:
+        """At most MAX_STEPS steps (config/limits.py): ``duration`` is to blame when even the default dt takes
+        too many, else ``sim.dt``."""
+        if self.duration / self.sim.dt > MAX_STEPS:
+            blame_duration = self.duration / Sim().dt > MAX_STEPS
+            got = f"{self.duration:g}" if blame_duration else f"{self.sim.dt:g}"
+            _raise_problems([(("duration",) if blame_duration else ("sim", "dt"),
+                              f"{self.duration:g} s of simulated time are {steps_estimate(self.duration, self.sim.dt)}"
+                              f", got {got}")])
         return self
 
     def vehicle_index(self, name: str) -> int:

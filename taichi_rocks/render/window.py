@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import taichi as ti
+from taichi._lib.core import taichi_python as _taichi_core
 
 __all__ = ["VULKAN_HINT", "ggui", "HiddenWindow", "ShownWindow", "trim_heap", "layout_file"]
 
@@ -103,9 +104,7 @@ def _gimgui_address():
     if not _GIMGUI:
         address = None
         try:
-            from taichi._lib.core import taichi_python
-
-            lib = os.path.realpath(taichi_python.__file__)
+            lib = os.path.realpath(_taichi_core.__file__)
             value = _symbol_value(lib, b"GImGui")
             if value is not None:
                 with open("/proc/self/maps") as maps:
@@ -114,7 +113,7 @@ def _gimgui_address():
                         if len(parts) >= 6 and int(parts[2], 16) == 0 and os.path.realpath(parts[5]) == lib:
                             address = int(parts[0].split("-")[0], 16) + value
                             break
-        except (ImportError, OSError, ValueError, struct.error):
+        except (AttributeError, OSError, ValueError, struct.error):
             address = None
         _GIMGUI.append(address)
     return _GIMGUI[0]

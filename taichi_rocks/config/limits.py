@@ -1,0 +1,24 @@
+"""Limits no sane run reaches, checked before anything runs: the steps a run would take (duration / dt, or
+--frames / --fps over dt). A scene of 2e12 steps (``sim.dt = 1e-12``) would run for years; it is refused with
+the estimate, naming the key that makes it (config/models.py for the scene; app/frames.py for the flags)."""
+
+from __future__ import annotations
+
+__all__ = ["MAX_STEPS", "STEP_PACE_S", "steps_estimate"]
+
+MAX_STEPS = 10**8  # steps of one run: 28 hours at 1 ms a step
+STEP_PACE_S = 1e-4  # s per step of the smallest scenes on a fast machine: the estimate's optimistic pace
+
+
+def _duration(seconds: float) -> str:
+    for unit, size in (("years", 365.25 * 86400), ("days", 86400), ("hours", 3600), ("minutes", 60)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.3g} s"
+
+
+def steps_estimate(seconds: float, dt: float) -> str:
+    """'2e+12 steps of 1e-12 s (about 6.34 years at 0.1 ms a step)': the steps of ``seconds`` of simulated time."""
+    steps = seconds / dt
+    return (f"{steps:.3g} steps of {dt:g} s (about {_duration(steps * STEP_PACE_S)} at {STEP_PACE_S * 1e3:g} ms a "
+            f"step), more than the {MAX_STEPS:.0e} a run may take")
