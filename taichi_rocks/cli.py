@@ -105,26 +105,26 @@ def _parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="run headless and write an .npz of the rock states")
     engine_args(s)
-    s.add_argument("--out", type=Path, help="output .npz (default: renders/<scene>/<scene>.npz)")
+    s.add_argument("--out", type=str, help="output .npz (default: renders/<scene>/<scene>.npz)")
     s.add_argument("--layout", choices=("light", "full"), default="light",
                    help="light: rows of the rocks that changed, relative to the floating origin; full: every "
                         "rock of every frame, float64 world (default: light; taichi_rocks.load_run reads both)")
     selection_args(s, "flying", "light layout: write the rocks that changed (flying; the others are unchanged) "
                                 "or every rock every frame (all)")
-    s.add_argument("--impacts", type=Path, metavar="FILE.csv",
+    s.add_argument("--impacts", type=str, metavar="FILE.csv",
                    help="with [effects] impacts: also write the impact events as CSV (the run file holds them)")
 
     e = sub.add_parser("export", help="write the run for other tools: USD (Houdini, Omniverse, Unreal, Blender) "
                                       "or PLY point files")
     engine_args(e)
     e.add_argument("--format", choices=tuple(FORMATS), default=next(iter(FORMATS)))
-    e.add_argument("--out", type=Path, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
+    e.add_argument("--out", type=str, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
                                             "or renders/<scene>/ply/)")
     selection_args(e, "all", "flying: only the rocks in the air or that moved this frame; all: every rock")
 
     r = sub.add_parser("render", help="render frames (PNG) and a video with the offscreen GGUI renderer")
     engine_args(r)
-    r.add_argument("--out", type=Path, help="output folder (default: renders/<scene>/)")
+    r.add_argument("--out", type=str, help="output folder (default: renders/<scene>/)")
     r.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
     r.add_argument("--format", choices=("mp4", "gif", "png"), default="mp4")
     r.add_argument("--profile", action="store_true", help="report time shares per stage")
@@ -169,7 +169,7 @@ def _sweep_parser(sub, arches, backends) -> None:
     w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
                                      "cluster, into results.csv, sweep.json, runs/ and plots/")
     w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; README, \"Sweeps\")")
-    w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
+    w.add_argument("--out", type=str, required=True, metavar="DIR", help="the results folder")
     w.add_argument("--backend", choices=backends, help="local processes (default) or a Ray cluster "
                                                                 "(default with --address)")
     w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
@@ -468,14 +468,20 @@ def main(argv=None, *, held=None, restore=None) -> int:
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
-def _check_seed(args) -> None:
-    """``--seed`` within the scene's range (config/values.py SEED_MAX), named in the refusal."""
-    seed = getattr(args, "seed", None)
-    if seed is not None:
-        from .config.values import SEED_MAX
+_OUT_EXPECTED = {"simulate": "an .npz file name", "render": "a folder name", "sweep": "a folder name"}
 
-        if not 0 <= seed <= SEED_MAX:
-            raise UsageError(f"--seed: must be an integer from 0 to {SEED_MAX} (2^63 - 1), got {seed}")
+
+def _check_out(args) -> None:
+    """``--out`` (and ``--impacts``) given as an empty name: refused, saying what was expected (an empty path
+    would otherwise mean the current folder)."""
+    for flag in ("out", "impacts"):
+        value = getattr(args, flag, None)
+        if value is not None and str(value).strip() == "":
+            expected = ("a .csv file name" if flag == "impacts" else _OUT_EXPECTED.get(args.command) or
+                        ("a folder name" if getattr(args, "format", "") == "ply" else "a .usdc file name"))
+            raise UsageError(f"--{flag}: an empty name, expected {expected}")
+        if value is not None:
+            setattr(args, flag, Path(value))
 
 
 def _run(args, held) -> int:
@@ -486,7 +492,8 @@ def _run(args, held) -> int:
     try:
         if held:
             raise Interrupted(signum=held[-1])
-        _check_seed(args)
+        if args.command in ("simulate", "export", "render", "sweep"):
+            _check_out(args)
         return handler(args)
     except SceneError as e:
         _err(str(e))

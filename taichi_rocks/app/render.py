@@ -14,7 +14,7 @@ from ..config.resolution import check_resolution
 from ..config.scene import load_scene
 from ..engine.runtime import init_taichi
 from ..engine.simulation import Simulation
-from ..output.atomic import new_folders
+from ..output.atomic import check_place, new_folders
 from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint, resume_dir
 from ..output.video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
 from ..render.renderer import WINDOW_EVERY, Renderer, check_rocks
@@ -123,6 +123,9 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
     Raises before anything is written."""
     scene = load_scene(scene_or_path) if isinstance(scene_or_path, (str, os.PathLike)) else scene_or_path
     out_dir = render_dir(scene, out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir}: is a file, expected a folder for the render")
+    check_place(out_dir, folder=True)
     paths = output_paths(out_dir, scene.name, fmt)  # ValueError on an unknown format
     video_fps = float(fps if fps is not None else scene.render.fps)
     n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))

@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from ..engine.events import EVENT_DTYPE
 from ..engine.simulation import Simulation
-from ..output.atomic import new_folders, remove_stale_temporaries, temp_name, write_atomically
+from ..output.atomic import check_place, new_folders, remove_stale_temporaries, temp_name, write_atomically
 from ..output.npz import write_npz
 from ..output.recording import record_full
 from ..output.runs import impacts_csv, record_light
@@ -41,6 +41,7 @@ def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", se
     for path in (out, csv) if csv is not None else (out,):
         if path.is_dir():
             raise ValueError(f"{path}: is a directory, expected a file name")
+        check_place(path)
         if path.exists() and not overwrite:
             raise FileExistsError(f"{path}: exists; pass --overwrite to replace it")
     frames, fps = frame_count(scene, frames, fps)

@@ -32,7 +32,7 @@ from ... import __version__
 from ...bench.machine import machine
 from ...config.scene import scene_to_dict
 from ...config.sweep import load_sweep, sweep_fingerprint, sweep_runs
-from ...output.atomic import new_folders, write_atomically
+from ...output.atomic import check_place, new_folders, write_atomically
 from .metrics import METRICS
 from .plots import plot_sweep
 from ...runner.tasks import Outcome, run_tasks
@@ -93,10 +93,14 @@ def table(rows: list) -> list[dict]:
 
 def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool) -> None:
     """Refuse to touch results that are not ours to replace; with overwrite, remove the old ones."""
+    if out.exists() and not out.is_dir():
+        raise SweepOutputError(f"{out}: exists and is not a folder")
+    try:
+        check_place(out, folder=True)
+    except ValueError as e:
+        raise SweepOutputError(str(e)) from None
     if not out.exists():
         return
-    if not out.is_dir():
-        raise SweepOutputError(f"{out}: exists and is not a folder")
     found = [n for n in OURS if (out / n).exists()]
     if overwrite:
         for n in found:
