@@ -23,7 +23,7 @@ from .models import (CAMERA_VIEWS, PATH_KINDS, Bed, CameraSettings, CirclePath, 
                      Render, Scene, Shot, Sim, SunAngles, Vehicle, WaypointPath)
 from .presets import PRESETS
 from .summary import summarise
-from .tomltext import TomlTextError, loads as toml_loads
+from .tomltext import read_toml
 from .values import _is_list, _show
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
@@ -115,17 +115,7 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
 def load_scene(path: Union[str, os.PathLike]) -> Scene:
     """Read and validate a scene file; its name defaults to the file stem."""
     source = str(path)
-    try:
-        # a byte-order mark (Windows editors write one) is not TOML's: dropped, not "line 1: Invalid statement"
-        text = Path(path).read_bytes().decode("utf-8").removeprefix("\ufeff")
-    except OSError as e:
-        raise SceneError([f"{source}: cannot read scene: {e.strerror or e}"]) from None
-    except UnicodeDecodeError as e:
-        raise SceneError([f"{source}: cannot read scene: not UTF-8 text ({e.reason} at byte {e.start})"]) from None
-    try:
-        data = toml_loads(text)
-    except TomlTextError as e:
-        raise SceneError([f"{source}: {e}"]) from None
+    data = read_toml(path, "scene", SceneError)
     return parse_scene(data, source, Path(path).stem)
 
 

@@ -29,8 +29,8 @@ from typing import Annotated, Any, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from .scene import Scene, SceneError, load_scene, scene_to_dict, scene_with
-from .tomltext import TomlTextError, loads as toml_loads
-from .values import SEED_MAX
+from .tomltext import read_toml
+from .values import SEED_MAX, _show
 
 __all__ = ["Sweep", "SweepError", "SweepRun", "load_sweep", "parse_sweep", "sweep_runs"]
 
@@ -66,18 +66,6 @@ class SweepRun:
     values: dict
     seed: int
     scene: Scene
-
-
-def _show(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, dict):
-        return "a table"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_show(x) for x in v) + "]"
-    return "nothing" if v is None else (f"{v:g}" if isinstance(v, float) else str(v))
 
 
 def _key(loc: tuple) -> str:
@@ -145,16 +133,7 @@ def parse_sweep(data: dict, source: str, metrics=None) -> Sweep:
 def load_sweep(path: Union[str, os.PathLike], metrics=None) -> tuple[Sweep, Scene]:
     """Read and validate a sweep file and its base scene; ``metrics``: the names allowed in [measure]."""
     source = str(path)
-    try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except OSError as e:
-        raise SweepError([f"{source}: cannot read sweep: {e.strerror or e}"]) from None
-    except UnicodeDecodeError as e:
-        raise SweepError([f"{source}: cannot read sweep: not UTF-8 text ({e.reason} at byte {e.start})"]) from None
-    try:
-        data = toml_loads(text)
-    except TomlTextError as e:
-        raise SweepError([f"{source}: {e}"]) from None
+    data = read_toml(path, "sweep", SweepError)
     sweep = parse_sweep(data, source, metrics)
     scene_path = Path(path).parent / sweep.scene
     if not scene_path.is_file():

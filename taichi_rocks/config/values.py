@@ -87,7 +87,9 @@ def _raise_problems(problems: list[tuple[tuple, str]]) -> None:
 
 
 def _show(v: Any, room: int = 60) -> str:
-    """A value as the user wrote it (TOML-ish); a list is cut to ``room`` characters, looking only at what fits."""
+    """A value as the user wrote it (TOML-ish), in the messages of scene and sweep files alike (a float as
+    Python writes it: 10.0 is not the integer 10); a list is cut to ``room`` characters, looking only at what
+    fits."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):

@@ -317,6 +317,36 @@ def test_bad_sweep_files(case, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_byte_order_mark_is_read_as_in_scene_files(tmp_path):
+    """A sweep file saved with a UTF-8 byte-order mark reads as scene files do (it was refused); a seed past
+    int64 is refused naming seeds."""
+    from taichi_rocks.config import scene, sweep
+
+    path = _sweep_file(tmp_path, "\ufeff" + SWEEP)
+    assert load_sweep(path, METRICS)[0].seeds == (1, 2)
+    assert sweep._show is scene._show  # one way to show a value in both kinds of file
+    big = _sweep_file(tmp_path, SWEEP.replace("seeds = [1, 2]", "seeds = [1, 18446744073709551616]"), "big.toml")
+    with pytest.raises(SweepError, match=r"seeds\[1\]: .*9223372036854775807"):
+        load_sweep(big, METRICS)
+
+
+def test_nothing_is_written_before_every_check_passed(tmp_path, capsys):
+    """--workers and --threads past the cores: refused, nothing written (sweep.json was, and the corrected
+    command was then refused as holding a sweep's results); --overwrite removes nothing when refused."""
+    sweep = _sweep_file(tmp_path / "s")
+    out = tmp_path / "out"
+    too_many = str(usable_cores() + 1)
+    assert main(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--threads", too_many]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "threads is more than" in err[0], err
+    assert not out.exists()
+    (out / "runs").mkdir(parents=True)
+    (out / "sweep.json").write_text("{}")
+    assert main(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--threads", too_many,
+                 "--overwrite"]) == 2
+    assert sorted(p.name for p in out.iterdir()) == ["runs", "sweep.json"]
+
+
 def test_one_bad_file_through_the_command_line(tmp_path):
     sweep = _sweep_file(tmp_path, _bad_text("bad_value"))
     refused(cli("sweep", sweep, "--out", tmp_path / "out"), 'grid."launch.grip" = -1')

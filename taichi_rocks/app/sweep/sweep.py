@@ -35,7 +35,7 @@ from ...config.sweep import load_sweep, sweep_fingerprint, sweep_runs
 from ...output.atomic import check_place, new_folders, write_atomically
 from .metrics import METRICS
 from .plots import plot_sweep
-from ...runner.tasks import Outcome, run_tasks
+from ...runner.tasks import Outcome, plan_placement, run_tasks
 
 WORKER = "taichi_rocks.app.sweep.worker:run_one"
 FIXED = ("id", "seed", "status", "error", "attempts", "seconds")
@@ -91,8 +91,9 @@ def table(rows: list) -> list[dict]:
     return out
 
 
-def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool) -> None:
-    """Refuse to touch results that are not ours to replace; with overwrite, remove the old ones."""
+def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool, remove: bool = True) -> None:
+    """Refuse to touch results that are not ours to replace; with overwrite (and ``remove``), remove the old
+    ones."""
     if out.exists() and not out.is_dir():
         raise SweepOutputError(f"{out}: exists and is not a folder")
     try:
@@ -103,6 +104,8 @@ def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool) -> No
         return
     found = [n for n in OURS if (out / n).exists()]
     if overwrite:
+        if not remove:
+            return
         for n in found:
             p = out / n
             shutil.rmtree(p) if p.is_dir() else p.unlink()
@@ -119,6 +122,23 @@ def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool) -> No
     if old != fingerprint:
         raise SweepOutputError(f"{out}: holds the results of another sweep (the sweep file or its base scene "
                                f"changed); pass --overwrite to start again")
+
+
+def _check_placement(backend: str, tasks: int, workers, threads, address) -> None:
+    """The refusals of runner/tasks.py ``run_tasks`` about where the runs go, made before anything is written
+    (ValueError, one line)."""
+    if backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError("the ray backend needs the ray package: pip install 'taichi-rocks[ray]'") from None
+        return
+    if address:
+        raise ValueError("--address is for the ray backend")
+    place = plan_placement("local", tasks, workers, threads)
+    if place.workers * place.threads > place.cores:
+        raise ValueError(f"{place.workers} workers x {place.threads} threads is more than the {place.cores} "
+                         f"cores here")
 
 
 def _done_rows(out: Path, ids: set) -> dict:
@@ -164,11 +184,14 @@ def run_sweep(path, out, backend: str = "local", workers=None, threads=None, add
     sweep, base = load_sweep(path, METRICS)
     runs = sweep_runs(sweep, base, str(path))
     fingerprint = sweep_fingerprint(sweep, base)
+    by_id = {r.id: r for r in runs}
+    _check_out(out, fingerprint, resume, overwrite, remove=False)  # nothing removed or written before every check
+    kept = _done_rows(out, set(by_id)) if resume and out.is_dir() else {}
+    _check_placement(backend, len(runs) - len(kept), workers, threads, address)
     _check_out(out, fingerprint, resume, overwrite)
     keys, metrics = list(sweep.grid), list(sweep.measure.metrics)
-    by_id = {r.id: r for r in runs}
     with new_folders(out / "runs"):
-        rows = _done_rows(out, set(by_id)) if resume else {}
+        rows = kept
         meta = {"sweep_file": str(path), "sweep_text": path.read_text(), "sweep": sweep.model_dump(mode="json"),
                 "base_scene": scene_to_dict(base), "fingerprint": fingerprint, "runs": len(runs),
                 "versions": _versions(), "machine": machine(arch), "backend": backend, "address": address,
