@@ -128,7 +128,8 @@ class CirclePath(_Table):
     """A circle or circular arc."""
     kind: Literal["circle"] = _f(..., "path kind")
     center: Vec2 = _f((0.0, 0.0), "m, centre [x, y]")
-    radius: Float = _f(20.0, "m, radius", gt=0)
+    radius: Float = _f(20.0, "m, radius, at least 0.5 (tighter than any vehicle turns; the turn rate speed / radius "
+                             "overflowed for radii near 1e-300)", ge=0.5)
     speed: Speed = _f(10.0, "m/s")
     clockwise: Bool = _f(False, "drive clockwise")
     start_angle: Float = _f(0.0, "deg, where the vehicle starts, counter-clockwise from +x")
