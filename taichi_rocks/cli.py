@@ -199,13 +199,13 @@ def _check_arch(scene, arch: str) -> None:
 
 def cmd_check(args) -> int:
     from .config.scene import SceneError, load_scene, summarise
-    from .engine.layout import check_fits, estimate_memory
+    from .engine.layout import check_machine, estimate_memory
 
     status = EXIT_OK
     for i, path in enumerate(args.scenes):
         try:
             scene = load_scene(path)
-            check_fits(scene)
+            check_machine(scene)
         except SceneError as e:
             _err(str(e))
             status = EXIT_USAGE
@@ -309,6 +309,10 @@ def cmd_view(args) -> int:
     if args.seed is not None:
         scene = scene_with(scene, {"seed": args.seed})
     _check_arch(scene, args.arch)
+    from .engine.layout import frame_problem
+
+    if frame_problem(scene, args.resolution):
+        raise UsageError(frame_problem(scene, args.resolution))
     problem = display_problem()  # before Taichi starts: no window without a screen
     if problem:
         raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")

@@ -34,3 +34,12 @@ def test_runs_of_too_many_steps_are_refused_with_the_estimate(capsys, tmp_path, 
     line = refused(cli_here(capsys, command, scene, "--frames", 5, "--out", out), "sim.dt", "2e+12 steps")
     assert refused(cli_here(capsys, "check", scene)) == line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]
+
+
+def test_frames_too_big_for_the_machine_are_refused_before_taichi_allocates(capsys, tmp_path):
+    """--resolution 200000x200000 (400 GB of frames) ended in a Taichi allocation error (exit 1): one line
+    naming the flag, exit 2, for render and view (before it looks for a display)."""
+    for command, out in (("render", ("--out", tmp_path / "o")), ("view", ())):
+        refused(cli_here(capsys, command, MINIMAL, "--resolution", "200000x200000", *out),
+                "--resolution 200000x200000: a 200000x200000 frame needs about 1600.0 GB")
+    assert list(tmp_path.iterdir()) == []

@@ -11,7 +11,8 @@ from types import SimpleNamespace
 from tqdm import tqdm
 
 from ..config.resolution import check_resolution
-from ..config.scene import load_scene
+from ..config.scene import SceneError, load_scene
+from ..engine.layout import frame_problem
 from ..engine.runtime import init_taichi
 from ..engine.simulation import Simulation
 from ..output.atomic import check_place, new_folders
@@ -130,6 +131,9 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
     video_fps = float(fps if fps is not None else scene.render.fps)
     n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))
     check_steps(scene, n_frames, video_fps, frames, fps)
+    problem = frame_problem(scene, resolution)
+    if problem:
+        raise (SceneError([problem]) if resolution is None else ValueError(problem))
     old = _existing_outputs(paths)
     start = 0
     if resume:

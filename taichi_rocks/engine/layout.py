@@ -11,7 +11,8 @@ scene's seed up to ``EXACT_UP_TO`` rocks and extrapolates from that many evenly 
 machine's memory, a one-line SceneError naming the key that makes the demand (:func:`demand_key`: ``bed.rocks``;
 ``bed.radius`` when the tile store is sized for rocks packed densely on a tiny bed; ``sim.hash.table_size``,
 ``impacts.capacity`` when set so large); Simulation raises it before allocating, and ``taichi-rocks check``
-reports it.
+reports it. :func:`frame_problem`: the same for the frames a render or the viewer draws (``render.resolution``
+or ``--resolution``), refused before Taichi allocates them.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from .setup import hash_sizing, initial_rocks
 from .world import field_specs
 
 __all__ = ["world_layout", "estimate_memory", "memory_problem", "check_fits", "physical_memory", "n_tires_of",
-           "demand_key"]
+           "demand_key", "frame_bytes", "frame_problem", "check_machine"]
 
 EXACT_UP_TO = 1 << 20  # rocks: radii drawn from the seed up to this many (AABB insert only)
 
@@ -142,5 +143,39 @@ def memory_problem(scene) -> Optional[str]:
 def check_fits(scene) -> None:
     """Raise SceneError (one line naming the key, :func:`demand_key`) if the scene's World would not fit in memory."""
     problem = memory_problem(scene)
+    if problem:
+        raise SceneError([problem])
+
+
+# Bytes per pixel of a drawn frame: GGUI's colour and depth images (4 + 4), the frame read back as float32 RGBA
+# (16), the uint8 frame (3), its copies queued to the PNG and video writers (3 + 3), and room for the driver's
+# staging copy (4) and more.
+BYTES_PER_PIXEL = 40
+
+
+def frame_bytes(resolution) -> int:
+    """About the memory a render's frame of ``resolution`` (width, height) takes (:data:`BYTES_PER_PIXEL`)."""
+    w, h = (int(x) for x in resolution)
+    return w * h * BYTES_PER_PIXEL
+
+
+def frame_problem(scene, resolution=None) -> Optional[str]:
+    """The one-line problem of frames (the scene's ``render.resolution``, or ``resolution`` from --resolution)
+    that need more memory than this machine has; None if they fit or the machine does not say."""
+    res = tuple(int(x) for x in (resolution if resolution is not None else scene.render.resolution))
+    need, have = frame_bytes(res), physical_memory()
+    if not have or need <= have:
+        return None
+    what = (f"--resolution {res[0]}x{res[1]}" if resolution is not None
+            else f"{scene.source}: render.resolution")
+    return (f"{what}: a {res[0]}x{res[1]} frame needs about {need / 1e9:.1f} GB of memory, more than this machine "
+            f"has ({have / 1e9:.1f} GB)" + ("" if resolution is not None else f", got [{res[0]}, {res[1]}]"))
+
+
+def check_machine(scene) -> None:
+    """What ``taichi-rocks check`` asks of this machine: the World fits (:func:`check_fits`) and so do the
+    frames (:func:`frame_problem`); SceneError, one line per problem."""
+    check_fits(scene)
+    problem = frame_problem(scene)
     if problem:
         raise SceneError([problem])
