@@ -514,6 +514,9 @@ def _run(args, held) -> int:
              f"{getattr(e, 'hint', '')}")
         return 128 + int(signum)
     except Exception as e:  # noqa: BLE001 - one line, no traceback, for anything the engine raises
+        if isinstance(e, OSError) and e.filename is not None and e.strerror:  # a write that failed (a full disk)
+            _err(f"taichi-rocks {args.command}: {e.filename}: {e.strerror}")
+            return EXIT_FAILED
         from .engine.simulation import HealthError
 
         if isinstance(e, HealthError):

@@ -6,6 +6,8 @@ file holds the run's events (``impacts``, drained every frame), ``--impacts FILE
 
 from __future__ import annotations
 
+import errno
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -21,7 +23,9 @@ from ..output.recording import record_full
 from ..output.runs import impacts_csv, record_light
 from .frames import frame_count, frame_states
 
-__all__ = ["simulate_scene", "record"]
+__all__ = ["simulate_scene", "record", "WRITE_ERRORS"]
+
+WRITE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EIO)
 
 
 def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", seed=None, overwrite: bool = False,
@@ -84,6 +88,10 @@ def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool =
             if sim.plan.impacts:
                 members["impacts"] = np.concatenate(chunks) if chunks else np.empty(0, EVENT_DTYPE)
             write_atomically(out, lambda f: write_npz(f, members))
+        except OSError as e:
+            if e.errno in WRITE_ERRORS:  # the disk full, ...: one line naming the output, not a temporary
+                raise OSError(e.errno, os.strerror(e.errno), str(out)) from None
+            raise
         finally:
             shutil.rmtree(work, ignore_errors=True)
     info = {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size,
