@@ -181,6 +181,7 @@ def _sweep_parser(sub, arches, backends) -> None:
     w.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend of the runs")
     w.add_argument("--resume", action="store_true", help="continue: run only the runs without a row in DIR")
     w.add_argument("--overwrite", action="store_true", help="replace the results in DIR")
+    w.add_argument("--yes", action="store_true", help="run a sweep of more than 10000 runs (refused without it)")
 
 
 def _err(msg: str) -> None:
@@ -381,7 +382,8 @@ def cmd_sweep(args) -> int:
         raise UsageError("--resume and --overwrite exclude each other")
     try:
         rows = run_sweep(args.sweep, args.out, backend=backend, workers=args.workers, threads=args.threads,
-                         address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch)
+                         address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch,
+                         yes=args.yes, announce=lambda line: print(line, file=sys.stderr, flush=True))
     except ConnectionError as e:
         raise UsageError(f"cannot reach the Ray cluster at {args.address}: {str(e).splitlines()[0]} (a cluster "
                          f"with token authentication needs RAY_AUTH_MODE=token here too)") from None

@@ -24,7 +24,7 @@ from .models import (CAMERA_VIEWS, PATH_KINDS, Bed, CameraSettings, CirclePath, 
 from .presets import PRESETS
 from .summary import summarise
 from .tomltext import read_toml
-from .values import _is_list, _show
+from .values import _is_list, _show, dumped
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
            "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
@@ -122,7 +122,7 @@ def load_scene(path: Union[str, os.PathLike]) -> Scene:
 # ---------------------------------------------------------------------------------------------- derived
 def scene_to_dict(scene: Scene) -> dict:
     """The scene as a TOML-like dict with every key filled in (lists, file key names); parse_scene reads it back."""
-    return scene.model_dump(mode="json", by_alias=True)
+    return dumped(scene, mode="json", by_alias=True)  # an interrupt inside pydantic's dump is not lost
 
 
 _PART = re.compile(r"([A-Za-z_][\w-]*)((?:\[\d+\])*)")

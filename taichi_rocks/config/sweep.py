@@ -32,7 +32,7 @@ from .scene import Scene, SceneError, load_scene, scene_to_dict, scene_with
 from .tomltext import read_toml
 from .values import SEED_MAX, _show
 
-__all__ = ["Sweep", "SweepError", "SweepRun", "load_sweep", "parse_sweep", "sweep_runs"]
+__all__ = ["Sweep", "SweepError", "SweepRun", "load_sweep", "parse_sweep", "sweep_runs", "sweep_size"]
 
 
 class SweepError(SceneError):
@@ -154,9 +154,19 @@ def _reason(e: SceneError, scene: Scene) -> str:
     return line.split(": ", 1)[1] if ": " in line else line
 
 
-def sweep_runs(sweep: Sweep, base: Scene, source: str) -> list[SweepRun]:
+def sweep_size(sweep: Sweep) -> int:
+    """The number of runs: the product of the grid's value counts, times the seeds (none built)."""
+    n = len(sweep.seeds) if sweep.seeds is not None else 1
+    for values in sweep.grid.values():
+        n *= len(values)
+    return n
+
+
+def sweep_runs(sweep: Sweep, base: Scene, source: str, checked=None) -> list[SweepRun]:
     """Every run of the sweep (grid combinations in file order, the last key fastest, then seeds), each
-    scene validated; SweepError naming the key and the value of every value or combination refused."""
+    scene validated (once per combination: the seeds are in range by the Sweep model); SweepError naming the
+    key and the value of every value or combination refused. ``checked()``: called once every value passed
+    its own check, before the combinations are built (the slow part)."""
     fixed = {"duration": sweep.duration} if sweep.duration is not None else {}
     problems = []
     for key, values in sweep.grid.items():
@@ -171,17 +181,20 @@ def sweep_runs(sweep: Sweep, base: Scene, source: str) -> list[SweepRun]:
                 break
     if problems:
         raise SweepError(problems)
+    if checked is not None:
+        checked()
     keys = list(sweep.grid)
     seeds = sweep.seeds if sweep.seeds is not None else (base.seed,)
     runs = []
     for combo in itertools.product(*(sweep.grid[k] for k in keys)):
         values = dict(zip(keys, combo))
+        try:
+            combined = scene_with(base, {**values, **fixed})
+        except SceneError as e:
+            shown = ", ".join(f"{json.dumps(k)} = {_show(v)}" for k, v in values.items())
+            raise SweepError([f"{source}: grid: the combination {shown}: {_reason(e, base)}"]) from None
         for seed in seeds:
-            try:
-                scene = scene_with(base, {**values, **fixed, "seed": seed})
-            except SceneError as e:
-                shown = ", ".join(f"{json.dumps(k)} = {_show(v)}" for k, v in values.items())
-                raise SweepError([f"{source}: grid: the combination {shown}: {_reason(e, base)}"]) from None
+            scene = combined.model_copy(update={"seed": int(seed)})
             runs.append(SweepRun(f"r{len(runs):04d}", values, int(seed), scene))
     return runs
 

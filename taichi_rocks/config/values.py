@@ -5,6 +5,7 @@ table shares (:class:`_Table`: frozen, unknown keys refused, no inf or nan), and
 from __future__ import annotations
 
 import json
+import warnings
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag
@@ -40,10 +41,38 @@ def Range(**bounds) -> Any:
     return Annotated[tuple[item, item], AfterValidator(_ordered)]
 
 
+# An interrupt (Ctrl-C, SIGTERM) raised inside a discriminator while pydantic serialises a model is swallowed
+# there (it becomes a serializer warning and the dump goes on: a sweep ignored Ctrl-C for a minute): the picker
+# keeps it here, and dumped() raises it once the dump returns.
+_CAUGHT: list = []
+
+
+def _picker(pick_a):
+    def pick(v):
+        try:
+            return "@a" if pick_a(v) else "@b"
+        except BaseException as e:  # noqa: BLE001 - only an interrupt can come from pick_a
+            _CAUGHT.append(e)
+            raise
+    return pick
+
+
+def dumped(model: BaseModel, **kwargs) -> dict:
+    """``model.model_dump(**kwargs)`` with an interrupt raised inside it re-raised (see :data:`_CAUGHT`)."""
+    _CAUGHT.clear()  # one kept while validating went up by itself
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        data = model.model_dump(**kwargs)
+    if _CAUGHT:
+        raise _CAUGHT.pop()
+    if any("discriminator" in str(w.message) for w in seen):  # raised before the picker's try could hold it
+        raise KeyboardInterrupt
+    return data
+
+
 def _either(a: Any, b: Any, pick_a) -> Any:
     """A union that picks its member by the input's type, so a bad value gets one error, not one per member."""
-    return Annotated[Union[Annotated[a, Tag("@a")], Annotated[b, Tag("@b")]],
-                     Discriminator(lambda v: "@a" if pick_a(v) else "@b")]
+    return Annotated[Union[Annotated[a, Tag("@a")], Annotated[b, Tag("@b")]], Discriminator(_picker(pick_a))]
 
 
 def _is_str(v: Any) -> bool:

@@ -259,6 +259,7 @@ def test_ctrl_c_then_resume(reference, tmp_path, capsys):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "interrupted" in err.strip().splitlines()[-1]
+    assert err.splitlines()[0].startswith("sweep: 4 runs of up to 100 steps: at least "), err  # said up front
     kept = _rows(out)
     assert 1 <= len(kept) < RUNS
     assert main(["sweep", str(sweep), "--out", str(out)]) == 2  # neither --resume nor --overwrite
@@ -345,6 +346,78 @@ def test_nothing_is_written_before_every_check_passed(tmp_path, capsys):
     assert main(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--threads", too_many,
                  "--overwrite"]) == 2
     assert sorted(p.name for p in out.iterdir()) == ["runs", "sweep.json"]
+
+
+def _big_sweep(tmp_path) -> Path:
+    """100,000 runs: 100 x 100 grid values x 10 seeds."""
+    grips = ", ".join(f"{1e5 + 1000.0 * i}" for i in range(100))
+    speeds = ", ".join(f"{1.0 + 0.1 * i:.1f}" for i in range(100))
+    return _sweep_file(tmp_path, f'scene = "base.toml"\nseeds = [{", ".join(map(str, range(1, 11)))}]\n[grid]\n'
+                                 f'"launch.grip" = [{grips}]\n"vehicle[0].path.speed" = [{speeds}]\n', "big.toml")
+
+
+def test_a_sweep_of_too_many_runs_is_refused_without_yes(tmp_path, capsys):
+    """100,000 runs started without a word (after 95-150 s of validation): refused at once with the count and the
+    estimate, naming --yes; nothing written."""
+    out = tmp_path / "out"
+    assert main(["sweep", str(_big_sweep(tmp_path)), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "100000 runs of up to 500 steps" in err[0] and "--yes" in err[0], err
+    assert not out.exists()
+
+
+def test_an_interrupt_inside_a_pydantic_dump_is_not_lost():
+    """pydantic swallows an exception raised in a discriminator while it serialises (it warns and goes on): a
+    Ctrl-C landing there was lost, and a sweep dumping its runs' scenes ran on for a minute. dumped() (what
+    scene_to_dict uses) raises it."""
+    from pydantic import BaseModel
+
+    from taichi_rocks.config import values
+    from taichi_rocks.config.scene import load_scene, scene_to_dict
+
+    calls = []
+
+    def pick(v):
+        calls.append(v)
+        if len(calls) == 2:  # the first call validates; the second is the dump's
+            raise KeyboardInterrupt
+        return isinstance(v, str)
+
+    class M(BaseModel):
+        x: values._either(str, int, pick) = 1
+
+    m = M(x=3)
+    with pytest.warns(UserWarning, match="discriminator"):
+        assert m.model_dump() == {"x": 3}  # lost in pydantic's own dump
+    calls[:] = [None]  # the next call raises: the one of this dump
+    with pytest.raises(KeyboardInterrupt):
+        values.dumped(m)
+    assert scene_to_dict(load_scene(MINIMAL))["name"] == "minimal"
+
+
+def test_ctrl_c_stops_a_big_sweep_while_it_builds_its_runs(tmp_path):
+    """--yes: the count and estimate said first; a Ctrl-C once it was said ends the sweep (exit 130, one
+    line), nothing written."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "taichi_rocks", "sweep", str(_big_sweep(tmp_path)), "--out",
+                             str(out), "--workers", "1", "--threads", "1", "--yes"],
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        import select
+
+        ready, _, _ = select.select([proc.stderr], [], [], 120)  # a sweep that says nothing must not hang the test
+        assert ready, "the sweep said nothing before building its runs"
+        first = proc.stderr.readline()
+        assert first.startswith("sweep: 100000 runs of up to 500 steps"), first
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130 and err.strip().splitlines() == ["taichi-rocks sweep: interrupted"], err
+    assert not out.exists()
 
 
 def test_one_bad_file_through_the_command_line(tmp_path):

@@ -31,7 +31,8 @@ from tqdm import tqdm
 from ... import __version__
 from ...bench.machine import machine
 from ...config.scene import scene_to_dict
-from ...config.sweep import load_sweep, sweep_fingerprint, sweep_runs
+from ...config.limits import MAX_SWEEP_RUNS, STEP_PACE_S, duration_text
+from ...config.sweep import SweepError, load_sweep, sweep_fingerprint, sweep_runs, sweep_size
 from ...output.atomic import check_place, new_folders, write_atomically
 from .metrics import METRICS
 from .plots import plot_sweep
@@ -175,19 +176,37 @@ def _bar(total: int, initial: int, progress):
                 disable=None if progress is None else not progress)
 
 
+def sweep_estimate(sweep, base, n: int) -> str:
+    """One line: the runs, their steps and the least time their stepping takes (config/limits.py's pace)."""
+    duration = sweep.duration if sweep.duration is not None else base.duration
+    dts = [v for v in sweep.grid.get("sim.dt", ()) if isinstance(v, (int, float)) and v > 0] or [base.sim.dt]
+    steps = duration / min(dts)
+    return (f"{n} runs of up to {steps:.3g} steps: at least {duration_text(n * steps * STEP_PACE_S)} of stepping "
+            f"at {STEP_PACE_S * 1e3:g} ms a step, shared by the workers")
+
+
 def run_sweep(path, out, backend: str = "local", workers=None, threads=None, address=None, resume: bool = False,
-              overwrite: bool = False, arch: str = "cpu", progress=None, retries: int = 2) -> list[dict]:
+              overwrite: bool = False, arch: str = "cpu", progress=None, retries: int = 2, yes: bool = False,
+              announce=None) -> list[dict]:
     """Run the sweep file ``path`` into the folder ``out`` (module docstring); returns the table, one dict per
-    run in run order (status "ok" or "failed"). Raises SweepError (a SceneError) for a bad sweep file and
-    SweepOutputError for results that may not be touched, before anything is written."""
+    run in run order (status "ok" or "failed"). Raises SweepError (a SceneError) for a bad sweep file or one of
+    more than MAX_SWEEP_RUNS runs without ``yes``, and SweepOutputError for results that may not be touched,
+    before anything is written. ``announce(line)``: told the run count and estimate (:func:`sweep_estimate`)
+    once the values are checked, before the runs are built."""
     path, out = Path(path), Path(out)
     sweep, base = load_sweep(path, METRICS)
-    runs = sweep_runs(sweep, base, str(path))
+    n = sweep_size(sweep)
+    if n > MAX_SWEEP_RUNS and not yes:
+        raise SweepError([f"{path}: grid: {sweep_estimate(sweep, base, n)}; more than {MAX_SWEEP_RUNS} runs: pass "
+                          f"--yes to run them"])
     fingerprint = sweep_fingerprint(sweep, base)
-    by_id = {r.id: r for r in runs}
+    ids = {f"r{i:04d}" for i in range(n)}  # sweep_runs's ids, known before the runs are built
     _check_out(out, fingerprint, resume, overwrite, remove=False)  # nothing removed or written before every check
-    kept = _done_rows(out, set(by_id)) if resume and out.is_dir() else {}
-    _check_placement(backend, len(runs) - len(kept), workers, threads, address)
+    kept = _done_rows(out, ids) if resume and out.is_dir() else {}
+    _check_placement(backend, n - len(kept), workers, threads, address)
+    runs = sweep_runs(sweep, base, str(path),
+                      checked=None if announce is None else lambda: announce(f"sweep: {sweep_estimate(sweep, base, n)}"))
+    by_id = {r.id: r for r in runs}
     _check_out(out, fingerprint, resume, overwrite)
     keys, metrics = list(sweep.grid), list(sweep.measure.metrics)
     with new_folders(out / "runs"):
