@@ -1,5 +1,5 @@
-"""``python -m taichi_rocks``: the command line, with Ctrl-C held back from the first line until the
-imports are done (see cli.main).
+"""``python -m taichi_rocks``: the command line, with Ctrl-C (and SIGTERM, SIGHUP) held back from the first
+line until the imports are done (see cli.main).
 
 ``TAICHI_ROCKS_STARTED=PATH`` (optional): create the empty file PATH as soon as Ctrl-C is held back, so that a
 supervising program (the tests) knows when a Ctrl-C starts to end the run cleanly."""
@@ -8,7 +8,8 @@ import os
 import signal
 
 _held: list = []
-signal.signal(signal.SIGINT, lambda signum, frame: _held.append(signum))
+for _signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    signal.signal(_signum, lambda signum, frame: _held.append(signum))
 if os.environ.get("TAICHI_ROCKS_STARTED"):
     open(os.environ["TAICHI_ROCKS_STARTED"], "ab").close()
 

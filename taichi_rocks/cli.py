@@ -1,8 +1,9 @@
 """Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench | sweep``.
 
 Exit status: 0 success; 1 the simulation went wrong (runtime guard; a sweep: a run failed); 2 bad input (scene, arguments,
-existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C). Errors are one line per problem on stderr,
-never a traceback.
+existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C); 128 + N ended by signal N
+(SIGTERM 143, SIGHUP 129), cleaned up as after a Ctrl-C. Errors are one line per problem on stderr, never a
+traceback.
 """
 
 from __future__ import annotations
@@ -24,11 +25,26 @@ class UsageError(Exception):
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C, with what the user can do next (``hint``: the rest of the message's line)."""
+    """Ctrl-C (or SIGTERM, SIGHUP: ``signum``), with what the user can do next (``hint``: the rest of the
+    message's line)."""
 
-    def __init__(self, hint: str = ""):
+    def __init__(self, hint: str = "", signum: int = signal.SIGINT):
         super().__init__()
         self.hint = hint
+        self.signum = int(signum)
+
+
+# Signals that end a run as Ctrl-C does: the same clean-up (every writer removes its temporaries on a
+# KeyboardInterrupt), a line saying so, exit 128 + the signal's number.
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
+def _raise_stop(signum, frame):
+    raise Interrupted(signum=signum)
+
+
+def _signal_name(signum: int) -> str:
+    return signal.Signals(signum).name
 
 
 def _positive_int(text: str) -> int:
@@ -89,26 +105,26 @@ def _parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("simulate", help="run headless and write an .npz of the rock states")
     engine_args(s)
-    s.add_argument("--out", type=Path, help="output .npz (default: renders/<scene>/<scene>.npz)")
+    s.add_argument("--out", type=str, help="output .npz (default: renders/<scene>/<scene>.npz)")
     s.add_argument("--layout", choices=("light", "full"), default="light",
                    help="light: rows of the rocks that changed, relative to the floating origin; full: every "
                         "rock of every frame, float64 world (default: light; taichi_rocks.load_run reads both)")
     selection_args(s, "flying", "light layout: write the rocks that changed (flying; the others are unchanged) "
                                 "or every rock every frame (all)")
-    s.add_argument("--impacts", type=Path, metavar="FILE.csv",
+    s.add_argument("--impacts", type=str, metavar="FILE.csv",
                    help="with [effects] impacts: also write the impact events as CSV (the run file holds them)")
 
     e = sub.add_parser("export", help="write the run for other tools: USD (Houdini, Omniverse, Unreal, Blender) "
                                       "or PLY point files")
     engine_args(e)
     e.add_argument("--format", choices=tuple(FORMATS), default=next(iter(FORMATS)))
-    e.add_argument("--out", type=Path, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
+    e.add_argument("--out", type=str, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
                                             "or renders/<scene>/ply/)")
     selection_args(e, "all", "flying: only the rocks in the air or that moved this frame; all: every rock")
 
     r = sub.add_parser("render", help="render frames (PNG) and a video with the offscreen GGUI renderer")
     engine_args(r)
-    r.add_argument("--out", type=Path, help="output folder (default: renders/<scene>/)")
+    r.add_argument("--out", type=str, help="output folder (default: renders/<scene>/)")
     r.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
     r.add_argument("--format", choices=("mp4", "gif", "png"), default="mp4")
     r.add_argument("--profile", action="store_true", help="report time shares per stage")
@@ -154,7 +170,7 @@ def _sweep_parser(sub, arches, backends) -> None:
     w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
                                      "cluster, into results.csv, sweep.json, runs/ and plots/")
     w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; docs/sweeps.md)")
-    w.add_argument("--out", type=Path, required=True, metavar="DIR", help="the results folder")
+    w.add_argument("--out", type=str, required=True, metavar="DIR", help="the results folder")
     w.add_argument("--backend", choices=backends, help="local processes (default) or a Ray cluster "
                                                                 "(default with --address)")
     w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
@@ -166,6 +182,7 @@ def _sweep_parser(sub, arches, backends) -> None:
     w.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend of the runs")
     w.add_argument("--resume", action="store_true", help="continue: run only the runs without a row in DIR")
     w.add_argument("--overwrite", action="store_true", help="replace the results in DIR")
+    w.add_argument("--yes", action="store_true", help="run a sweep of more than 10000 runs (refused without it)")
 
 
 def _err(msg: str) -> None:
@@ -184,13 +201,13 @@ def _check_arch(scene, arch: str) -> None:
 
 def cmd_check(args) -> int:
     from .config.scene import SceneError, load_scene, summarise
-    from .engine.layout import check_fits, estimate_memory
+    from .engine.layout import check_machine, estimate_memory
 
     status = EXIT_OK
     for i, path in enumerate(args.scenes):
         try:
             scene = load_scene(path)
-            check_fits(scene)
+            check_machine(scene)
         except SceneError as e:
             _err(str(e))
             status = EXIT_USAGE
@@ -267,9 +284,10 @@ def cmd_render(args) -> int:
         kwargs["resume"] = True
     try:
         info = render_scene(scene, **kwargs)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         # render leaves saved states only beside finished frames: only then is there something to resume
-        raise Interrupted("; run the same command with --resume to continue" if resumable(out_dir) else "") from None
+        raise Interrupted("; run the same command with --resume to continue" if resumable(out_dir) else "",
+                          signum=getattr(e, "signum", signal.SIGINT)) from None
     if info.get("replayed_from") is not None:
         how = (f"restored the state saved after frame {info['replayed_from'] - 1}" if info["replayed_from"]
                else "simulated from the start")
@@ -293,6 +311,10 @@ def cmd_view(args) -> int:
     if args.seed is not None:
         scene = scene_with(scene, {"seed": args.seed})
     _check_arch(scene, args.arch)
+    from .engine.layout import frame_problem
+
+    if frame_problem(scene, args.resolution):
+        raise UsageError(frame_problem(scene, args.resolution))
     problem = display_problem()  # before Taichi starts: no window without a screen
     if problem:
         raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")
@@ -367,7 +389,8 @@ def cmd_sweep(args) -> int:
         raise UsageError("--resume and --overwrite exclude each other")
     try:
         rows = run_sweep(args.sweep, args.out, backend=backend, workers=args.workers, threads=args.threads,
-                         address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch)
+                         address=args.address, resume=args.resume, overwrite=args.overwrite, arch=args.arch,
+                         yes=args.yes, announce=lambda line: print(line, file=sys.stderr, flush=True))
     except ConnectionError as e:
         raise UsageError(f"cannot reach the Ray cluster at {args.address}: {str(e).splitlines()[0]} (a cluster "
                          f"with token authentication needs RAY_AUTH_MODE=token here too)") from None
@@ -433,26 +456,57 @@ def _start(argv):
 
 
 def main(argv=None, *, held=None, restore=None) -> int:
-    """The command line. ``held``: Ctrl-C presses already held back (``python -m taichi_rocks`` holds them
-    from its first line); ``restore``: the SIGINT handler to put back after start-up (default: the one
-    found)."""
+    """The command line. ``held``: Ctrl-C presses (and SIGTERM, SIGHUP) already held back (``python -m
+    taichi_rocks`` holds them from its first line); ``restore``: the SIGINT handler to put back after start-up
+    (default: the one found). SIGTERM and SIGHUP end the command as Ctrl-C does (module docstring); their
+    handlers found are put back when it returns."""
     held = [] if held is None else held
     if restore is None:
         restore = signal.getsignal(signal.SIGINT)
         if not callable(restore) and restore not in (signal.SIG_IGN, signal.SIG_DFL):
             restore = signal.default_int_handler
-    signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    before = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    for s in (signal.SIGINT, *STOP_SIGNALS):
+        signal.signal(s, lambda signum, frame: held.append(signum))
     try:
-        args = _start(argv)
+        try:
+            args = _start(argv)
+        finally:
+            signal.signal(signal.SIGINT, restore)
+            for s in STOP_SIGNALS:
+                signal.signal(s, _raise_stop)
+        return _run(args, held)
     finally:
-        signal.signal(signal.SIGINT, restore)
+        for s, h in before.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+_OUT_EXPECTED = {"simulate": "an .npz file name", "render": "a folder name", "sweep": "a folder name"}
+
+
+def _check_out(args) -> None:
+    """``--out`` (and ``--impacts``) given as an empty name: refused, saying what was expected (an empty path
+    would otherwise mean the current folder)."""
+    for flag in ("out", "impacts"):
+        value = getattr(args, flag, None)
+        if value is not None and str(value).strip() == "":
+            expected = ("a .csv file name" if flag == "impacts" else _OUT_EXPECTED.get(args.command) or
+                        ("a folder name" if getattr(args, "format", "") == "ply" else "a .usdc file name"))
+            raise UsageError(f"--{flag}: an empty name, expected {expected}")
+        if value is not None:
+            setattr(args, flag, Path(value))
+
+
+def _run(args, held) -> int:
     from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
                "render": cmd_render, "view": cmd_view, "bench": cmd_bench, "sweep": cmd_sweep}[args.command]
     try:
         if held:
-            raise KeyboardInterrupt
+            raise Interrupted(signum=held[-1])
+        if args.command in ("simulate", "export", "render", "sweep"):
+            _check_out(args)
         return handler(args)
     except SceneError as e:
         _err(str(e))
@@ -461,9 +515,17 @@ def main(argv=None, *, held=None, restore=None) -> int:
         _err(f"taichi-rocks {args.command}: {e}")
         return EXIT_USAGE
     except KeyboardInterrupt as e:
-        _err(f"taichi-rocks {args.command}: interrupted{getattr(e, 'hint', '')}")
-        return EXIT_INTERRUPTED
+        signum = getattr(e, "signum", signal.SIGINT)
+        if signum == signal.SIGINT:
+            _err(f"taichi-rocks {args.command}: interrupted{getattr(e, 'hint', '')}")
+            return EXIT_INTERRUPTED
+        _err(f"taichi-rocks {args.command}: interrupted by {_signal_name(signum)}, temporaries removed"
+             f"{getattr(e, 'hint', '')}")
+        return 128 + int(signum)
     except Exception as e:  # noqa: BLE001 - one line, no traceback, for anything the engine raises
+        if isinstance(e, OSError) and e.filename is not None and e.strerror:  # a write that failed (a full disk)
+            _err(f"taichi-rocks {args.command}: {e.filename}: {e.strerror}")
+            return EXIT_FAILED
         from .engine.simulation import HealthError
 
         if isinstance(e, HealthError):

@@ -23,6 +23,7 @@ from ..output.formats import ExportRun, writer_class
 from ..output.runs import check_selection
 from ..render.marks import body_to_local, to_body_frame
 from .frames import frame_count, frame_states
+from .simulate import WRITE_ERRORS
 
 __all__ = ["export_scene", "export_run", "default_out", "impact_frame"]
 
@@ -75,9 +76,11 @@ def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = 
                 writer.write(frame)
                 counts.append(len(frame["ids"]))
             size = writer.close()
-        except BaseException:
+        except BaseException as e:
             if writer is not None:
                 writer.abort()
+            if isinstance(e, OSError) and e.errno in WRITE_ERRORS and e.filename != str(out):
+                raise OSError(e.errno, e.strerror, str(out)) from None  # the output named, not a temporary
             raise
     counts = np.asarray(counts, np.int64)
     return {"path": str(out), "frames": frames, "bytes": size, "rocks_per_frame": counts,

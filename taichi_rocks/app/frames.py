@@ -1,18 +1,35 @@
 """The frames of a command: how many and how fast (``--frames``, ``--fps``, else the scene's duration and
-[render] fps), and the loop that advances a simulation to each frame time."""
+[render] fps), refused up front when they would take more steps than any run may (config/limits.py), and the
+loop that advances a simulation to each frame time."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["frame_count", "frame_states", "frame_mirrors"]
+from ..config.limits import MAX_STEPS, steps_estimate
+
+__all__ = ["frame_count", "frame_states", "frame_mirrors", "check_steps"]
 
 
 def frame_count(scene, frames=None, fps=None) -> tuple[int, float]:
-    """(frames, fps): ``fps`` or the scene's [render] fps; ``frames`` or round(duration x fps), at least 1."""
+    """(frames, fps): ``fps`` or the scene's [render] fps; ``frames`` or round(duration x fps), at least 1.
+    ValueError (:func:`check_steps`) for a run of more than MAX_STEPS steps."""
+    given_frames, given_fps = frames, fps
     fps = fps or float(scene.render.fps)
     frames = frames or max(1, int(round(scene.duration * fps)))
+    check_steps(scene, frames, fps, given_frames, given_fps)
     return frames, fps
+
+
+def check_steps(scene, frames: int, fps: float, given_frames=None, given_fps=None) -> None:
+    """Refuse (ValueError, one line naming the flag) ``frames`` frames at ``fps`` whose last frame time,
+    (frames - 1) / fps, is more than MAX_STEPS steps of the scene's dt."""
+    seconds = (frames - 1) / fps
+    if seconds / scene.sim.dt > MAX_STEPS:
+        flag = (f"--fps {given_fps:g}" if given_fps is not None else f"--frames {given_frames}"
+                if given_frames is not None else f"render.fps = {fps:g}")
+        raise ValueError(f"{flag}: {frames} frames at {fps:g} frames/s are {seconds:.3g} s of simulated time, "
+                         f"{steps_estimate(seconds, scene.sim.dt)}")
 
 
 def frame_states(sim, frames: int, fps: float, guard: bool = True, progress=None):

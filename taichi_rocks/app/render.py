@@ -11,13 +11,15 @@ from types import SimpleNamespace
 from tqdm import tqdm
 
 from ..config.resolution import check_resolution
-from ..config.scene import load_scene
+from ..config.scene import SceneError, load_scene
+from ..engine.layout import frame_problem
 from ..engine.runtime import init_taichi
 from ..engine.simulation import Simulation
-from ..output.atomic import new_folders
+from ..output.atomic import check_place, new_folders
 from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint, resume_dir
 from ..output.video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
 from ..render.renderer import WINDOW_EVERY, Renderer, check_rocks
+from .frames import check_steps
 
 __all__ = ["render_scene", "render_dir", "resumable"]
 
@@ -147,9 +149,16 @@ def _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resum
     Raises before anything is written."""
     scene = load_scene(scene_or_path) if isinstance(scene_or_path, (str, os.PathLike)) else scene_or_path
     out_dir = render_dir(scene, out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"{out_dir}: is a file, expected a folder for the render")
+    check_place(out_dir, folder=True)
     paths = output_paths(out_dir, scene.name, fmt)  # ValueError on an unknown format
     video_fps = float(fps if fps is not None else scene.render.fps)
     n_frames = frames if frames is not None else max(1, int(round(scene.duration * video_fps)))
+    check_steps(scene, n_frames, video_fps, frames, fps)
+    problem = frame_problem(scene, resolution)
+    if problem:
+        raise (SceneError([problem]) if resolution is None else ValueError(problem))
     old = _existing_outputs(paths)
     start = 0
     if resume:

@@ -6,6 +6,8 @@ file holds the run's events (``impacts``, drained every frame), ``--impacts FILE
 
 from __future__ import annotations
 
+import errno
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -15,13 +17,15 @@ from tqdm import tqdm
 
 from ..engine.events import EVENT_DTYPE
 from ..engine.simulation import Simulation
-from ..output.atomic import new_folders, remove_stale_temporaries, temp_name, write_atomically
+from ..output.atomic import check_place, new_folders, remove_stale_temporaries, temp_name, write_atomically
 from ..output.npz import write_npz
 from ..output.recording import record_full
 from ..output.runs import impacts_csv, record_light
 from .frames import frame_count, frame_mirrors, frame_states
 
-__all__ = ["simulate_scene", "record"]
+__all__ = ["simulate_scene", "record", "WRITE_ERRORS"]
+
+WRITE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EIO)
 
 
 def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", seed=None, overwrite: bool = False,
@@ -41,6 +45,7 @@ def simulate_scene(scene, out=None, frames=None, fps=None, arch: str = "cpu", se
     for path in (out, csv) if csv is not None else (out,):
         if path.is_dir():
             raise ValueError(f"{path}: is a directory, expected a file name")
+        check_place(path)
         if path.exists() and not overwrite:
             raise FileExistsError(f"{path}: exists; pass --overwrite to replace it")
     frames, fps = frame_count(scene, frames, fps)
@@ -102,6 +107,10 @@ def record(sim, out: Path, frames: int, fps: float, progress=None, guard: bool =
             if sim.plan.impacts:
                 members["impacts"] = np.concatenate(chunks) if chunks else np.empty(0, EVENT_DTYPE)
             write_atomically(out, lambda f: write_npz(f, members))
+        except OSError as e:
+            if e.errno in WRITE_ERRORS:  # the disk full, ...: one line naming the output, not a temporary
+                raise OSError(e.errno, os.strerror(e.errno), str(out)) from None
+            raise
         finally:
             shutil.rmtree(work, ignore_errors=True)
     info = {"frames": frames, "rocks": sim.n_rocks, "path": str(out), "bytes": out.stat().st_size,

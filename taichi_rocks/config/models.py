@@ -8,9 +8,10 @@ from typing import Any, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
-                     _f, _follow, _is_list, _raise_problems, _show, _Table)
+                     _f, _follow, _is_list, _raise_problems, _show, _Table, SEED_MAX)
 from .resolution import MIN_SIDE
 from .impacts import Impacts
+from .limits import MAX_STEPS, steps_estimate
 from .presets import PRESETS
 
 
@@ -127,7 +128,8 @@ class CirclePath(_Table):
     """A circle or circular arc."""
     kind: Literal["circle"] = _f(..., "path kind")
     center: Vec2 = _f((0.0, 0.0), "m, centre [x, y]")
-    radius: Float = _f(20.0, "m, radius", gt=0)
+    radius: Float = _f(20.0, "m, radius, at least 0.5 (tighter than any vehicle turns; the turn rate speed / radius "
+                             "overflowed for radii near 1e-300)", ge=0.5)
     speed: Speed = _f(10.0, "m/s")
     clockwise: Bool = _f(False, "drive clockwise")
     start_angle: Float = _f(0.0, "deg, where the vehicle starts, counter-clockwise from +x")
@@ -279,7 +281,7 @@ class Scene(_Table):
     SI units, world Z up, angles in degrees."""
     name: Name = _f("scene", "scene name; defaults to the file stem")
     duration: Float = _f(10.0, "s of simulated time", gt=0)
-    seed: Int = _f(1, "random seed", ge=0)
+    seed: Int = _f(1, "random seed", ge=0, le=SEED_MAX)
     world: Environment = _f(Environment(), Environment.__doc__)
     bed: Bed = _f(Bed(), Bed.__doc__)
     launch: Launch = _f(Launch(), Launch.__doc__)
@@ -302,6 +304,18 @@ class Scene(_Table):
         _raise_problems([(("camera", "shot", i, "at"), f"must be < duration ({self.duration:g}): a shot that starts "
                                                        f"after the end is never seen, got {shot.at:g}")
                          for i, shot in enumerate(self.camera.shots) if not shot.at < self.duration])
+        return self
+
+    @model_validator(mode="after")
+    def _steps_in_reach(self) -> Scene:
+        """At most MAX_STEPS steps (config/limits.py): ``duration`` is to blame when even the default dt takes
+        too many, else ``sim.dt``."""
+        if self.duration / self.sim.dt > MAX_STEPS:
+            blame_duration = self.duration / Sim().dt > MAX_STEPS
+            got = f"{self.duration:g}" if blame_duration else f"{self.sim.dt:g}"
+            _raise_problems([(("duration",) if blame_duration else ("sim", "dt"),
+                              f"{self.duration:g} s of simulated time are {steps_estimate(self.duration, self.sim.dt)}"
+                              f", got {got}")])
         return self
 
     def vehicle_index(self, name: str) -> int:

@@ -23,8 +23,8 @@ from .models import (CAMERA_VIEWS, PATH_KINDS, Bed, CameraSettings, CirclePath, 
                      Render, Scene, Shot, Sim, SunAngles, Vehicle, WaypointPath)
 from .presets import PRESETS
 from .summary import summarise
-from .tomltext import TomlTextError, loads as toml_loads
-from .values import _is_list, _show
+from .tomltext import read_toml
+from .values import _is_list, _show, dumped
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
            "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
@@ -126,24 +126,14 @@ def load_scene(path: Union[str, os.PathLike]) -> Scene:
             naming the file and the key).
     """
     source = str(path)
-    try:
-        # a byte-order mark (Windows editors write one) is not TOML's: dropped, not "line 1: Invalid statement"
-        text = Path(path).read_bytes().decode("utf-8").removeprefix("\ufeff")
-    except OSError as e:
-        raise SceneError([f"{source}: cannot read scene: {e.strerror or e}"]) from None
-    except UnicodeDecodeError as e:
-        raise SceneError([f"{source}: cannot read scene: not UTF-8 text ({e.reason} at byte {e.start})"]) from None
-    try:
-        data = toml_loads(text)
-    except TomlTextError as e:
-        raise SceneError([f"{source}: {e}"]) from None
+    data = read_toml(path, "scene", SceneError)
     return parse_scene(data, source, Path(path).stem)
 
 
 # ---------------------------------------------------------------------------------------------- derived
 def scene_to_dict(scene: Scene) -> dict:
     """The scene as a TOML-like dict with every key filled in (lists, file key names); parse_scene reads it back."""
-    return scene.model_dump(mode="json", by_alias=True)
+    return dumped(scene, mode="json", by_alias=True)  # an interrupt inside pydantic's dump is not lost
 
 
 _PART = re.compile(r"([A-Za-z_][\w-]*)((?:\[\d+\])*)")

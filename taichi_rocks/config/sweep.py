@@ -29,9 +29,10 @@ from typing import Annotated, Any, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from .scene import Scene, SceneError, load_scene, scene_to_dict, scene_with
-from .tomltext import TomlTextError, loads as toml_loads
+from .tomltext import read_toml
+from .values import SEED_MAX, _show
 
-__all__ = ["Sweep", "SweepError", "SweepRun", "load_sweep", "parse_sweep", "sweep_runs"]
+__all__ = ["Sweep", "SweepError", "SweepRun", "load_sweep", "parse_sweep", "sweep_runs", "sweep_size"]
 
 
 class SweepError(SceneError):
@@ -51,7 +52,7 @@ class Measure(_Table):
 class Sweep(_Table):
     """A sweep: the base scene, seeds, an optional duration, the grid and the metrics."""
     scene: Annotated[str, Strict()] = Field(description="the base scene file, relative to the sweep file")
-    seeds: Optional[tuple[Annotated[int, Strict(), Field(ge=0)], ...]] = Field(
+    seeds: Optional[tuple[Annotated[int, Strict(), Field(ge=0, le=SEED_MAX)], ...]] = Field(
         None, min_length=1, description="seeds of every combination (default: the base scene's)")
     duration: Optional[Annotated[float, Field(gt=0)]] = Field(None, description="s simulated per run")
     grid: dict[str, tuple[Any, ...]] = Field(description="scene key -> the values it takes", min_length=1)
@@ -65,18 +66,6 @@ class SweepRun:
     values: dict
     seed: int
     scene: Scene
-
-
-def _show(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, dict):
-        return "a table"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_show(x) for x in v) + "]"
-    return "nothing" if v is None else (f"{v:g}" if isinstance(v, float) else str(v))
 
 
 def _key(loc: tuple) -> str:
@@ -144,16 +133,7 @@ def parse_sweep(data: dict, source: str, metrics=None) -> Sweep:
 def load_sweep(path: Union[str, os.PathLike], metrics=None) -> tuple[Sweep, Scene]:
     """Read and validate a sweep file and its base scene; ``metrics``: the names allowed in [measure]."""
     source = str(path)
-    try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except OSError as e:
-        raise SweepError([f"{source}: cannot read sweep: {e.strerror or e}"]) from None
-    except UnicodeDecodeError as e:
-        raise SweepError([f"{source}: cannot read sweep: not UTF-8 text ({e.reason} at byte {e.start})"]) from None
-    try:
-        data = toml_loads(text)
-    except TomlTextError as e:
-        raise SweepError([f"{source}: {e}"]) from None
+    data = read_toml(path, "sweep", SweepError)
     sweep = parse_sweep(data, source, metrics)
     scene_path = Path(path).parent / sweep.scene
     if not scene_path.is_file():
@@ -174,9 +154,19 @@ def _reason(e: SceneError, scene: Scene) -> str:
     return line.split(": ", 1)[1] if ": " in line else line
 
 
-def sweep_runs(sweep: Sweep, base: Scene, source: str) -> list[SweepRun]:
+def sweep_size(sweep: Sweep) -> int:
+    """The number of runs: the product of the grid's value counts, times the seeds (none built)."""
+    n = len(sweep.seeds) if sweep.seeds is not None else 1
+    for values in sweep.grid.values():
+        n *= len(values)
+    return n
+
+
+def sweep_runs(sweep: Sweep, base: Scene, source: str, checked=None) -> list[SweepRun]:
     """Every run of the sweep (grid combinations in file order, the last key fastest, then seeds), each
-    scene validated; SweepError naming the key and the value of every value or combination refused."""
+    scene validated (once per combination: the seeds are in range by the Sweep model); SweepError naming the
+    key and the value of every value or combination refused. ``checked()``: called once every value passed
+    its own check, before the combinations are built (the slow part)."""
     fixed = {"duration": sweep.duration} if sweep.duration is not None else {}
     problems = []
     for key, values in sweep.grid.items():
@@ -191,17 +181,20 @@ def sweep_runs(sweep: Sweep, base: Scene, source: str) -> list[SweepRun]:
                 break
     if problems:
         raise SweepError(problems)
+    if checked is not None:
+        checked()
     keys = list(sweep.grid)
     seeds = sweep.seeds if sweep.seeds is not None else (base.seed,)
     runs = []
     for combo in itertools.product(*(sweep.grid[k] for k in keys)):
         values = dict(zip(keys, combo))
+        try:
+            combined = scene_with(base, {**values, **fixed})
+        except SceneError as e:
+            shown = ", ".join(f"{json.dumps(k)} = {_show(v)}" for k, v in values.items())
+            raise SweepError([f"{source}: grid: the combination {shown}: {_reason(e, base)}"]) from None
         for seed in seeds:
-            try:
-                scene = scene_with(base, {**values, **fixed, "seed": seed})
-            except SceneError as e:
-                shown = ", ".join(f"{json.dumps(k)} = {_show(v)}" for k, v in values.items())
-                raise SweepError([f"{source}: grid: the combination {shown}: {_reason(e, base)}"]) from None
+            scene = combined.model_copy(update={"seed": int(seed)})
             runs.append(SweepRun(f"r{len(runs):04d}", values, int(seed), scene))
     return runs
 

@@ -7,15 +7,17 @@ the text that does not recurse, and :func:`loads` reports it with its line like 
 
 from __future__ import annotations
 
+import os
 import re
-from typing import Optional
+from pathlib import Path
+from typing import Optional, Union
 
 try:
     import tomllib
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-__all__ = ["MAX_NESTING", "TomlTextError", "loads", "nesting_overflow"]
+__all__ = ["MAX_NESTING", "TomlTextError", "loads", "nesting_overflow", "read_toml"]
 
 MAX_NESTING = 32   # arrays and inline tables inside one another; a scene needs 5 at most
 
@@ -87,3 +89,20 @@ def loads(text: str) -> dict:
         raise TomlTextError(f"{_place(text, len(text))}: {msg}") from None
     except RecursionError:   # the scan above keeps values shallower than this needs, on any ordinary stack
         raise TomlTextError("nested too deeply to read") from None
+
+
+def read_toml(path: Union[str, os.PathLike], what: str, error) -> dict:
+    """The data of the TOML file ``path`` (a scene, a sweep: ``what``), read one way for every kind: UTF-8, a
+    byte-order mark (Windows editors write one; TOML has none) dropped. Raises ``error([line])`` (a SceneError
+    class), the line starting with the file: cannot be read, not UTF-8, not TOML."""
+    source = str(path)
+    try:
+        text = Path(path).read_bytes().decode("utf-8").removeprefix("\ufeff")
+    except OSError as e:
+        raise error([f"{source}: cannot read {what}: {e.strerror or e}"]) from None
+    except UnicodeDecodeError as e:
+        raise error([f"{source}: cannot read {what}: not UTF-8 text ({e.reason} at byte {e.start})"]) from None
+    try:
+        return loads(text)
+    except TomlTextError as e:
+        raise error([f"{source}: {e}"]) from None

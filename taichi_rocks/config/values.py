@@ -5,6 +5,7 @@ table shares (:class:`_Table`: frozen, unknown keys refused, no inf or nan), and
 from __future__ import annotations
 
 import json
+import warnings
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Strict, Tag
@@ -21,6 +22,7 @@ Bool = Annotated[bool, Strict()]
 Name = Annotated[str, Strict(), Field(min_length=1)]
 Vec2 = tuple[Float, Float]
 Vec3 = tuple[Float, Float, Float]
+SEED_MAX = 2**63 - 1  # run files and checkpoints store the seed as an int64
 
 
 def _f(default: Any, description: str, **constraints) -> Any:
@@ -39,10 +41,38 @@ def Range(**bounds) -> Any:
     return Annotated[tuple[item, item], AfterValidator(_ordered)]
 
 
+# An interrupt (Ctrl-C, SIGTERM) raised inside a discriminator while pydantic serialises a model is swallowed
+# there (it becomes a serializer warning and the dump goes on: a sweep ignored Ctrl-C for a minute): the picker
+# keeps it here, and dumped() raises it once the dump returns.
+_CAUGHT: list = []
+
+
+def _picker(pick_a):
+    def pick(v):
+        try:
+            return "@a" if pick_a(v) else "@b"
+        except BaseException as e:  # noqa: BLE001 - only an interrupt can come from pick_a
+            _CAUGHT.append(e)
+            raise
+    return pick
+
+
+def dumped(model: BaseModel, **kwargs) -> dict:
+    """``model.model_dump(**kwargs)`` with an interrupt raised inside it re-raised (see :data:`_CAUGHT`)."""
+    _CAUGHT.clear()  # one kept while validating went up by itself
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        data = model.model_dump(**kwargs)
+    if _CAUGHT:
+        raise _CAUGHT.pop()
+    if any("discriminator" in str(w.message) for w in seen):  # raised before the picker's try could hold it
+        raise KeyboardInterrupt
+    return data
+
+
 def _either(a: Any, b: Any, pick_a) -> Any:
     """A union that picks its member by the input's type, so a bad value gets one error, not one per member."""
-    return Annotated[Union[Annotated[a, Tag("@a")], Annotated[b, Tag("@b")]],
-                     Discriminator(lambda v: "@a" if pick_a(v) else "@b")]
+    return Annotated[Union[Annotated[a, Tag("@a")], Annotated[b, Tag("@b")]], Discriminator(_picker(pick_a))]
 
 
 def _is_str(v: Any) -> bool:
@@ -86,7 +116,9 @@ def _raise_problems(problems: list[tuple[tuple, str]]) -> None:
 
 
 def _show(v: Any, room: int = 60) -> str:
-    """A value as the user wrote it (TOML-ish); a list is cut to ``room`` characters, looking only at what fits."""
+    """A value as the user wrote it (TOML-ish), in the messages of scene and sweep files alike (a float as
+    Python writes it: 10.0 is not the integer 10); a list is cut to ``room`` characters, looking only at what
+    fits."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):

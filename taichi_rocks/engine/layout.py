@@ -8,8 +8,11 @@ Only the hash's entry capacity with AABB insert depends on the rocks' radii: the
 scene's seed up to ``EXACT_UP_TO`` rocks and extrapolates from that many evenly spaced radii beyond.
 
 :func:`memory_problem` / :func:`check_fits`: the refusal of a scene whose fields would not fit in this
-machine's memory, a one-line SceneError naming ``bed.rocks`` (Simulation raises it before allocating, and
-``taichi-rocks check`` reports it).
+machine's memory, a one-line SceneError naming the key that makes the demand (:func:`demand_key`: ``bed.rocks``;
+``bed.radius`` when the tile store is sized for rocks packed densely on a tiny bed; ``sim.hash.table_size``,
+``impacts.capacity`` when set so large); Simulation raises it before allocating, and ``taichi-rocks check``
+reports it. :func:`frame_problem`: the same for the frames a render or the viewer draws (``render.resolution``
+or ``--resolution``), refused before Taichi allocates them.
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from .rockfields import present
 from .setup import hash_sizing, initial_rocks
 from .world import field_specs
 
-__all__ = ["world_layout", "estimate_memory", "memory_problem", "check_fits", "physical_memory", "n_tires_of"]
+__all__ = ["world_layout", "estimate_memory", "memory_problem", "check_fits", "physical_memory", "n_tires_of",
+           "demand_key", "frame_bytes", "frame_problem", "check_machine"]
 
 EXACT_UP_TO = 1 << 20  # rocks: radii drawn from the seed up to this many (AABB insert only)
 
@@ -60,6 +64,11 @@ def world_layout(scene, plan, radius) -> tuple[dict, object]:
 
 def estimate_memory(scene) -> int:
     """Bytes of every Taichi field of the scene's World (see the module docstring)."""
+    return sum(_field_bytes(scene).values())
+
+
+def _field_bytes(scene) -> dict:
+    """Bytes of each Taichi field of the scene's World, by field name."""
     plan = Plan.from_scene(scene)
     n = int(scene.bed.rocks)
     if plan.splash and not plan.center and n > EXACT_UP_TO:  # AABB entries: extrapolated from evenly spaced radii
@@ -74,7 +83,28 @@ def estimate_memory(scene) -> int:
         radius = initial_rocks(scene).radius if plan.splash and not plan.center else _Count(n)
         layout, _ = world_layout(scene, plan, radius)
     real = "f64" if scene.sim.precision == "f64" else "f32"
-    return sum(s.nbytes(real) for s in field_specs(n, real, **layout))
+    return {s.name: s.nbytes(real) for s in field_specs(n, real, **layout)}
+
+
+STORE_PER_ROCK = 16  # tile-store slots per rock beyond which the bed's size, not the rock count, is to blame
+
+
+def demand_key(scene, nbytes: dict) -> str:
+    """The scene key that makes the largest part of the memory demand ``nbytes`` (:func:`_field_bytes`)."""
+    groups = {"store": 0, "hash": 0, "events": 0, "rocks": 0}
+    for name, b in nbytes.items():
+        group = ("store" if name.startswith("ts_") else "hash" if name == "cell_start"
+                 else "events" if name.startswith("ev_") else "rocks")
+        groups[group] += b
+    top = max(groups, key=groups.get)
+    n = max(int(scene.bed.rocks), 1)
+    if top == "store" and nbytes.get("ts_rock_id", 0) / 4 > STORE_PER_ROCK * n:
+        return "bed.radius"
+    if top == "hash" and scene.sim.hash.table_size != "auto":
+        return "sim.hash.table_size"
+    if top == "events" and scene.impacts.capacity != "auto":
+        return "impacts.capacity"
+    return "bed.rocks"
 
 
 class _Count:
@@ -97,15 +127,55 @@ def physical_memory() -> Optional[int]:
 def memory_problem(scene) -> Optional[str]:
     """The one-line problem of a scene whose fields need more memory than this machine has (None if they fit
     or the machine does not say)."""
-    need, have = estimate_memory(scene), physical_memory()
+    nbytes = _field_bytes(scene)
+    need, have = sum(nbytes.values()), physical_memory()
     if have and need > have:
-        return (f"{scene.source}: bed.rocks: needs about {need / 1e9:.1f} GB of memory, more than this machine "
-                f"has ({have / 1e9:.1f} GB), got {scene.bed.rocks}")
+        key = demand_key(scene, nbytes)
+        got = {"bed.rocks": scene.bed.rocks, "bed.radius": f"{scene.bed.radius:g} m",
+               "sim.hash.table_size": scene.sim.hash.table_size, "impacts.capacity": scene.impacts.capacity}[key]
+        why = (f" ({scene.bed.rocks} rocks on {math.pi * scene.bed.radius ** 2:.3g} m^2)" if key == "bed.radius"
+               else "")
+        return (f"{scene.source}: {key}: needs about {need / 1e9:.1f} GB of memory{why}, more than this machine "
+                f"has ({have / 1e9:.1f} GB), got {got}")
     return None
 
 
 def check_fits(scene) -> None:
-    """Raise SceneError (one line naming bed.rocks) if the scene's World would not fit in memory."""
+    """Raise SceneError (one line naming the key, :func:`demand_key`) if the scene's World would not fit in memory."""
     problem = memory_problem(scene)
+    if problem:
+        raise SceneError([problem])
+
+
+# Bytes per pixel of a drawn frame: GGUI's colour and depth images (4 + 4), the frame read back as float32 RGBA
+# (16), the uint8 frame (3), its copies queued to the PNG and video writers (3 + 3), and room for the driver's
+# staging copy (4) and more.
+BYTES_PER_PIXEL = 40
+
+
+def frame_bytes(resolution) -> int:
+    """About the memory a render's frame of ``resolution`` (width, height) takes (:data:`BYTES_PER_PIXEL`)."""
+    w, h = (int(x) for x in resolution)
+    return w * h * BYTES_PER_PIXEL
+
+
+def frame_problem(scene, resolution=None) -> Optional[str]:
+    """The one-line problem of frames (the scene's ``render.resolution``, or ``resolution`` from --resolution)
+    that need more memory than this machine has; None if they fit or the machine does not say."""
+    res = tuple(int(x) for x in (resolution if resolution is not None else scene.render.resolution))
+    need, have = frame_bytes(res), physical_memory()
+    if not have or need <= have:
+        return None
+    what = (f"--resolution {res[0]}x{res[1]}" if resolution is not None
+            else f"{scene.source}: render.resolution")
+    return (f"{what}: a {res[0]}x{res[1]} frame needs about {need / 1e9:.1f} GB of memory, more than this machine "
+            f"has ({have / 1e9:.1f} GB)" + ("" if resolution is not None else f", got [{res[0]}, {res[1]}]"))
+
+
+def check_machine(scene) -> None:
+    """What ``taichi-rocks check`` asks of this machine: the World fits (:func:`check_fits`) and so do the
+    frames (:func:`frame_problem`); SceneError, one line per problem."""
+    check_fits(scene)
+    problem = frame_problem(scene)
     if problem:
         raise SceneError([problem])

@@ -1,6 +1,7 @@
 """The one atomic-write helper of every output: temporaries beside the final name, renamed when complete
 (:func:`atomic_path`, :func:`write_atomically`), folders a failed command leaves behind removed again
-(:func:`new_folders`), and the temporaries of killed writers cleaned up (:func:`remove_stale_temporaries`)."""
+(:func:`new_folders`), the temporaries of killed writers cleaned up (:func:`remove_stale_temporaries`), and an
+output place checked before any work starts (:func:`check_place`)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,26 @@ import secrets
 import shutil
 from pathlib import Path
 
-__all__ = ["temp_name", "atomic_path", "write_atomically", "new_folders", "remove_stale_temporaries"]
+__all__ = ["temp_name", "atomic_path", "write_atomically", "new_folders", "remove_stale_temporaries", "check_place",
+           "remove_stale_in"]
+
+
+def check_place(path, folder: bool = False) -> None:
+    """Refuse (ValueError, one line saying what was expected) an output ``path`` that cannot be written: a file
+    where a folder on its way must be, or a folder that is not writable. ``folder``: ``path`` is itself a folder
+    the output goes into (it may exist); else a file name whose folders are made as needed."""
+    path = Path(path)
+    place = path if folder else path.parent
+    while not (place.exists() or place.is_symlink()):
+        if place == place.parent:
+            return
+        place = place.parent
+    if not place.is_dir():
+        what = "a folder" if place == path else f"a folder to hold {path}"
+        raise ValueError(f"{place}: is {'a broken link' if place.is_symlink() and not place.exists() else 'a file'}"
+                         f", expected {what}")
+    if not os.access(place, os.W_OK | os.X_OK):
+        raise ValueError(f"{place}: is not writable, cannot write {path} there")
 
 
 def _temp_prefix(final: Path) -> str:
@@ -110,4 +130,22 @@ def remove_stale_temporaries(final: Path) -> list[Path]:
         else:
             path.unlink(missing_ok=True)
         removed.append(path)
+    return removed
+
+
+def remove_stale_in(folder: Path) -> list[Path]:
+    """:func:`remove_stale_temporaries` for every output whose temporaries lie in ``folder`` (the files of a
+    folder output: ``.frame_00000.ply.PID.XXXXXXXX.part``)."""
+    removed = []
+    folder = Path(folder)
+    if folder.is_dir():
+        names = set()
+        for tmp in folder.glob(".*.*.*"):
+            parts = tmp.name[1:].split(".")
+            for i in range(1, len(parts)):
+                if parts[i].isdigit():  # NAME.PID.XXXXXXXX[.suffix]
+                    names.add(".".join(parts[:i]))
+                    break
+        for name in sorted(names):
+            removed += remove_stale_temporaries(folder / name)
     return removed

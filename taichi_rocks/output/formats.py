@@ -24,7 +24,7 @@ one); and ``state``: the engine's whole state of the frame (``Simulation.state()
 Adding a format (impact events as CSV or PLY from the phase changes in ``frame["state"]``, per-rock
 orientations as a table, ...) is one module and one line: a module ``output/<name>.py`` with a subclass of
 :class:`FileWriter` (one file: implement ``write``, and ``close`` if the file needs finishing) or
-:class:`FolderWriter` (a file per frame in a folder), whose ``name`` is the ``--format`` value, and its line in
+:class:`FolderWriter` (a file per frame in a folder, each written under ``file_path(name)``), whose ``name`` is the ``--format`` value, and its line in
 :data:`FORMATS` below. The command line lists FORMATS without importing the writers (USD's needs the optional
 usd-core, slow to import); :func:`writer_class` imports one when it is used. This module needs only the
 standard library.
@@ -34,12 +34,11 @@ from __future__ import annotations
 
 import importlib
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional
 
-from .atomic import temp_name
+from .atomic import check_place, remove_stale_in, temp_name
 
 __all__ = ["FORMATS", "ExportRun", "ExportWriter", "FileWriter", "FolderWriter", "writer_class", "frame_file"]
 
@@ -116,6 +115,7 @@ class FileWriter(ExportWriter):
                              + " file name")
         if out.is_dir():
             raise ValueError(f"{out}: is a directory, expected a {first} file name")
+        check_place(out)
         if out.exists() and not overwrite:
             raise FileExistsError(f"{out}: exists; pass --overwrite to replace it")
 
@@ -132,9 +132,12 @@ class FileWriter(ExportWriter):
 
 
 class FolderWriter(ExportWriter):
-    """A format written as a file per frame, ``frame_00000<frame_suffix>`` ..., into a temporary folder beside
-    ``out`` (``self.dir``), renamed into place by :meth:`close` (earlier frames in ``out`` are replaced: only
-    with ``overwrite``, see :meth:`check_target`)."""
+    """A format written as a file per frame, ``frame_00000<frame_suffix>`` ..., into the folder ``out`` itself
+    (made if missing; an existing folder, or a link to one, keeps its inode, owner and permissions). Each file is
+    written under a hidden temporary name inside ``out`` (:meth:`file_path`) and renamed to its final name by
+    :meth:`close` once every frame was written, which then removes the earlier export's files that this one did
+    not replace (only with ``overwrite``, see :meth:`check_target`). :meth:`abort` removes the temporaries, and
+    ``out`` if this writer made it: earlier frames stay as they were."""
 
     frame_suffix = ""
     label = ""  # the format's name in messages ("PLY")
@@ -144,35 +147,51 @@ class FolderWriter(ExportWriter):
         out = Path(out)
         if out.exists() and not out.is_dir():
             raise ValueError(f"{out}: is a file, expected a folder for the {cls.label} frames")
+        check_place(out, folder=True)
         if out.is_dir():
-            entries = list(out.iterdir())
-            other = [p.name for p in entries if not (p.name.startswith("frame_") and p.suffix == cls.frame_suffix)]
+            entries = [p for p in out.iterdir() if not p.name.startswith(".")]
+            other = [p.name for p in entries if not cls.owned(p.name)]
             if other:
                 raise ValueError(f"{out}: holds other files ({other[0]}); export {cls.label} frames into a new or "
                                  "empty folder")
             if entries and not overwrite:
                 raise FileExistsError(f"{out}: holds {cls.label} frames; pass --overwrite to replace them")
 
+    @classmethod
+    def owned(cls, name: str) -> bool:
+        """Whether a file named ``name`` in the folder is one this format writes (replaced by an overwrite)."""
+        return name.startswith("frame_") and name.endswith(cls.frame_suffix)
+
     def __init__(self, out, run: ExportRun):
         super().__init__(out, run)
-        self.dir = temp_name(self.out)
-        self.dir.mkdir(mode=0o755)
+        self.made = not self.out.is_dir()
+        if self.made:
+            self.out.mkdir(mode=0o755)
+        remove_stale_in(self.out)
+        self.parts: dict = {}  # final name -> its temporary in out
+
+    def file_path(self, name: str) -> Path:
+        """A new temporary inside ``out`` for the file ``name``, renamed to it by :meth:`close`."""
+        tmp = temp_name(self.out / name, ".part")
+        self.parts[name] = tmp
+        return tmp
 
     def frame_path(self, frame: int) -> Path:
-        return self.dir / frame_file(frame, self.frame_suffix)
+        return self.file_path(frame_file(frame, self.frame_suffix))
 
     def close(self) -> int:
-        old = None
-        try:
-            if self.out.is_dir() and any(self.out.iterdir()):  # --overwrite of earlier frames (checked above)
-                old = temp_name(self.out)
-                os.rename(self.out, old)
-            os.replace(self.dir, self.out)
-        finally:
-            shutil.rmtree(self.dir, ignore_errors=True)
-            if old is not None:
-                shutil.rmtree(old, ignore_errors=True)
-        return sum(p.stat().st_size for p in self.out.iterdir())
+        for name, tmp in self.parts.items():
+            os.replace(tmp, self.out / name)
+        for p in self.out.iterdir():  # an overwrite's earlier files beyond this export's (checked above)
+            if p.name not in self.parts and self.owned(p.name):
+                p.unlink()
+        return sum((self.out / name).stat().st_size for name in self.parts)
 
     def abort(self) -> None:
-        shutil.rmtree(self.dir, ignore_errors=True)
+        for tmp in self.parts.values():
+            tmp.unlink(missing_ok=True)
+        if self.made:
+            try:
+                self.out.rmdir()
+            except OSError:
+                pass

@@ -1,9 +1,11 @@
 """Deterministic .npz files (what ``np.load`` reads): members stored in a fixed order with fixed time stamps
 and permissions, so that the same arrays give the same bytes; arrays may be streamed from files (:class:`Raw`,
-.npy files) so that memory stays flat."""
+.npy files) so that memory stays flat; the memory-mapped .npy files a run is recorded into have their space
+reserved when made (:func:`reserved_memmap`), so that a full disk is an OSError then, not a SIGBUS later."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import zipfile
 from dataclasses import dataclass
@@ -11,7 +13,25 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ZIP_EPOCH", "Raw", "write_npz"]
+__all__ = ["ZIP_EPOCH", "Raw", "write_npz", "reserved_memmap"]
+
+
+def reserved_memmap(path: Path, dtype, shape) -> np.memmap:
+    """A new .npy file at ``path`` mapped for writing (``np.lib.format.open_memmap``), its whole size reserved
+    on disk first: the file NumPy makes is sparse, and a store into a page the disk has no room for kills the
+    process with SIGBUS. OSError (ENOSPC) here instead, naming ``path``."""
+    arr = np.lib.format.open_memmap(path, mode="w+", dtype=dtype, shape=shape)
+    size = os.path.getsize(path)
+    if size:
+        fd = os.open(path, os.O_RDWR)
+        try:
+            os.posix_fallocate(fd, 0, size)
+        except OSError as e:
+            del arr
+            raise OSError(e.errno, os.strerror(e.errno), str(path)) from None
+        finally:
+            os.close(fd)
+    return arr
 
 
 # Zip members written by write_npz: no time stamp (the zip epoch), a regular file rw-r--r-- made on Unix.

@@ -21,7 +21,6 @@ above with ``dtype=IMPACT``.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
@@ -56,8 +55,8 @@ def ply_name(frame: int) -> str:
 
 
 class PlyWriter(FolderWriter):
-    """``--format ply``: the frames into a folder (output/formats.py FolderWriter: written in a temporary
-    folder, renamed into place when complete)."""
+    """``--format ply``: the frames into a folder (output/formats.py FolderWriter: each file written under a
+    temporary name in the folder, renamed into place when all are complete)."""
 
     name = "ply"
     default_name = "ply"
@@ -65,17 +64,8 @@ class PlyWriter(FolderWriter):
     label = "PLY"
 
     @classmethod
-    def check_target(cls, out, overwrite: bool) -> None:
-        out = Path(out)
-        if not (out.is_dir() and (out / IMPACTS_FILE).is_file()):
-            return super().check_target(out, overwrite)
-        other = [p.name for p in out.iterdir() if p.name != IMPACTS_FILE
-                 and not (p.name.startswith("frame_") and p.suffix == cls.frame_suffix)]
-        if other:  # as FolderWriter's: the run's impacts beside its frames are ours as well
-            raise ValueError(f"{out}: holds other files ({other[0]}); export {cls.label} frames into a new or "
-                             "empty folder")
-        if not overwrite:
-            raise FileExistsError(f"{out}: holds {cls.label} frames; pass --overwrite to replace them")
+    def owned(cls, name: str) -> bool:
+        return name == IMPACTS_FILE or super().owned(name)  # the run's impacts beside its frames are ours too
 
     def __init__(self, out, run):
         super().__init__(out, run)
@@ -119,7 +109,7 @@ class PlyWriter(FolderWriter):
             header = _header("vertex", IMPACT, len(self.impacts), (
                 f"taichi-rocks scene {self.scene} impacts", "part: " + " ".join(LABELS),
                 "damage: " + " ".join(DAMAGE_CLASSES), "vehicle: " + " ".join(self.vehicles)))
-            with open(self.dir / IMPACTS_FILE, "xb") as f:
+            with open(self.file_path(IMPACTS_FILE), "xb") as f:
                 f.write(header)
                 f.write(self.impacts.tobytes())
         return super().close()

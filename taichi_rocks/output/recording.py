@@ -23,7 +23,7 @@ import numpy as np
 # The atomic-write helpers moved to output/atomic.py and write_npz to output/npz.py; imported here too for
 # the code that reaches them through this module.
 from .atomic import atomic_path, new_folders, remove_stale_temporaries, temp_name, write_atomically  # noqa: F401
-from .npz import ZIP_EPOCH, Raw, write_npz  # noqa: F401
+from .npz import ZIP_EPOCH, Raw, reserved_memmap, write_npz  # noqa: F401
 
 
 __all__ = ["record_full"]
@@ -44,8 +44,7 @@ def record_full(sim, work: Path, frames: int, fps: float, states) -> dict:
         "vehicle_headings": ((frames, v), np.float64),
         "launches": ((frames,), np.int64),
     }
-    arrays = {k: np.lib.format.open_memmap(work / f"{k}.npy", mode="w+", dtype=dt, shape=shape)
-              for k, (shape, dt) in shapes.items()}
+    arrays = {k: reserved_memmap(work / f"{k}.npy", dt, shape) for k, (shape, dt) in shapes.items()}
     previous = sim.launches_total
     st = None
     for f, st in states:

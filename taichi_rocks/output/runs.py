@@ -40,7 +40,7 @@ import numpy as np
 
 from ..config.impacts import DAMAGE_CLASSES
 from ..motion.bodies import LABELS
-from .npz import Raw
+from .npz import Raw, reserved_memmap
 
 __all__ = ["LIGHT", "MISSING", "RUN_KEYS", "load_run", "record_light", "RowChanges", "crop_mask", "crop_vehicle",
            "check_selection", "impacts_csv", "impacts_summary"]
@@ -106,8 +106,7 @@ def record_light(sim, work: Path, frames: int, fps: float, states, only: str = "
               "bed_center": ((frames, 3), np.float64), "vehicle_positions": ((frames, v, 3), np.float64),
               "vehicle_headings": ((frames, v), np.float64), "launches": ((frames,), np.int64),
               "frame_rows": ((frames + 1,), np.int64)}
-    arrays = {k: np.lib.format.open_memmap(work / f"{k}.npy", mode="w+", dtype=dt, shape=shape)
-              for k, (shape, dt) in shapes.items()}
+    arrays = {k: reserved_memmap(work / f"{k}.npy", dt, shape) for k, (shape, dt) in shapes.items()}
     rows = {"row_rock": np.int32, "row_local": real, "row_velocity": real, "row_phase": np.int8}
     files = {k: open(work / f"{k}.raw", "wb") for k in rows}
     follow = crop_vehicle(sim.scene)

@@ -63,6 +63,7 @@ samples, and the samples already written are no longer held in memory, so memory
 
 from __future__ import annotations
 
+import errno
 import math
 
 import numpy as np
@@ -79,7 +80,7 @@ try:
 except ImportError:  # usd-core is optional: UsdWriter.check_target says how to install it
     Gf = Sdf = Tf = Usd = UsdGeom = UsdShade = Vt = None
 
-__all__ = ["UsdWriter", "STEP_HOLD", "USD_SUFFIXES", "ground_extent"]
+__all__ = ["UsdWriter", "STEP_HOLD", "USD_SUFFIXES", "ground_extent", "usd_write_error"]
 
 STEP_HOLD = 1e-4  # time codes before a step of the origin at which the old origin is held
 MATERIAL = "/World/Looks/DisplayColor"
@@ -87,6 +88,23 @@ GLASS = "/World/Looks/Glass"
 GLASS_OPACITY = 0.35  # the windows: see-through, so that the driver's and bonnet shots look out of the cabin
 WHEELS = (("FL", 0.5, 0.5), ("FR", 0.5, -0.5), ("RL", -0.5, 0.5), ("RR", -0.5, -0.5))
 USD_SUFFIXES = (".usdc", ".usd")  # crate files: saving again appends, so a long export streams
+
+
+_ERRNO = {"No space left": errno.ENOSPC, "Permission denied": errno.EACCES, "Read-only file system": errno.EROFS,
+          "Disk quota": errno.EDQUOT}
+
+
+def usd_write_error(exc, out) -> OSError:
+    """pxr's error (a Tf.ErrorException: a line per error, with the library's internals) as one OSError naming
+    ``out`` and the first error's own words (``Error occurred writing file: No space left on device``)."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    cause = lines[0] if lines else type(exc).__name__
+    for ln in lines:
+        if " : '" in ln:
+            cause = ln.split(" : '", 1)[1].rstrip("'")
+            break
+    code = next((n for words, n in _ERRNO.items() if words in cause), errno.EIO)
+    return OSError(code, f"cannot write the USD file: {cause}", str(out))
 
 
 def ground_extent(fleet, scene, frames: int, fps: float):
@@ -214,6 +232,9 @@ class UsdWriter(FileWriter):
                 "frames": int(frames), "only": run.only, "crop": float(run.crop) if run.crop is not None else 0.0}
         try:
             self._stage(scene, fps, frames, ground_extent(run.fleet, scene, frames, fps), info)
+        except Tf.ErrorException as e:
+            self.abort()
+            raise usd_write_error(e, self.out) from None
         except BaseException:
             self.abort()
             raise
@@ -303,7 +324,13 @@ class UsdWriter(FileWriter):
 
     # -------------------------------------------------------------------------------------- per frame
     def write(self, fr: dict) -> None:
-        """One frame (output/formats.py); saved to disk before returning."""
+        """One frame (output/formats.py); saved to disk before returning. pxr's errors as one OSError."""
+        try:
+            self._write(fr)
+        except Tf.ErrorException as e:
+            raise usd_write_error(e, self.out) from None
+
+    def _write(self, fr: dict) -> None:
         t = float(fr["frame"])
         origin = Gf.Vec3d(*map(float, fr["origin"]))
         if self.last_origin is not None and origin != self.last_origin:  # the origin steps: hold it (see above)
@@ -396,7 +423,10 @@ class UsdWriter(FileWriter):
         a["extent"].Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), t)
 
     def close(self) -> int:
-        self.layer.Save()
+        try:
+            self.layer.Save()
+        except Tf.ErrorException as e:
+            raise usd_write_error(e, self.out) from None
         self._release()
         return super().close()
 

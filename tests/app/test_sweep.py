@@ -259,6 +259,7 @@ def test_ctrl_c_then_resume(reference, tmp_path, capsys):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "interrupted" in err.strip().splitlines()[-1]
+    assert err.splitlines()[0].startswith("sweep: 4 runs of up to 100 steps: at least "), err  # said up front
     kept = _rows(out)
     assert 1 <= len(kept) < RUNS
     assert main(["sweep", str(sweep), "--out", str(out)]) == 2  # neither --resume nor --overwrite
@@ -315,6 +316,108 @@ def test_bad_sweep_files(case, tmp_path, capsys):
     _, where, what = BAD[case]
     assert err[0].startswith(f"{sweep}: ") and where in err[0] and what in err[0], err[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_a_byte_order_mark_is_read_as_in_scene_files(tmp_path):
+    """A sweep file saved with a UTF-8 byte-order mark reads as scene files do (it was refused); a seed past
+    int64 is refused naming seeds."""
+    from taichi_rocks.config import scene, sweep
+
+    path = _sweep_file(tmp_path, "\ufeff" + SWEEP)
+    assert load_sweep(path, METRICS)[0].seeds == (1, 2)
+    assert sweep._show is scene._show  # one way to show a value in both kinds of file
+    big = _sweep_file(tmp_path, SWEEP.replace("seeds = [1, 2]", "seeds = [1, 18446744073709551616]"), "big.toml")
+    with pytest.raises(SweepError, match=r"seeds\[1\]: .*9223372036854775807"):
+        load_sweep(big, METRICS)
+
+
+def test_nothing_is_written_before_every_check_passed(tmp_path, capsys):
+    """--workers and --threads past the cores: refused, nothing written (sweep.json was, and the corrected
+    command was then refused as holding a sweep's results); --overwrite removes nothing when refused."""
+    sweep = _sweep_file(tmp_path / "s")
+    out = tmp_path / "out"
+    too_many = str(usable_cores() + 1)
+    assert main(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--threads", too_many]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "threads is more than" in err[0], err
+    assert not out.exists()
+    (out / "runs").mkdir(parents=True)
+    (out / "sweep.json").write_text("{}")
+    assert main(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--threads", too_many,
+                 "--overwrite"]) == 2
+    assert sorted(p.name for p in out.iterdir()) == ["runs", "sweep.json"]
+
+
+def _big_sweep(tmp_path) -> Path:
+    """100,000 runs: 100 x 100 grid values x 10 seeds."""
+    grips = ", ".join(f"{1e5 + 1000.0 * i}" for i in range(100))
+    speeds = ", ".join(f"{1.0 + 0.1 * i:.1f}" for i in range(100))
+    return _sweep_file(tmp_path, f'scene = "base.toml"\nseeds = [{", ".join(map(str, range(1, 11)))}]\n[grid]\n'
+                                 f'"launch.grip" = [{grips}]\n"vehicle[0].path.speed" = [{speeds}]\n', "big.toml")
+
+
+def test_a_sweep_of_too_many_runs_is_refused_without_yes(tmp_path, capsys):
+    """100,000 runs started without a word (after 95-150 s of validation): refused at once with the count and the
+    estimate, naming --yes; nothing written."""
+    out = tmp_path / "out"
+    assert main(["sweep", str(_big_sweep(tmp_path)), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "100000 runs of up to 500 steps" in err[0] and "--yes" in err[0], err
+    assert not out.exists()
+
+
+def test_an_interrupt_inside_a_pydantic_dump_is_not_lost():
+    """pydantic swallows an exception raised in a discriminator while it serialises (it warns and goes on): a
+    Ctrl-C landing there was lost, and a sweep dumping its runs' scenes ran on for a minute. dumped() (what
+    scene_to_dict uses) raises it."""
+    from pydantic import BaseModel
+
+    from taichi_rocks.config import values
+    from taichi_rocks.config.scene import load_scene, scene_to_dict
+
+    calls = []
+
+    def pick(v):
+        calls.append(v)
+        if len(calls) == 2:  # the first call validates; the second is the dump's
+            raise KeyboardInterrupt
+        return isinstance(v, str)
+
+    class M(BaseModel):
+        x: values._either(str, int, pick) = 1
+
+    m = M(x=3)
+    with pytest.warns(UserWarning, match="discriminator"):
+        assert m.model_dump() == {"x": 3}  # lost in pydantic's own dump
+    calls[:] = [None]  # the next call raises: the one of this dump
+    with pytest.raises(KeyboardInterrupt):
+        values.dumped(m)
+    assert scene_to_dict(load_scene(MINIMAL))["name"] == "minimal"
+
+
+def test_ctrl_c_stops_a_big_sweep_while_it_builds_its_runs(tmp_path):
+    """--yes: the count and estimate said first; a Ctrl-C once it was said ends the sweep (exit 130, one
+    line), nothing written."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "taichi_rocks", "sweep", str(_big_sweep(tmp_path)), "--out",
+                             str(out), "--workers", "1", "--threads", "1", "--yes"],
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        import select
+
+        ready, _, _ = select.select([proc.stderr], [], [], 120)  # a sweep that says nothing must not hang the test
+        assert ready, "the sweep said nothing before building its runs"
+        first = proc.stderr.readline()
+        assert first.startswith("sweep: 100000 runs of up to 500 steps"), first
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130 and err.strip().splitlines() == ["taichi-rocks sweep: interrupted"], err
+    assert not out.exists()
 
 
 def test_one_bad_file_through_the_command_line(tmp_path):

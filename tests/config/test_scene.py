@@ -13,7 +13,7 @@ import pytest
 
 from taichi_rocks.config.scene import (Scene, SceneError, load_scene, parse_scene, scene_json_schema,
                                 scene_to_dict, scene_with, summarise)
-from taichi_rocks.engine.layout import check_fits
+from taichi_rocks.engine.layout import check_machine
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
@@ -127,9 +127,10 @@ def test_json_schema():
 
 
 def _load_and_fit(path):
-    """What ``taichi-rocks check`` does: the file's checks, then the engine's (does the World fit in memory)."""
+    """What ``taichi-rocks check`` does: the file's checks, then the engine's (do the World and the frames fit
+    in memory)."""
     scene = load_scene(path)
-    check_fits(scene)
+    check_machine(scene)
     return scene
 
 

@@ -26,7 +26,8 @@ from view_util import ROOT, TIMEOUT, View, _env, xdisplay  # noqa: F401  (xdispl
 def test_quit_after_ends_the_window_and_record_overwrite_replaces_old_frames(xdisplay, tmp_path):
     """--quit-after: the viewer closes by itself that long after its first frame (exit 0, a summary line);
     --record DIR --overwrite: DIR's old frames are gone, every frame shown is written, other files stay;
-    --seed: the window's simulation has that seed."""
+    --seed: the window's simulation has that seed; the user's imgui.ini in the folder it started from is left
+    alone, the panel's layout kept in the per-user configuration folder instead."""
     import imageio.v3 as iio
 
     rec = tmp_path / "rec"
@@ -35,11 +36,15 @@ def test_quit_after_ends_the_window_and_record_overwrite_replaces_old_frames(xdi
         (rec / f"frame_{k:05d}.png").write_bytes(b"old")
     (rec / "notes.txt").write_text("mine")
     status_file = tmp_path / "status.json"
+    (tmp_path / "imgui.ini").write_text("mine")
     r = subprocess.run([sys.executable, "-m", "taichi_rocks", "view", str(ROOT / "scenes" / "minimal.toml"),
                         "--resolution", "320x180", "--seed", "5", "--quit-after", "1.5", "--record", str(rec),
-                        "--overwrite"], cwd=tmp_path, env=_env(xdisplay, TAICHI_ROCKS_VIEW_STATUS=str(status_file)),
+                        "--overwrite"], cwd=tmp_path, env=_env(xdisplay, TAICHI_ROCKS_VIEW_STATUS=str(status_file),
+                                                               XDG_CONFIG_HOME=str(tmp_path / "config")),
                        capture_output=True, text=True, timeout=300 + TIMEOUT)
     assert r.returncode == 0, r.stderr
+    assert (tmp_path / "imgui.ini").read_text() == "mine"
+    assert (tmp_path / "config" / "taichi-rocks" / "imgui.ini").is_file()
     assert "view: ready" in r.stderr.splitlines() and "Traceback" not in r.stderr
     status = json.loads(status_file.read_text())
     n = status["recorded"]

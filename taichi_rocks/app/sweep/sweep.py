@@ -31,11 +31,12 @@ from tqdm import tqdm
 from ... import __version__
 from ...bench.machine import machine
 from ...config.scene import scene_to_dict
-from ...config.sweep import load_sweep, sweep_fingerprint, sweep_runs
-from ...output.atomic import new_folders, write_atomically
+from ...config.limits import MAX_SWEEP_RUNS, STEP_PACE_S, duration_text
+from ...config.sweep import SweepError, load_sweep, sweep_fingerprint, sweep_runs, sweep_size
+from ...output.atomic import check_place, new_folders, write_atomically
 from .metrics import METRICS
 from .plots import plot_sweep
-from ...runner.tasks import Outcome, run_tasks
+from ...runner.tasks import Outcome, plan_placement, run_tasks
 
 WORKER = "taichi_rocks.app.sweep.worker:run_one"
 FIXED = ("id", "seed", "status", "error", "attempts", "seconds")
@@ -91,14 +92,21 @@ def table(rows: list) -> list[dict]:
     return out
 
 
-def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool) -> None:
-    """Refuse to touch results that are not ours to replace; with overwrite, remove the old ones."""
+def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool, remove: bool = True) -> None:
+    """Refuse to touch results that are not ours to replace; with overwrite (and ``remove``), remove the old
+    ones."""
+    if out.exists() and not out.is_dir():
+        raise SweepOutputError(f"{out}: exists and is not a folder")
+    try:
+        check_place(out, folder=True)
+    except ValueError as e:
+        raise SweepOutputError(str(e)) from None
     if not out.exists():
         return
-    if not out.is_dir():
-        raise SweepOutputError(f"{out}: exists and is not a folder")
     found = [n for n in OURS if (out / n).exists()]
     if overwrite:
+        if not remove:
+            return
         for n in found:
             p = out / n
             shutil.rmtree(p) if p.is_dir() else p.unlink()
@@ -115,6 +123,23 @@ def _check_out(out: Path, fingerprint: str, resume: bool, overwrite: bool) -> No
     if old != fingerprint:
         raise SweepOutputError(f"{out}: holds the results of another sweep (the sweep file or its base scene "
                                f"changed); pass --overwrite to start again")
+
+
+def _check_placement(backend: str, tasks: int, workers, threads, address) -> None:
+    """The refusals of runner/tasks.py ``run_tasks`` about where the runs go, made before anything is written
+    (ValueError, one line)."""
+    if backend == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError("the ray backend needs the ray package: pip install 'taichi-rocks[ray]'") from None
+        return
+    if address:
+        raise ValueError("--address is for the ray backend")
+    place = plan_placement("local", tasks, workers, threads)
+    if place.workers * place.threads > place.cores:
+        raise ValueError(f"{place.workers} workers x {place.threads} threads is more than the {place.cores} "
+                         f"cores here")
 
 
 def _done_rows(out: Path, ids: set) -> dict:
@@ -151,8 +176,18 @@ def _bar(total: int, initial: int, progress):
                 disable=None if progress is None else not progress)
 
 
+def sweep_estimate(sweep, base, n: int) -> str:
+    """One line: the runs, their steps and the least time their stepping takes (config/limits.py's pace)."""
+    duration = sweep.duration if sweep.duration is not None else base.duration
+    dts = [v for v in sweep.grid.get("sim.dt", ()) if isinstance(v, (int, float)) and v > 0] or [base.sim.dt]
+    steps = duration / min(dts)
+    return (f"{n} runs of up to {steps:.3g} steps: at least {duration_text(n * steps * STEP_PACE_S)} of stepping "
+            f"at {STEP_PACE_S * 1e3:g} ms a step, shared by the workers")
+
+
 def run_sweep(path, out, backend: str = "local", workers=None, threads=None, address=None, resume: bool = False,
-              overwrite: bool = False, arch: str = "cpu", progress=None, retries: int = 2) -> list[dict]:
+              overwrite: bool = False, arch: str = "cpu", progress=None, retries: int = 2, yes: bool = False,
+              announce=None) -> list[dict]:
     """Run the sweep file ``path`` into the folder ``out`` (module docstring; docs/sweeps.md).
 
     Args:
@@ -168,23 +203,36 @@ def run_sweep(path, out, backend: str = "local", workers=None, threads=None, add
         arch: the Taichi backend of the runs.
         progress: a tqdm bar on stderr (None: only on a terminal).
         retries: times a run whose worker was killed is tried again on another worker.
+        yes: run a sweep of more than MAX_SWEEP_RUNS runs (else refused).
+        announce: ``announce(line)`` is told the run count and estimate (:func:`sweep_estimate`) once the values
+            are checked, before the runs are built.
 
     Returns:
         The table, one dict per run in run order (the columns of results.csv; "status" "ok" or "failed").
 
     Raises:
-        SweepError: a bad sweep file (a SceneError), before anything is written.
+        SweepError: a bad sweep file (a SceneError), or more than MAX_SWEEP_RUNS runs without ``yes``, before
+            anything is written.
         SweepOutputError: results in ``out`` that may not be touched, before anything is written.
     """
     path, out = Path(path), Path(out)
     sweep, base = load_sweep(path, METRICS)
-    runs = sweep_runs(sweep, base, str(path))
+    n = sweep_size(sweep)
+    if n > MAX_SWEEP_RUNS and not yes:
+        raise SweepError([f"{path}: grid: {sweep_estimate(sweep, base, n)}; more than {MAX_SWEEP_RUNS} runs: pass "
+                          f"--yes to run them"])
     fingerprint = sweep_fingerprint(sweep, base)
+    ids = {f"r{i:04d}" for i in range(n)}  # sweep_runs's ids, known before the runs are built
+    _check_out(out, fingerprint, resume, overwrite, remove=False)  # nothing removed or written before every check
+    kept = _done_rows(out, ids) if resume and out.is_dir() else {}
+    _check_placement(backend, n - len(kept), workers, threads, address)
+    runs = sweep_runs(sweep, base, str(path),
+                      checked=None if announce is None else lambda: announce(f"sweep: {sweep_estimate(sweep, base, n)}"))
+    by_id = {r.id: r for r in runs}
     _check_out(out, fingerprint, resume, overwrite)
     keys, metrics = list(sweep.grid), list(sweep.measure.metrics)
-    by_id = {r.id: r for r in runs}
     with new_folders(out / "runs"):
-        rows = _done_rows(out, set(by_id)) if resume else {}
+        rows = kept
         meta = {"sweep_file": str(path), "sweep_text": path.read_text(), "sweep": sweep.model_dump(mode="json"),
                 "base_scene": scene_to_dict(base), "fingerprint": fingerprint, "runs": len(runs),
                 "versions": _versions(), "machine": machine(arch), "backend": backend, "address": address,

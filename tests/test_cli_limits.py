@@ -1,0 +1,45 @@
+"""Command-line refusals of values that would run forever, overflow or name the wrong thing: one line naming the
+flag or key, exit 2, nothing written (issue-style cases: a seed past int64, ...)."""
+
+from pathlib import Path
+
+import pytest
+
+from cli_util import cli_here, refused
+
+ROOT = Path(__file__).resolve().parents[1]
+MINIMAL = ROOT / "scenes" / "minimal.toml"
+
+
+@pytest.mark.parametrize("command", ["simulate", "render", "export"])
+def test_seed_out_of_range_names_the_key(taichi_cpu, capsys, tmp_path, command):
+    """--seed 2^64 ended in an OverflowError (exit 1): refused as the scene's seed is (tests/bad_scenes)."""
+    out = tmp_path / ("o.usdc" if command == "export" else "o")
+    line = refused(cli_here(capsys, command, MINIMAL, "--seed", 2**64, "--out", out))
+    assert line == f"{MINIMAL}: seed: must be <= 9223372036854775807, got 18446744073709551616"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["simulate", "render", "export"])
+def test_runs_of_too_many_steps_are_refused_with_the_estimate(capsys, tmp_path, command):
+    """--fps 1e-9 or --frames 2e9 (years of stepping): refused before anything runs, naming the flag and the
+    estimate; a scene file with sim.dt = 1e-12 the same, naming sim.dt, and `check` says so too."""
+    out = tmp_path / ("o.usdc" if command == "export" else "o")
+    for flags, words in ((("--fps=1e-9", "--frames", 5), ("--fps 1e-09", "1e+12 steps", "years")),
+                         (("--frames", 2_000_000_000), ("--frames 2000000000", "steps", "days"))):
+        refused(cli_here(capsys, command, MINIMAL, *flags, "--out", out), *words)
+    scene = tmp_path / "s" / "dt.toml"
+    scene.parent.mkdir()
+    scene.write_text(MINIMAL.read_text().replace("dt = 0.004", "dt = 1e-12"))
+    line = refused(cli_here(capsys, command, scene, "--frames", 5, "--out", out), "sim.dt", "2e+12 steps")
+    assert refused(cli_here(capsys, "check", scene)) == line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]
+
+
+def test_frames_too_big_for_the_machine_are_refused_before_taichi_allocates(capsys, tmp_path):
+    """--resolution 200000x200000 (400 GB of frames) ended in a Taichi allocation error (exit 1): one line
+    naming the flag, exit 2, for render and view (before it looks for a display)."""
+    for command, out in (("render", ("--out", tmp_path / "o")), ("view", ())):
+        refused(cli_here(capsys, command, MINIMAL, "--resolution", "200000x200000", *out),
+                "--resolution 200000x200000: a 200000x200000 frame needs about 1600.0 GB")
+    assert list(tmp_path.iterdir()) == []
