@@ -17,18 +17,18 @@ import numpy as np
 import taichi as ti
 
 from ..config.resolution import check_resolution
+from ..motion.camera import view_of
 from . import kernels as K
 from .camera import NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import horizon_color, rgb
 
-__all__ = ["DEFAULT_LOD_PIXELS", "ROCK_MODES", "WINDOW_EVERY", "SHOTS", "INSIDE_VIEWS", "Settings", "Views",
+__all__ = ["DEFAULT_LOD_PIXELS", "ROCK_MODES", "WINDOW_EVERY", "SHOTS", "Settings", "Views",
            "check_rocks", "camera_basis", "vec"]
 
 DEFAULT_LOD_PIXELS = 0.7  # resting rocks whose projected radius is below this many pixels are thinned
 ROCK_MODES = ("splat", "particles")
 WINDOW_EVERY = 100  # frames between window re-creations (lavapipe leaks ~0.3 MB per captured frame)
 SHOTS = "shots"  # the name of the scene's own camera when it has [[camera.shot]] tables (set_view)
-INSIDE_VIEWS = ("driver",)  # views from inside the ridden vehicle's cabin (drawn by .interior)
 
 
 def check_rocks(rocks: str) -> str:
@@ -109,14 +109,14 @@ class Views:
         self.view_name = name
 
     def inside_needed(self) -> set:
-        """The vehicles a shot of the camera looks out of (a view from inside a cabin): their interiors are
-        drawn."""
-        return {s.rides for s in self.rig.shots if s.view in INSIDE_VIEWS}
+        """The vehicles a shot of the camera looks out of (a view from inside a cabin, motion/camera.py
+        VIEW_TABLE ``inside``): their interiors are drawn."""
+        return {s.rides for s in self.rig.shots if view_of(s.view).inside}
 
     def inside_now(self):
         """The vehicle whose cabin the shot of the last update looks out of, or None."""
         shot = self.rig.shot
-        return shot.rides if shot.view in INSIDE_VIEWS else None
+        return shot.rides if view_of(shot.view).inside else None
 
     def view(self, sim) -> View:
         """Advance the camera to ``sim.time``; the view in local f32 coordinates."""
