@@ -263,7 +263,7 @@ class Renderer:
         self._draw_vehicles(scene, origin, poses)
         self.rock_layer.declare(scene)
         w, h = self.settings.resolution
-        self.hits.draw(scene, poses, origin, eye, self.views.px_per_rad, h / w, self.inside)
+        self.hits.draw(scene, poses, origin, eye, self.views.px_per_rad, h / w, self.inside, sd)
         self._overlays.draw(scene, self.sim, origin, self.views.ground_z)
         win.canvas.scene(scene)
         return win
