@@ -9,6 +9,12 @@ follow rule a :class:`CameraRig`; one frame's view is render/camera.py ``View``,
 render/kernels.py ``CameraBasis``; GGUI's own ``ti.ui.Camera`` is set from the view by the Renderer
 (``_ggui_camera``) and moved by the user in render/freecam.py ``FreeCamera``.
 
+Views. The presets are one table, :data:`VIEW_TABLE`: a row per view (:class:`CameraView`) names it, says
+whether it is mounted on the body, which vehicle it rides with, whether it looks out of a cabin, and gives its
+pose (eye and aim) and whether it orbits. A view is one row (and its name among the scene's choices,
+config/models.py CAMERA_VIEWS: the module refuses to load when the two lists differ); a name without a row is
+refused (ValueError), never taken for another view.
+
 Shots. The [camera] table's view plays from t = 0 until the first [[camera.shot]] (from its ``at``, s), each
 shot until the next. A shot's keys left out come from the [camera] table (follow, target; look_ahead,
 smoothing and orbit_period always do), its offset and aim from its view. Where a shot starts, the camera cuts:
@@ -20,18 +26,17 @@ too.
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from ..config.keys import choices
 from .cabin import cabin_of
 
-__all__ = ["VIEWS", "MOUNTED", "CHASE_OFFSET", "view_preset", "CameraRig", "camera_of", "Shot", "shots_of",
-           "SceneCamera", "scene_camera"]
+__all__ = ["VIEWS", "CameraView", "VIEW_TABLE", "view_of", "CHASE_OFFSET", "view_preset", "CameraRig", "camera_of",
+           "Shot", "shots_of", "SceneCamera", "scene_camera"]
 
-VIEWS = choices("camera.view")  # the presets, in the scene's order
-MOUNTED = ("driver", "bonnet")  # views from a camera fixed to the body of the vehicle they ride with
-RIDE_FOLLOW = ("chase",) + MOUNTED  # views riding with camera.follow (the others ride with the target)
+VIEWS = choices("camera.view")  # the presets, in the scene's order (config/models.py CAMERA_VIEWS)
 CHASE_OFFSET = (-9.0, 0.0, 3.5)  # m: the chase view's eye, in the followed vehicle's frame
 MOUNTED_REACH = 30.0  # m: the driver and bonnet views look at a point this far ahead
 MOUNTED_PITCH = 2.5  # deg: ... this far below the eye's height (the road ahead, the vehicle in front)
@@ -44,45 +49,95 @@ def _body(spec):
     return float(spec.length), 0.8 * R + float(spec.height), -0.5 * float(spec.wheelbase), R, float(spec.track)
 
 
-def _mounted(view: str, spec):
-    """The eye and aim of a camera fixed to the body (motion/cabin.py: the driver's eye, the bonnet camera):
-    looking straight ahead, MOUNTED_PITCH below the horizontal."""
-    cab = cabin_of(spec)
-    eye = np.array(cab.eye if view == "driver" else cab.bonnet_eye)
+def _mounted(eye) -> tuple:
+    """The eye and aim of a camera fixed to the body at ``eye`` (motion/cabin.py): looking straight ahead,
+    MOUNTED_PITCH below the horizontal."""
+    eye = np.array(eye)
     drop = MOUNTED_REACH * math.tan(math.radians(MOUNTED_PITCH))
     return eye, eye + np.array([MOUNTED_REACH, 0.0, -drop])
 
 
-def view_preset(view: str, follow_spec, target_spec, look_ahead: float):
-    """The default eye (in the frame of the vehicle it rides with, ``follow_spec``) and aim point (in the
-    target's frame; chase, driver and bonnet: in the frame of the vehicle ridden with) of a view, m. Side, low
-    and orbit ride with the target (see :func:`camera_of`).
+def _chase_pose(follow_spec, target_spec, look_ahead: float) -> tuple:
+    """Behind and above the followed vehicle, looking ``look_ahead`` metres ahead of the target."""
+    return np.array(CHASE_OFFSET), np.array([float(look_ahead), 0.0, 0.0])
 
-    * chase: behind and above the followed vehicle, looking ``look_ahead`` metres ahead of the target;
-    * side: on the vehicle's left (the side the default sun lights), level with a point a quarter
-      of its length behind its rear axle, at 1.4 m, looking across at the target's rear tires and the spray
-      behind them; far enough (4 m + half the length) to frame the rear half of the body and the spray;
-    * low: at 1.2 m, 5.5 m behind the vehicle's rear axle and 3.5 m outside its left tires, looking along
-      the spray at a point a quarter of the target's length behind its rear axle (the rear tires on the
-      left of the frame, the spray on the right);
-    * orbit: the side view's eye turned about the vehicle's centre (:class:`CameraRig`);
-    * driver: the driver's eye behind the windscreen of the vehicle ridden with (motion/cabin.py), looking
-      straight ahead and a little down (MOUNTED_PITCH): its bonnet and the windscreen's frame in the lower and
-      outer part of the image, the road and the vehicle in front in the middle;
-    * bonnet: a camera on the bonnet of the vehicle ridden with, looking ahead the same way.
-    """
-    if view not in VIEWS:
-        raise ValueError(f"camera.view must be one of {', '.join(VIEWS)}, got {view!r}")
-    if view in MOUNTED:
-        return _mounted(view, follow_spec)
+
+def _side_pose(follow_spec, target_spec, look_ahead: float) -> tuple:
+    """On the vehicle's left (the side the default sun lights), level with a point a quarter of its length
+    behind its rear axle, at 1.4 m, looking across at the target's rear tires and the spray behind them; far
+    enough (4 m + half the length) to frame the rear half of the body and the spray."""
     L, top, xr, R, track = _body(follow_spec)
     tL, ttop, txr, tR, _ = _body(target_spec)
-    if view == "chase":
-        return np.array(CHASE_OFFSET), np.array([float(look_ahead), 0.0, 0.0])
-    if view in ("side", "orbit"):
-        return (np.array([xr - 0.25 * L, 4.0 + 0.5 * L, 1.4]),
-                np.array([txr - 0.25 * tL, 0.0, max(0.4 * ttop, tR)]))
+    return (np.array([xr - 0.25 * L, 4.0 + 0.5 * L, 1.4]),
+            np.array([txr - 0.25 * tL, 0.0, max(0.4 * ttop, tR)]))
+
+
+def _low_pose(follow_spec, target_spec, look_ahead: float) -> tuple:
+    """At 1.2 m, 5.5 m behind the vehicle's rear axle and 3.5 m outside its left tires, looking along the spray
+    at a point a quarter of the target's length behind its rear axle (the rear tires on the left of the frame,
+    the spray on the right)."""
+    L, top, xr, R, track = _body(follow_spec)
+    tL, ttop, txr, tR, _ = _body(target_spec)
     return np.array([xr - 5.5, 0.5 * track + 3.5, 1.2]), np.array([txr - 0.25 * tL, 0.0, 0.35 * ttop])
+
+
+def _driver_pose(follow_spec, target_spec, look_ahead: float) -> tuple:
+    """The driver's eye behind the windscreen of the vehicle ridden with (motion/cabin.py), looking straight
+    ahead and a little down (MOUNTED_PITCH): its bonnet and the windscreen's frame in the lower and outer part
+    of the image, the road and the vehicle in front in the middle."""
+    return _mounted(cabin_of(follow_spec).eye)
+
+
+def _bonnet_pose(follow_spec, target_spec, look_ahead: float) -> tuple:
+    """A camera on the bonnet of the vehicle ridden with, looking ahead as the driver does."""
+    return _mounted(cabin_of(follow_spec).bonnet_eye)
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """One view preset, a row of :data:`VIEW_TABLE`. ``mounted``: the eye is fixed to the body of the vehicle it
+    rides with (it turns with the body; the aim is in that vehicle's frame); ``rides``: the vehicle it rides
+    with, "follow" (camera.follow) or "target" (camera.target); ``inside``: it looks out of that vehicle's
+    cabin (the renderer draws the windscreen's frame, render/interior.py, and the marks on the glass's inner
+    side); ``pose``: (follow spec, target spec, look_ahead) -> its default eye (in the frame of the vehicle it
+    rides with) and aim point (in the target's frame; mounted: in the frame of the vehicle ridden with), m;
+    ``orbits``: the eye turns about the vehicle once per camera.orbit_period."""
+
+    name: str
+    mounted: bool
+    rides: str
+    inside: bool
+    pose: Callable
+    orbits: bool = False
+
+
+#: The view presets, one row each; the names are the scene's (config/models.py CAMERA_VIEWS), in its order.
+VIEW_TABLE = {v.name: v for v in (
+    CameraView("chase", mounted=False, rides="follow", inside=False, pose=_chase_pose),
+    CameraView("side", mounted=False, rides="target", inside=False, pose=_side_pose),
+    CameraView("low", mounted=False, rides="target", inside=False, pose=_low_pose),
+    CameraView("orbit", mounted=False, rides="target", inside=False, pose=_side_pose, orbits=True),
+    CameraView("driver", mounted=True, rides="follow", inside=True, pose=_driver_pose),
+    CameraView("bonnet", mounted=True, rides="follow", inside=False, pose=_bonnet_pose),
+)}
+if tuple(VIEW_TABLE) != VIEWS:  # a view of the scene's list without its row (or the other way round)
+    raise ImportError(f"motion/camera.py VIEW_TABLE {tuple(VIEW_TABLE)} differs from camera.view's choices {VIEWS}")
+
+
+def view_of(view: str) -> CameraView:
+    """The row of view preset ``view``; ValueError naming the key if there is none."""
+    try:
+        return VIEW_TABLE[view]
+    except (KeyError, TypeError):
+        raise ValueError(f"camera.view must be one of {', '.join(VIEWS)}, got {view!r}") from None
+
+
+def view_preset(view: str, follow_spec, target_spec, look_ahead: float):
+    """The default eye (in the frame of the vehicle it rides with, ``follow_spec``) and aim point (in the
+    target's frame; mounted views: in the frame of the vehicle ridden with) of a view, m: its row's ``pose``
+    (:data:`VIEW_TABLE`; the orbit view is the side view's eye turned about the vehicle's centre,
+    :class:`CameraRig`). ValueError for a name without a row."""
+    return view_of(view).pose(follow_spec, target_spec, look_ahead)
 
 
 class CameraRig:
@@ -169,9 +224,10 @@ def _shot(scene, at: float, view: str, follow, target, offset, aim) -> Shot:
     for key, name in (("follow", follow), ("target", target)):
         if name not in names:
             raise ValueError(f"camera.{key}: no vehicle named {name!r} (vehicles: {', '.join(names)})")
+    row = view_of(view)
     j = names.index(target)
-    i = names.index(follow) if view in RIDE_FOLLOW else j
-    if view in MOUNTED:
+    i = names.index(follow) if row.rides == "follow" else j
+    if row.mounted:
         j = i  # the aim is in the frame of the vehicle ridden with
     eye, look = view_preset(view, scene.vehicles[i], scene.vehicles[j], settings.look_ahead)
     return Shot(float(at), view, i, j, tuple(map(float, eye if offset is None else offset)),
@@ -206,8 +262,7 @@ class SceneCamera:
         if not shots:
             raise ValueError("a camera needs at least one shot")
         self.shots = tuple(shots)
-        self._rigs = [CameraRig(s.offset, look_ahead, smoothing, aim=s.aim, mounted=s.view in MOUNTED,
-                                orbit_period=orbit_period if s.view == "orbit" else None) for s in self.shots]
+        self._rigs = [_rig(s, look_ahead, smoothing, orbit_period) for s in self.shots]
         self.heading = None
         self.t = None
 
@@ -255,6 +310,11 @@ def camera_of(scene, view=None):
     (default: follow) and ride with it. ValueError naming the key if a name is unknown."""
     s = shots_of(scene, scene.camera.view if view is None else view)[0]
     c = scene.camera
-    rig = CameraRig(s.offset, c.look_ahead, c.smoothing, aim=s.aim, mounted=s.view in MOUNTED,
-                    orbit_period=c.orbit_period if s.view == "orbit" else None)
-    return rig, s.rides, s.target
+    return _rig(s, c.look_ahead, c.smoothing, c.orbit_period), s.rides, s.target
+
+
+def _rig(shot: Shot, look_ahead: float, smoothing: float, orbit_period: float) -> CameraRig:
+    """The rig of ``shot``: its eye and aim, mounted and orbiting as its view's row says."""
+    row = view_of(shot.view)
+    return CameraRig(shot.offset, look_ahead, smoothing, aim=shot.aim, mounted=row.mounted,
+                     orbit_period=orbit_period if row.orbits else None)

@@ -11,11 +11,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..motion.camera import (CHASE_OFFSET, MOUNTED, VIEWS, CameraRig, SceneCamera, camera_of,  # noqa: F401
+from ..motion.camera import (CHASE_OFFSET, VIEWS, CameraRig, SceneCamera, camera_of,  # noqa: F401
                              scene_camera, view_preset)
 from .looks import SUN_DIR_CAMERA
 
-__all__ = ["GL_UP", "NEAR", "VIEWS", "MOUNTED", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of",
+__all__ = ["GL_UP", "NEAR", "VIEWS", "CHASE_OFFSET", "to_gl", "view_preset", "CameraRig", "camera_of",
            "SceneCamera", "scene_camera", "View", "Lens", "look", "look_at_time", "frame_of", "sun_vector",
            "sun_direction"]
 

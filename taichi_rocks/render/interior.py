@@ -11,7 +11,8 @@ stays of the body (the bonnet, the doors' tops, the wheels) is drawn as from out
 
 The dashboard's top stays below the line from the driver's eye over the bonnet's front edge, so it never
 hides what the bonnet does not: the road and the vehicle ahead stay in view (a pixel test checks that in a
-drawn frame). The pillars and the header are beams of rectangular section lying just inside the glass.
+drawn frame); and it stays behind the glass (a sloping windscreen leans back over the dashboard's far edge).
+The pillars and the header are beams of rectangular section lying just inside the glass.
 
 Cost. The eye is fixed in the body frame, so what it can see of its own vehicle is decided once: GGUI 1.7.4
 draws both sides of every triangle (checked), so the faces turned away from the eye (closed pieces: hidden by
@@ -112,7 +113,8 @@ def windscreen_frame(cab):
 
 def _dashboard(cab):
     """A box across the cabin in front of the driver, its top (up to its far edge) below the eye's line over
-    the bonnet's front."""
+    the bonnet's front, and its far edge INSET behind the glass at the top's height (a sloping windscreen leans
+    back over it: a box up to the glass's foot would poke through the glass, in front of the marks on it)."""
     eye = cab.eye
     depth = DASH_DEPTH * cab.length
     x0, x1 = cab.base_x - depth, cab.base_x - INSET
@@ -121,6 +123,8 @@ def _dashboard(cab):
     room = eye[2] - sight * (x1 - eye[0]) - cab.belt  # up to the line at the far edge (it rises highest)
     height = max(DASH_RISE * room, 0.02)
     height = min(height, 0.5 * (cab.roof - cab.belt))
+    x1 = min(x1, cab.windscreen_x(cab.belt + height) - INSET)  # nearer the eye the line is higher: still below
+    x0 = min(x0, x1 - 0.02)
     half = 0.98 * min(cab.base_half, cab.half_inside)
     return box(((x0 + x1) / 2, 0.0, cab.belt + height / 2 - 0.002), (x1 - x0, 2 * half, height),
                {k: np.array(DASHBOARD_COLOR) for k in ("+x", "-x", "+y", "-y", "+z")})

@@ -28,8 +28,18 @@ its damage class and sized by how far its measure (normal energy 1/2 m u_n^2 or 
 Windscreen chips are typically 5-20 mm bullseyes and stars, and a crack from a stone runs from a few cm to
 across the glass; a mark's shape is drawn from a hash of (rock, step), so it is the same in every run. The
 segments lie in the windscreen's plane (motion/cabin.py: the front face of the cabin, from the belt line to the
-roof), clipped to the glass, GLASS_GAP inside it from the driver's seat (in front of the windscreen's frame,
-render/interior.py INSET, which hides what its pillars cover) or outside it seen from outside.
+roof; on it or up to a few mm outside the body's glass face), whatever depth the contact point was reported at,
+clipped to the glass GLASS_MARGIN inside its edges, GLASS_GAP inside it from the driver's seat (behind the
+windscreen's frame, render/interior.py INSET, which hides what its pillars cover) or outside it seen from
+outside. They are drawn as ribbons on the glass (:func:`glass_ribbons`): a few pixels wide at their distance from
+the camera and clipped to the glass GLASS_EDGE inside its edges, so every pixel of a mark lies on the glass, and
+the depth test hides what the cabin's frame, the dashboard or another body covers.
+
+Paint chips (:func:`paint_chip`): a chip or a crack on the bonnet or the front (part "bonnet", "front_bumper")
+chips the paint: an irregular flake of radius PAINT_R (chip class 4 -> 10 mm, crack class 10 -> 25 mm, by s),
+on the body face the stone hit (motion/bodies.py: the part's face whose outward normal is closest to the
+contact normal and whose plane passes nearest the contact point), clipped to that face PAINT_MARGIN inside its
+edges, PAINT_GAP off it.
 """
 
 from __future__ import annotations
@@ -40,13 +50,15 @@ import numpy as np
 
 from ..config.impacts import DAMAGE_CLASSES
 from ..engine.events import EVENT_DTYPE
-from ..motion.bodies import LABELS
+from ..motion.bodies import FACE_CORNERS, LABELS, body_parts, hexahedron_planes
 from ..motion.cabin import cabin_of
 
-__all__ = ["Hits", "to_body_frame", "body_to_local", "flash_geometry", "mark_segments", "glass_side", "cabin_for",
-           "severity", "FLASH_S", "WINDSCREEN", "CHIP", "CRACK"]
+__all__ = ["Hits", "to_body_frame", "body_to_local", "flash_geometry", "mark_segments", "glass_side", "glass_normal",
+           "cabin_for", "severity", "glass_ribbons", "body_faces", "face_of", "paint_chip", "FLASH_S", "WINDSCREEN",
+           "PAINTED", "CHIP", "CRACK"]
 
 WINDSCREEN = LABELS.index("windscreen")
+PAINTED = tuple(LABELS.index(p) for p in ("bonnet", "front_bumper"))  # parts whose paint a hit chips
 MARK, CHIP, CRACK = (DAMAGE_CLASSES.index(c) for c in ("mark", "chip", "crack"))
 FLASH_S = 0.13  # s a flash lasts (4 frames at 30 frames/s)
 FLASH_M = 0.012  # m: the flash core's radius, at its largest
@@ -61,7 +73,11 @@ CRACK_STEPS = 6  # bends per arm of a crack
 CRACK_JITTER = 0.35  # rad: at most this much turn at a bend
 GLASS_GAP = 0.002  # m between a mark and the glass, on the camera's side
 GLASS_MARGIN = 0.01  # m: marks stop this far inside the glass's edges
+GLASS_EDGE = 0.002  # m: and their ribbons, drawn a few pixels wide, this far
 CRACK_DECADE = 10.0  # a crack's measure this many times its threshold is the largest crack
+PAINT_R = ((0.004, 0.010), (0.010, 0.025))  # m: a paint chip's radius, (s = 0, s = 1) of the chip and crack class
+PAINT_MARGIN = 0.004  # m: paint chips stop this far inside the face's edges
+PAINT_GAP = 0.0015  # m between a paint chip and its face, outside
 
 
 def to_body_frame(events: np.ndarray, ground_local: float) -> np.ndarray:
@@ -98,7 +114,8 @@ class Hits:
         self.events = np.empty(0, EVENT_DTYPE)
         self.t = 0.0
         self._seen = set()  # the keys of self.events
-        self._shapes = {}  # key -> the mark's segments, body frame (K, 2, 3)
+        self._shapes = {}  # key -> the mark's segments, body frame (K, 2, 3), or a paint chip (triangles, normal)
+        self._chips = {}  # vehicle -> (the chips' keys, their triangles and normals), of the last call
 
     @classmethod
     def of_scene(cls, scene) -> Hits:
@@ -133,12 +150,13 @@ class Hits:
             gone = set(_keys(self.events[~keep]))
             self._seen -= gone
             self._shapes = {k: v for k, v in self._shapes.items() if k not in gone}
+            self._chips = {}
             self.events = self.events[keep]
         self.t = min(self.t, float(t))
 
     def clear(self) -> None:
         self.events = np.empty(0, EVENT_DTYPE)
-        self._seen, self._shapes = set(), {}
+        self._seen, self._shapes, self._chips = set(), {}, {}
         self.t = 0.0
 
     def counts(self, vehicle: int) -> dict:
@@ -156,15 +174,16 @@ class Hits:
         return ev[sel], age[sel]
 
     def marks(self) -> np.ndarray:
-        """The hits shown that left a mark on a windscreen: chips and cracks on part "windscreen"."""
+        """The hits shown that left a mark: chips and cracks on part "windscreen" (on the glass) and on the
+        painted parts (:data:`PAINTED`: the paint chipped)."""
         ev = self.shown()
-        return ev[(ev["part"] == WINDSCREEN) & (ev["damage"] >= CHIP)]
+        return ev[((ev["part"] == WINDSCREEN) | np.isin(ev["part"], PAINTED)) & (ev["damage"] >= CHIP)]
 
     def windscreen_segments(self, vehicle: int, cabin) -> np.ndarray:
         """Segments (K, 2, 3) of every mark on ``vehicle``'s windscreen, body frame on the glass (no gap: the
         caller moves them to the camera's side, :func:`glass_side`); ``cabin``: its motion/cabin.py Cabin."""
         ev = self.marks()
-        ev = ev[ev["vehicle"] == int(vehicle)]
+        ev = ev[(ev["vehicle"] == int(vehicle)) & (ev["part"] == WINDSCREEN)]
         out = []
         for e in ev:
             key = (int(e["step"]), int(e["rock"]), int(e["vehicle"]))
@@ -172,6 +191,27 @@ class Hits:
                 self._shapes[key] = mark_segments(e, severity(e, self.thresholds, self.measure), cabin)
             out.append(self._shapes[key])
         return np.concatenate(out) if out else np.empty((0, 2, 3))
+
+    def paint_chips(self, vehicle: int, faces) -> tuple:
+        """Every paint chip on ``vehicle`` (``faces``: its :func:`body_faces`): triangles (K, 3, 3), body frame,
+        PAINT_GAP off their faces, and each triangle's face normal (K, 3)."""
+        ev = self.marks()
+        ev = ev[(ev["vehicle"] == int(vehicle)) & np.isin(ev["part"], PAINTED)]
+        which = (len(ev), ev["step"].tobytes(), ev["rock"].tobytes())
+        cached = self._chips.get(int(vehicle))
+        if cached is not None and cached[0] == which:  # the same chips as the last frame: hundreds on a bumper
+            return cached[1]
+        tris, nrms = [], []
+        for e in ev:
+            key = (int(e["step"]), int(e["rock"]), int(e["vehicle"]))
+            if key not in self._shapes:
+                self._shapes[key] = paint_chip(e, severity(e, self.thresholds, self.measure), faces)
+            t, n = self._shapes[key]
+            tris.append(t)
+            nrms.append(np.repeat(n[None], len(t), 0))
+        out = (np.concatenate(tris), np.concatenate(nrms)) if tris else (np.empty((0, 3, 3)), np.empty((0, 3)))
+        self._chips[int(vehicle)] = (which, out)
+        return out
 
 
 def severity(e, thresholds, measure: str) -> float:
@@ -238,14 +278,14 @@ def mark_segments(e, s: float, cabin) -> np.ndarray:
         segs = _crack(c, s, rng)
     else:
         segs = _star(c, CHIP_R[0] + s * (CHIP_R[1] - CHIP_R[0]), rng)
-    # the plane through the hit parallel to the cabin's windscreen (the body's glass face starts 1 cm below the
-    # belt line, motion/bodies.py EPS: a few mm off the cabin's plane)
-    dx = float(e["point"][0]) - cabin.windscreen_x(float(e["point"][2]))
+    # on the cabin's windscreen plane, whatever depth the contact point was reported at (a stone is found a few
+    # mm inside the glass, more at speed): on the body's glass face or up to a few mm outside it (the face starts
+    # 1 cm below the belt line, motion/bodies.py EPS), never inside the cabin in front of its frame
     out = []
     for a, b in segs:
         a, b = _clip(cabin, np.asarray(a), np.asarray(b))
         if a is not None:
-            out.append((_on_glass(cabin, a, dx), _on_glass(cabin, b, dx)))
+            out.append((_on_glass(cabin, a), _on_glass(cabin, b)))
     return np.array(out, np.float64).reshape(-1, 2, 3)
 
 
@@ -279,16 +319,151 @@ def _clip(cabin, a, b):
     return a, a + lo * (b - a)
 
 
-def _on_glass(cabin, p, dx: float) -> tuple:
+def _on_glass(cabin, p) -> tuple:
     y, z = p[0], _height(cabin, p[1])
-    return (cabin.windscreen_x(z) + dx, y, z)
+    return (cabin.windscreen_x(z), y, z)
+
+
+def glass_normal(cabin) -> np.ndarray:
+    """The outward unit normal of the windscreen of ``cabin`` (body frame)."""
+    n = np.array([cabin.roof - cabin.belt, 0.0, cabin.base_x - cabin.top_x])
+    return n / np.linalg.norm(n)
 
 
 def glass_side(segments: np.ndarray, cabin, inside: bool) -> np.ndarray:
     """Segments moved GLASS_GAP off the windscreen of ``cabin``, towards the cabin (``inside``) or out."""
-    n = np.array([cabin.roof - cabin.belt, 0.0, cabin.base_x - cabin.top_x])  # the glass's outward normal
-    n /= np.linalg.norm(n)
-    return segments + (-GLASS_GAP if inside else GLASS_GAP) * n
+    return segments + (-GLASS_GAP if inside else GLASS_GAP) * glass_normal(cabin)
+
+
+def _glass_edges(cabin, margin: float) -> list:
+    """The windscreen of ``cabin`` in glass coordinates (y, metres up the glass) as half-planes (a, b, c):
+    a y + b v <= c, ``margin`` inside its edges."""
+    top = _along(cabin, cabin.roof)
+    k = (cabin.top_half - cabin.base_half) / top  # the half width grows this much per metre up the glass
+    h = math.hypot(1.0, k)
+    return [(0.0, -1.0, -margin), (0.0, 1.0, top - margin), (1.0 / h, -k / h, cabin.base_half / h - margin),
+            (-1.0 / h, -k / h, cabin.base_half / h - margin)]
+
+
+def glass_ribbons(segments: np.ndarray, cabin, inside: bool, eye, px_per_rad: float, width_px: float) -> np.ndarray:
+    """Windscreen mark segments (K, 2, 3: body frame on the glass of ``cabin``) as ribbons on the glass, drawn
+    from ``eye`` (body frame; ``px_per_rad``: the camera's pixels per radian): triangles (T, 3, 3), body frame,
+    GLASS_GAP off the glass on the camera's side (:func:`glass_side`). Each ribbon is ``width_px`` pixels wide at
+    its distance from the eye and clipped to the glass GLASS_EDGE inside its edges, so that no pixel of a mark
+    falls off the glass (a line is drawn at a width in pixels, past the ends of whatever it lies on)."""
+    seg = np.asarray(segments, np.float64).reshape(-1, 2, 3)
+    if not len(seg):
+        return np.empty((0, 3, 3))
+    g = np.stack([seg[..., 1], _along(cabin, seg[..., 2])], -1)  # glass coordinates (K, 2, 2): lengths true
+    dist = np.linalg.norm(seg.mean(axis=1) - np.asarray(eye, np.float64), axis=1)
+    half = 0.5 * float(width_px) * dist / float(px_per_rad)
+    d = g[:, 1] - g[:, 0]
+    norm = np.linalg.norm(d, axis=1)
+    keep = norm > 1e-9
+    g, d, half, norm = g[keep], d[keep], half[keep], norm[keep]
+    across = np.stack([-d[:, 1], d[:, 0]], 1) * (half / norm)[:, None]
+    quads = np.stack([g[:, 0] - across, g[:, 0] + across, g[:, 1] + across, g[:, 1] - across], 1)  # (K, 4, 2)
+    edges = _glass_edges(cabin, GLASS_EDGE)
+    inside_all = np.ones(len(quads), bool)
+    for a, b, c in edges:
+        inside_all &= np.all(a * quads[..., 0] + b * quads[..., 1] <= c, axis=1)
+    tris = [quads[inside_all][:, [0, 1, 2]], quads[inside_all][:, [0, 2, 3]]]
+    for q in quads[~inside_all]:  # the few at the glass's edges: clipped to it (convex: a fan stays inside)
+        poly = _clip_convex(q, edges)
+        if len(poly) >= 3:
+            tris.append(np.stack([np.repeat(poly[:1], len(poly) - 2, 0), poly[1:-1], poly[2:]], 1))
+    t2 = np.concatenate(tris).reshape(-1, 2)
+    z = _height(cabin, t2[:, 1])
+    pts = np.stack([cabin.windscreen_x(z), t2[:, 0], z], 1) + (-GLASS_GAP if inside else GLASS_GAP) * \
+        glass_normal(cabin)
+    return pts.reshape(-1, 3, 3)
+
+
+def body_faces(spec) -> list:
+    """Every face of the body of vehicle ``spec`` (motion/bodies.py, body frame on the ground): (corners (4, 3),
+    outward plane (n, d): n . x = d on it)."""
+    out = []
+    for part in body_parts(spec, 0.0).parts:
+        c = part.corners()
+        planes = hexahedron_planes(c)
+        out += [(c[list(idx)], planes[f]) for f, idx in enumerate(FACE_CORNERS)]
+    return out
+
+
+def face_of(faces, point, normal):
+    """The face of ``faces`` (:func:`body_faces`) a hit at ``point`` with outward ``normal`` is on: of the faces
+    turned within 60 degrees of the normal, the one whose plane passes nearest the point."""
+    p, n = np.asarray(point, np.float64), np.asarray(normal, np.float64)
+    best, key = None, None
+    for corners, plane in faces:
+        if plane[:3] @ n < 0.5:
+            continue
+        q = (abs(float(plane[:3] @ p - plane[3])), -float(plane[:3] @ n))
+        if key is None or q < key:
+            best, key = (corners, plane), q
+    return best
+
+
+def _clip_convex(poly: np.ndarray, edges) -> np.ndarray:
+    """Polygon ``poly`` (N, 2) clipped to the half-planes ``edges`` ((a, b, c): a x + b y <= c; Sutherland and
+    Hodgman)."""
+    for a, b, c in edges:
+        if not len(poly):
+            break
+        out = []
+        for k in range(len(poly)):
+            p, q = poly[k], poly[(k + 1) % len(poly)]
+            fp, fq = a * p[0] + b * p[1] - c, a * q[0] + b * q[1] - c
+            if fp <= 0.0:
+                out.append(p)
+            if (fp < 0.0) != (fq < 0.0) and fp != fq:
+                out.append(p + (q - p) * (fp / (fp - fq)))
+        poly = np.array(out).reshape(-1, 2)
+    return poly
+
+
+def paint_chip(e, s: float, faces) -> tuple:
+    """The paint chip of event ``e`` (body frame) of severity ``s`` on the face of ``faces`` it hit
+    (:func:`face_of`): triangles (K, 3, 3), body frame, PAINT_GAP outside the face and clipped to it
+    PAINT_MARGIN inside its edges (none if the hit lies outside that), and the face's outward normal (3,). An
+    irregular flake: 7-9 corners round the hit at 0.55-1 of its radius, drawn from a hash of (rock, step)."""
+    found = face_of(faces, e["point"], e["normal"])
+    if found is None:
+        return np.empty((0, 3, 3)), np.array(e["normal"], np.float64)
+    corners, plane = found
+    n = plane[:3]
+    u = np.cross(n, (0.0, 0.0, 1.0))
+    if np.linalg.norm(u) < 1e-6:  # a top or bottom face
+        u = np.cross(n, (0.0, 1.0, 0.0))
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    c = np.asarray(e["point"], np.float64)
+    c = c - (n @ c - plane[3]) * n  # on the face
+    face = np.stack([(corners - c) @ u, (corners - c) @ v], 1)
+    d0, d1 = face[1] - face[0], face[2] - face[1]
+    if d0[0] * d1[1] - d0[1] * d1[0] < 0:  # clockwise: turn it round
+        face = face[::-1]
+    edges = []
+    for k in range(len(face)):  # inward offsets of the (counter-clockwise) face's edges
+        d = face[(k + 1) % len(face)] - face[k]
+        out = np.array([d[1], -d[0]]) / np.linalg.norm(d)
+        edges.append((out[0], out[1], float(out @ face[k]) - PAINT_MARGIN))
+    if any(-cc > 0.0 for _, _, cc in edges):  # the hit itself lies outside the face's margin
+        return np.empty((0, 3, 3)), n
+    rng = _random(e)
+    lo, hi = PAINT_R[1 if int(e["damage"]) == CRACK else 0]
+    r = lo + s * (hi - lo)
+    k = int(rng.integers(7, 10))
+    ang = rng.uniform(0, 2 * math.pi) + np.arange(k) * 2 * math.pi / k + rng.uniform(-0.25, 0.25, k)
+    poly = r * rng.uniform(0.55, 1.0, k)[:, None] * np.stack([np.cos(ang), np.sin(ang)], 1)
+    poly = _clip_convex(poly, edges)
+    if len(poly) < 2:
+        return np.empty((0, 3, 3)), n
+    lift = c + PAINT_GAP * n
+    pts = lift[None] + poly[:, :1] * u + poly[:, 1:] * v
+    m = len(pts)
+    tris = np.stack([np.repeat(lift[None], m, 0), pts, np.roll(pts, -1, 0)], 1)  # a fan from the hit
+    return tris, n
 
 
 def cabin_for(spec):

@@ -1,6 +1,6 @@
 """What a rock looks like, from its id alone (stable across frames and memory re-orderings): its colour
 (:func:`_rock_color`, host twin :func:`rock_color`) and the outline and facets of a splatted resting rock
-(:func:`rock_shape`, drawn by :func:`.kernels._splat_pebble`).
+(:func:`rock_shape`, drawn by :func:`.splat._splat_pebble`).
 """
 
 import math

@@ -1,4 +1,4 @@
-"""Shadows on the ground, for the background layer of :mod:`.kernels` (Taichi functions).
+"""Shadows on the ground, for the background layer (:mod:`.splat`, :mod:`.ground`; Taichi functions).
 
 The sun (unit vector s towards it) puts the shadow of a point at height z above the ground at its foot plus
 ``shift`` * z, shift = -s_xy / s_z. Three kinds of shadow darken the ground, each taking away the light the

@@ -1,7 +1,7 @@
 """Culling the resting rocks of active stepping (``[sim] stepping = "active"``) by the tiles they wait in.
 
 Under active stepping the engine lists only the active rocks; the resting ones wait in ground tiles, which the
-engine offers slot by slot (engine/drawing.py). The rock pass (:func:`.kernels.rocks_pass`) draws the listed
+engine offers slot by slot (engine/drawing.py). The rock pass (:func:`.splat.rocks_pass`) draws the listed
 rocks rock by rock, then the tiles: one parallel loop over the slots keeps the occupied tiles whose rocks may be
 in view (:func:`tile_in_view`), compacted into a :class:`Visible` list by an atomic counter, then one parallel
 loop over (visible tile, rock of the tile) runs the same per-rock test and drawing as the listed rocks.

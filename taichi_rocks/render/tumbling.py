@@ -4,14 +4,14 @@ A flying rock in view whose projected radius is at least :data:`MESH_PX` pixels 
 :data:`PROTOTYPES` low-poly rocks (motion/rockshapes.py ``rock_prototype``, the shapes of the export's
 instances: 80 flat-shaded triangles; below :data:`FINE_PX` pixels the same rock on 20 triangles), chosen by a
 hash of its id (config/streams.py LOOK_PROTOTYPE), scaled by its radius and turned by its orientation
-(engine/tumble.py, read through engine/drawing.py ``listed_orientation``). The rock pass (render/kernels.py
+(engine/tumble.py, read through engine/drawing.py ``listed_orientation``). The rock pass (render/splat.py
 ``rocks_pass``) compacts such rocks into a :class:`MeshBucket` (centre, radius, orientation, colour,
 prototype; one list per level of detail); :func:`expand` then writes every one's triangles into the bucket's
 vertex buffers, which GGUI draws as one mesh per level. GGUI 1.7.4's ``mesh_instance`` lights the
-untransformed mesh (see render/renderer.py), so the vertices and normals are transformed here rather than by
+untransformed mesh (see render/vehicles.py), so the vertices and normals are transformed here rather than by
 instance matrices, and its Python wrapper repacks the whole vertex field into a new buffer of its layout every
 frame (its capacity, not the rocks drawn: 10-20 ms at 720p on lavapipe), so the buffers are written here in
-that layout and handed over cut to the rocks drawn (render/renderer.py ``_draw_rock_meshes``):
+that layout and handed over cut to the rocks drawn (render/culling.py ``RockLayer._declare_meshes``):
 
     p' = c + r R(q) p,    n' = R(q) n,    R(q) p = p + 2 w (v x p) + 2 v x (v x p)    for q = (v, w), |q| = 1.
 

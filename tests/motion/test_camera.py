@@ -128,3 +128,48 @@ def test_the_drivers_eye_is_inside_the_body_behind_the_windscreen(sizes):
     bx, by, bz = cab.bonnet_eye
     assert bx > cab.base_x and by == 0.0 and bz > cab.bonnet_z and bx <= L / 2 + 0.05
     assert cab.kind == vehicle_kind(spec)
+
+
+def test_views_are_one_table(shots_scene):
+    """motion/camera.py VIEW_TABLE has a row for every view of the scene's list, in its order, and nothing else;
+    a name without a row is refused (ValueError naming camera.view), never framed as another view."""
+    from taichi_rocks.config.models import CAMERA_VIEWS
+    from taichi_rocks.motion.camera import VIEW_TABLE, view_of
+
+    s = shots_scene
+    assert tuple(VIEW_TABLE) == CAMERA_VIEWS
+    assert {n for n, v in VIEW_TABLE.items() if v.mounted} == {"driver", "bonnet"}
+    assert {n for n, v in VIEW_TABLE.items() if v.inside} == {"driver"}
+    assert {n for n, v in VIEW_TABLE.items() if v.rides == "follow"} == {"chase", "driver", "bonnet"}
+    assert all(v.rides in ("follow", "target") for v in VIEW_TABLE.values())
+    for bad in ("nope", "Low", "", None):
+        with pytest.raises(ValueError, match="camera.view"):
+            view_of(bad)
+        with pytest.raises(ValueError, match="camera.view"):
+            view_preset(bad, s.vehicles[0], s.vehicles[0], s.camera.look_ahead)
+        if bad is not None:  # None: the scene's own camera
+            with pytest.raises(ValueError, match="camera.view"):
+                scene_camera(s, bad)
+
+
+def test_a_view_is_one_row(shots_scene, monkeypatch):
+    """A row added to the table is a view: the shots, the rig (mounted, orbiting) and the vehicle ridden with
+    follow from it alone."""
+    from taichi_rocks.motion import camera
+    from taichi_rocks.motion.camera import CameraView
+
+    s = shots_scene
+    eye, aim = np.array([0.5, -0.3, 2.4]), np.array([3.0, 0.0, 1.0])
+    row = CameraView("roof", mounted=True, rides="follow", inside=False, pose=lambda f, t, la: (eye, aim))
+    monkeypatch.setitem(camera.VIEW_TABLE, "roof", row)
+    (shot,) = shots_of(s, "roof")
+    assert shot.view == "roof" and shot.offset == tuple(eye) and shot.aim == tuple(aim)
+    assert shot.rides == shot.target  # mounted: the aim is in the frame of the vehicle ridden with
+    rig, i, j = camera.camera_of(s, "roof")
+    assert rig.mounted and rig.orbit_period is None and (i, j) == (shot.rides, shot.target)
+    np.testing.assert_array_equal(rig.offset, eye)
+    orbiting = CameraView("spin", mounted=False, rides="target", inside=False, pose=lambda f, t, la: (eye, aim),
+                          orbits=True)
+    monkeypatch.setitem(camera.VIEW_TABLE, "spin", orbiting)
+    rig, _, _ = camera.camera_of(s, "spin")
+    assert not rig.mounted and rig.orbit_period == s.camera.orbit_period

@@ -200,7 +200,7 @@ def driver_frame(taichi_cpu, scenes_dir):
         img = r.render_frame().copy()
         view = r.view()
         assert r.rig.shot.view == "driver"
-        return img, view, sim.vehicle_poses(), np.asarray(sim.origin, np.float64), scene, r._inside
+        return img, view, sim.vehicle_poses(), np.asarray(sim.origin, np.float64), scene, r.inside
     finally:
         r.close()
 

@@ -196,3 +196,66 @@ def test_the_hud_counts_the_players_hits_by_class():
     layer.hits.update(_events(4, time=[0.2, 0.3, 0.4, 0.5], rock=[1, 2, 3, 4], vehicle=[0, 0, 1, 0],
                               damage=[0, 2, 2, 2]), 1.0)
     assert "hits on the player  mark 1   chip 0   crack 2" in hud_lines(v)
+
+
+@pytest.mark.parametrize("side", [False, True])
+def test_glass_ribbons_stay_on_the_glass(side):
+    """Ribbons of cracks that reach the glass's edges, a few pixels wide seen from near and from far: every
+    corner lies on the windscreen's plane (GLASS_GAP off it, on the camera's side), GLASS_EDGE inside its edges,
+    and each ribbon is about ``width_px`` pixels wide where it is not clipped."""
+    from taichi_rocks.motion.cabin import cabin_of
+    from taichi_rocks.render.marks import GLASS_EDGE, GLASS_GAP, Hits, glass_ribbons, glass_normal
+
+    cab = cabin_of(_car())
+    hits = Hits()
+    ev = np.concatenate([_windscreen_hit(cab, u=u, y=y, damage=2, rock=k, step=k, momentum=1.0)
+                         for k, (u, y) in enumerate(((0.5, 0.0), (0.1, cab.base_half - 0.03), (0.9, -0.5)))])
+    hits.update(ev, 1.0)
+    seg = hits.windscreen_segments(0, cab)
+    for eye, px_per_rad in (((cab.eye[0], cab.eye[1], cab.eye[2]), 700.0), ((30.0, 0.0, 2.0), 200.0)):
+        t = glass_ribbons(seg, cab, side, eye, px_per_rad, 2.0)
+        assert t.shape[1:] == (3, 3) and len(t) >= 2 * len(seg) - 10
+        p = t.reshape(-1, 3) - (-GLASS_GAP if side else GLASS_GAP) * glass_normal(cab)
+        np.testing.assert_allclose(p[:, 0], cab.windscreen_x(p[:, 2]), atol=1e-9)  # on the glass's plane
+        u = (p[:, 2] - cab.belt) / (cab.roof - cab.belt)
+        assert u.min() > 0.0 and u.max() < 1.0
+        assert np.all(np.abs(p[:, 1]) <= cab.base_half + u * (cab.top_half - cab.base_half) - GLASS_EDGE + 1e-9)
+        side_len = np.linalg.norm(t[:, 1] - t[:, 0], axis=1)  # the first triangle's a-, a+: across the ribbon
+        dist = np.linalg.norm(t[:, 0] - np.asarray(eye), axis=1)
+        assert np.median(side_len / (dist / px_per_rad)) == pytest.approx(2.0, rel=0.2)
+
+
+@pytest.mark.parametrize("damage", [1, 2])
+def test_a_paint_chip_lies_on_the_face_hit_and_inside_it(damage):
+    """A hit on the bonnet or the front chips the paint: a flake round the hit, on the face it hit (PAINT_GAP off
+    it), inside that face's edges (a hit near an edge is clipped; one off it leaves none), the same every time,
+    larger for a crack than for a chip; Hits.marks counts it, and the windscreen's segments do not."""
+    from taichi_rocks.motion.bodies import body_parts
+    from taichi_rocks.render.marks import PAINT_GAP, PAINT_MARGIN, PAINT_R, Hits, body_faces, paint_chip
+
+    spec = _car()
+    faces = body_faces(spec)
+    x0, x1, half, z0, z1 = body_parts(spec).part("lower").bounds
+    top = _events(1, point=(x1 - 0.4, 0.3, z1), normal=(0.0, 0.0, 1.0), part=1, damage=damage, rock=3, step=4,
+                  normal_momentum=1.0, normal_speed=30.0)[0]
+    tris, n = paint_chip(top, 1.0, faces)
+    np.testing.assert_allclose(n, (0.0, 0.0, 1.0), atol=1e-12)
+    p = tris.reshape(-1, 3)
+    np.testing.assert_allclose(p[:, 2], z1 + PAINT_GAP, atol=1e-9)
+    reach = np.linalg.norm(p[:, :2] - (x1 - 0.4, 0.3), axis=1).max()
+    assert PAINT_R[damage - 1][1] * 0.5 < reach <= PAINT_R[damage - 1][1] + 1e-9
+    np.testing.assert_array_equal(paint_chip(top, 1.0, faces)[0], tris)
+    edge = top.copy()
+    edge["point"] = (x1 - 0.4, half - 0.005, z1)  # 5 mm from the side: clipped to the face's margin
+    tris, _ = paint_chip(edge, 1.0, faces)
+    assert len(tris) and np.all(tris.reshape(-1, 3)[:, 1] <= half - PAINT_MARGIN + 1e-9)
+    off = top.copy()
+    off["point"] = (x1 - 0.4, half - 0.001, z1)  # inside the margin: no chip
+    assert len(paint_chip(off, 1.0, faces)[0]) == 0
+    front = _events(1, point=(x1, -0.2, 0.5 * (z0 + z1)), normal=(1.0, 0.0, 0.0), part=0, damage=damage, rock=5,
+                    step=6, normal_momentum=1.0, normal_speed=30.0)
+    hits = Hits()
+    hits.update(np.concatenate([top[None], front]), 1.0)
+    assert len(hits.marks()) == 2 and hits.windscreen_segments(0, None).shape == (0, 2, 3)
+    tris, nrm = hits.paint_chips(0, faces)
+    assert len(tris) == len(nrm) and {tuple(np.round(v, 9)) for v in nrm} == {(0.0, 0.0, 1.0), (1.0, 0.0, 0.0)}

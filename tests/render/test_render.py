@@ -396,12 +396,12 @@ def test_particles_mode_renders(pipeline, shared):
 
 
 def test_host_rock_colour_is_the_kernels(pipeline):
-    """kernels.rock_color (NumPy, on the engine's hash twin) gives the colours the kernels draw, for resting,
+    """rocklook.rock_color (NumPy, on the engine's hash twin) gives the colours the kernels draw, for resting,
     flying and sliding rocks."""
     import taichi as ti
 
     from taichi_rocks.engine.world import FLYING, RESTING, SLIDING
-    from taichi_rocks.render import kernels
+    from taichi_rocks.render import rocklook
 
     ids = np.array([0, 1, 2, 7, 1000, 123457, 2 ** 31 - 1] + list(range(3, 200, 7)), np.int32)
     phases = np.array([RESTING, FLYING, SLIDING], np.int32)
@@ -411,11 +411,11 @@ def test_host_rock_colour_is_the_kernels(pipeline):
     def colours(rid: ti.types.ndarray(dtype=ti.i32, ndim=1), ph: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 col: ti.types.ndarray(dtype=ti.types.vector(3, ti.f32), ndim=2)):
         for i, k in ti.ndrange(rid.shape[0], ph.shape[0]):
-            col[i, k] = kernels._rock_color(rid[i], ph[k])
+            col[i, k] = rocklook._rock_color(rid[i], ph[k])
 
     colours(ids, phases, out)
     got = out.to_numpy()
-    want = np.array([[kernels.rock_color(int(i), int(p)) for p in phases] for i in ids])
+    want = np.array([[rocklook.rock_color(int(i), int(p)) for p in phases] for i in ids])
     assert got[:, 0].std(axis=0).min() > 0.02  # the colours vary from rock to rock
     assert np.all(got[:, 1].mean(axis=0) != got[:, 0].mean(axis=0))  # flying rocks are tinted
     np.testing.assert_allclose(got, want, rtol=0, atol=2e-6)
@@ -625,7 +625,7 @@ def test_wheels_turn_by_distance_over_radius(shared, minimal_scene):
     speed = car.path.speed
     t1, t2 = 0.5, 0.5 + 1 / 30
     a1, a2 = np.array(r.wheel_angles(t1)[0]), np.array(r.wheel_angles(t2)[0])
-    mesh = r._meshes[0]
+    mesh = r.vehicles.meshes[0]
     want = speed * (t2 - t1) / car.tire_radius * np.where(mesh.rear, 1.0 + car.slip, 1.0)
     np.testing.assert_allclose(a2 - a1, want, rtol=1e-9)
     assert mesh.rear.sum() == 2 and want.min() > 0.3  # a visible step: ~0.1 of a turn a frame
@@ -788,9 +788,9 @@ def test_view_preset_tire_pixel_is_the_tire(pipeline, scenes_dir):
         pose = poses[r.target]
         local = type(pose)(pose.name, pose.position - sim.origin, pose.heading, pose.speed, pose.yaw_rate,
                            pose.velocity)
-        tires, _ = _framed_points(scene, r.target, local, r._meshes[r.target], view.eye)
+        tires, _ = _framed_points(scene, r.target, local, r.vehicles.meshes[r.target], view.eye)
         _, wheel, face = tires[0]
-        assert _first_hit(view.eye, face, posed, r._meshes)[:2] == (r.target, wheel)
+        assert _first_hit(view.eye, face, posed, r.vehicles.meshes)[:2] == (r.target, wheel)
     finally:
         r.close()
     d = face - view.eye

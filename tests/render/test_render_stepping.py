@@ -46,7 +46,7 @@ def frames(taichi_cpu, fast_scene):
 def _culling(sim, r):
     """What the last rock pass of ``r`` saw: the state, the view, the slots it visited, the occupied slots."""
     w = sim.world
-    vis = r._visible
+    vis = r.fields.visible
     return {"state": sim.state(), "active": sim.active_count, "shift": sim.origin[:2] - sim.anchor[:2],
             "view": r.view(), "visited": set(vis.slots.to_numpy()[:r.tiles_in_view].tolist()),
             "occupied": int((w.ts_count.to_numpy() > 0).sum()), "keys": w.ts_key.to_numpy(),
@@ -73,7 +73,7 @@ def test_the_moments_compared_have_rocks_in_the_air_and_stored_and_a_shifted_ori
 
 
 def _passes_view_test(p, r, view, tan_x, tan_y, near, far):
-    """The rock pass's per-rock view test (kernels._draw_rock), in NumPy (float64)."""
+    """The rock pass's per-rock view test (render/splat.py _draw_rock), in NumPy (float64)."""
     d = p - view.eye
     z, x, y = d @ view.fwd, d @ view.right, d @ view.up
     sec_x, sec_y = np.sqrt(1 + tan_x ** 2), np.sqrt(1 + tan_y ** 2)

@@ -59,7 +59,7 @@ def _rocks(sim):
 def _check_drawn(r, sim, eye, fwd):
     """Every rock in the mesh bucket against the NumPy reference; returns the drawn rocks' indices per level."""
     pos, rad, phase, rid, orient = _rocks(sim)
-    _, _, meshes, counts = r._drawn
+    _, _, meshes, counts = r.rock_layer.drawn
     m_pos, m_rad = meshes.pos.to_numpy(), meshes.rad.to_numpy()
     drawn = []
     for lod, n in enumerate(counts):
@@ -160,7 +160,7 @@ def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
     renderer gives every SNode tree it made back when it closes (engine/trees.py: Taichi allows 512 a process):
     its buffers and its vehicles' fields to the pool, free for the next renderer of their sizes; the next
     renderer makes no new buffer and no new vehicle field."""
-    from taichi_rocks.render import renderer as R
+    from taichi_rocks.render.buffers import POOL
 
     gc.collect()  # the renderers of earlier tests are given back now, not during this one
     sim = Simulation(load_scene(scenes_dir / "minimal.toml"), arch="cpu")
@@ -171,22 +171,22 @@ def test_without_orientations_flying_rocks_stay_particles(scenes_dir):
         pos, phase = sim.world.pos.to_numpy(), sim.world.phase.to_numpy()
         eye = (pos[phase == FLYING].mean(axis=0) - 1.2 * view.fwd).astype(np.float32)
         n = _cull(r, eye, view.fwd, view.right, view.up)
-        _, count, meshes, counts = r._drawn
+        _, count, meshes, counts = r.rock_layer.drawn
         assert not meshes.on and counts == (0, 0) and count == n > 0
-        assert r._protos is None
-        fields, vehicles = r._f, r._v
+        assert r.rock_layer.protos is None
+        fields, vehicles = r.fields, r.vehicles.fields
         made = fields.trees.count
         assert made >= 4 and vehicles.trees.count == 5  # buffers, buckets, vehicles: each a tree of its own
-        assert not R._POOL.is_free(fields) and not R._POOL.is_free(vehicles)
+        assert not POOL.is_free(fields) and not POOL.is_free(vehicles)
     # kept for the next renderer (destroyed when the process runs short of trees)
-    assert R._POOL.is_free(fields) and R._POOL.is_free(vehicles) and vehicles.trees.count == 5
+    assert POOL.is_free(fields) and POOL.is_free(vehicles) and vehicles.trees.count == 5
     with Renderer(sim, resolution=(W, H), window_every=0) as again:
-        assert again._f is fields and again._v is vehicles and not R._POOL.is_free(fields)
+        assert again.fields is fields and again.vehicles.fields is vehicles and not POOL.is_free(fields)
         r.close()  # a second close of the first renderer leaves the buffers with the second
-        assert not R._POOL.is_free(fields) and not R._POOL.is_free(vehicles)
+        assert not POOL.is_free(fields) and not POOL.is_free(vehicles)
         assert _cull(again, eye, view.fwd, view.right, view.up) == n
         assert fields.trees.count == made and vehicles.trees.count == 5  # no new buffer
-    assert R._POOL.is_free(fields) and R._POOL.is_free(vehicles)
+    assert POOL.is_free(fields) and POOL.is_free(vehicles)
 
 
 class _Stop(Exception):
