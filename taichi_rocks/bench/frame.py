@@ -28,6 +28,23 @@ import time
 from pathlib import Path
 
 import numpy as np
+import taichi as ti
+
+from ..config.presets import PRESETS
+from ..config.scene import load_scene, scene_with
+from ..engine.params import drag_coefficients
+from ..engine.runtime import auto_threads, init_taichi, threads_in_use
+from ..engine.simulation import Simulation
+from ..engine.timing import clear_kernel_tasks, kernel_tasks
+from ..output.atomic import new_folders, write_atomically
+from .activity import _task_rows
+from .config import PRESET_SPEED, SAMPLE_EVERY, V_LAUNCH_MAX, make_config
+from .detection import detection_runs
+from .flight import exact_gravity, exact_quadratic_vertical, fly
+from .machine import Progress, loadavg, machine
+from .measure import Built
+from .report import check_out_dir
+from .scenes import probe_scene
 
 PREFIX = "frame-result: "
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "convoy.toml"
@@ -42,18 +59,12 @@ def _stats(ms: list) -> dict:
 
 def _scene(overrides: dict, path=SCENE):
     """The scene file with ``overrides`` (``sim.accuracy`` applies its preset: config/scene.py scene_with)."""
-    from ..config.scene import load_scene, scene_with
-
     sc = load_scene(path)
     return scene_with(sc, overrides) if overrides else sc
 
 
 def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float = 60.0, path=SCENE) -> dict:
     """The game loop in this process: ``warm`` frames, then ``frames`` timed ones."""
-    import taichi as ti
-
-    from ..engine.simulation import Simulation
-
     def timed(fn):
         ti.sync()
         t0 = time.perf_counter()
@@ -89,12 +100,6 @@ def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float 
 
 def measure_tasks(overrides: dict, arch: str, steps: int, warm: int, path=SCENE) -> dict:
     """The step's tasks with Taichi's kernel profiler (this process must have started it)."""
-    import taichi as ti
-
-    from ..engine.simulation import Simulation
-    from ..engine.timing import clear_kernel_tasks, kernel_tasks
-    from .activity import _task_rows
-
     sim = Simulation(_scene(overrides, path), arch=arch)
     sim.step(warm)
     ti.sync()
@@ -112,8 +117,6 @@ def measure_tasks(overrides: dict, arch: str, steps: int, warm: int, path=SCENE)
 
 def worker(job: dict) -> dict:
     """One job in this process (``python -m taichi_rocks.bench.frame JOB``)."""
-    from ..engine.runtime import init_taichi, threads_in_use
-
     arch = init_taichi(job["arch"], profiler=job["kind"] == "tasks")
     if job["kind"] == "tasks":
         out = measure_tasks(job["overrides"], arch, job["steps"], job["warm"], job["scene"])
@@ -140,13 +143,6 @@ def _run_job(job: dict, threads) -> dict:
 
 def accuracy_rows(arch: str, quick: bool) -> list:
     """Flight error, recall at 60 m/s, launch-time bound of each preset (module docstring)."""
-    from ..config.presets import PRESETS
-    from .config import PRESET_SPEED, V_LAUNCH_MAX, make_config
-    from .detection import detection_runs
-    from .flight import exact_gravity, exact_quadratic_vertical, fly
-    from .measure import Built
-    from .scenes import probe_scene
-
     cfg = make_config(quick=True)
     rows = []
     for name, p in PRESETS.items():
@@ -155,7 +151,7 @@ def accuracy_rows(arch: str, quick: bool) -> list:
         ov = {"sim.dt": p["dt"], "sim.integrator": p["integrator"], "sim.detection": p["detection"],
               "sim.precision": p["precision"]}
         b = Built(probe_scene(cfg, ov), arch, f"preset {name}")
-        err = _flight_error(b.sim, p, fly, exact_gravity, exact_quadratic_vertical)
+        err = _flight_error(b.sim, p)
         det = detection_runs({name: b}, cfg, lambda *a: None)[name]
         top = [x["recall"] for x in det["per_speed"] if x["speed_m_s"] == PRESET_SPEED and x["contacts"]]
         rows.append({"preset": name, **p, "flight_error_m": err, "recall_at_60": top[0] if top else None,
@@ -164,11 +160,8 @@ def accuracy_rows(arch: str, quick: bool) -> list:
     return rows
 
 
-def _flight_error(sim, p: dict, fly, exact_gravity, exact_quadratic_vertical) -> float:
+def _flight_error(sim, p: dict) -> float:
     """The largest error of a 2 s flight (gravity only from an oblique throw, quadratic drag straight up)."""
-    from ..engine.params import drag_coefficients
-    from .config import SAMPLE_EVERY
-
     dt = p["dt"]
     if abs(round(SAMPLE_EVERY / dt) * dt - SAMPLE_EVERY) > 1e-9:
         return float("nan")
@@ -186,11 +179,6 @@ def _flight_error(sim, p: dict, fly, exact_gravity, exact_quadratic_vertical) ->
 def run_frame_study(out_dir="renders/bench", quick: bool = False, arch: str = "cpu", progress=None,
                     overwrite: bool = False, tiny: bool = False) -> dict:
     """Run the study (module docstring); write frame.json and frame.md into ``out_dir``; return the results."""
-    from ..engine.runtime import auto_threads
-    from ..output.atomic import new_folders, write_atomically
-    from .machine import Progress, loadavg, machine
-    from .report import check_out_dir
-
     out = Path(out_dir)
     check_out_dir(out, OUTPUTS, overwrite)
     frames, warm = (20, 5) if tiny else (120, 60) if quick else (270, 60)

@@ -65,7 +65,7 @@ INITIAL_ORIENTATION = _stream("engine", 311, 3, "engine/setup.py: a rock's orien
 
 # look: (rock id, salt)
 LOOK_COLOUR = _stream("look", 1, 3, "render/rocklook.py: a rock's colour (brown share, brightness, darkening)")
-LOOK_THIN = _stream("look", 7, 1, "render/kernels.py: which far resting rocks the level of detail keeps")
+LOOK_THIN = _stream("look", 7, 1, "render/splat.py: which far resting rocks the level of detail keeps")
 LOOK_SHAPE = _stream("look", 11, 7, "render/rocklook.py: a resting rock's outline (A2, A3, phase 2, phase 3, "
                                     "facet tilt, A5, phase 5)")
 LOOK_PROTOTYPE = _stream("look", 19, 1, "render/tumbling.py: which rock prototype a flying rock is drawn as")

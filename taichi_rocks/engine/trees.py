@@ -237,7 +237,7 @@ class FieldTrees:
 
 class Pool:
     """Objects that hold fields, leased by owners in turn and kept by layout: a World (engine/world.py), a
-    renderer's buffers (render/renderer.py).
+    renderer's buffers (render/buffers.py).
 
     Every kernel compiles again for a new object of fields (its fields are template arguments: seconds), so an
     owner done with its object leaves it here, and the next owner of the same layout gets it back, reset, with
