@@ -24,6 +24,7 @@ from ..config.plan import Plan
 from ..config.scene import SceneError
 from . import hashgrid
 from .active import store_sizing
+from .effects import effect_specs
 from .impact_pass import body_table, event_capacity
 from .rockfields import present
 from .setup import hash_sizing, initial_rocks
@@ -74,7 +75,8 @@ def estimate_memory(scene) -> int:
         radius = initial_rocks(scene).radius if plan.splash and not plan.center else _Count(n)
         layout, _ = world_layout(scene, plan, radius)
     real = "f64" if scene.sim.precision == "f64" else "f32"
-    return sum(s.nbytes(real) for s in field_specs(n, real, **layout))
+    specs = field_specs(n, real, **layout) + effect_specs(scene, plan)  # the optional effects' pools (engine/effects/)
+    return sum(s.nbytes(real) for s in specs)
 
 
 class _Count:

@@ -52,6 +52,7 @@ from ..engine import drawing
 from ..engine.transfer import put_whole
 from ..engine.trees import FieldTrees, Pool
 from . import kernels as K
+from .dust import draw_dust
 from .camera import GL_UP, NEAR, Lens, View, look_at_time, scene_camera, sun_direction
 from .looks import AMBIENT, GROUND_A, GROUND_B, HAZE, KEY, SUN_COLOR, horizon_color, rgb
 from .bodies import scene_meshes
@@ -470,6 +471,7 @@ class Renderer:
         self.hits.draw(scene, poses, origin, eye, self.px_per_rad, self.resolution[1] / self.resolution[0],
                        self._inside)
         self._overlays.draw(scene, self.sim, origin, self.ground_z)
+        self._dust = draw_dust(getattr(self, "_dust", None), scene, self.sim, origin, self.horizon)  # render/dust.py
         win.canvas.scene(scene)
         return win
 
