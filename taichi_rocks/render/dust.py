@@ -1,8 +1,8 @@
 """Dust ([effects] dust; config/effects/dust.py DRAWS) drawn as soft, translucent GGUI particles.
 
 GGUI's particles have no alpha, so translucency is approximated: each particle's colour is the dust colour
-blended towards the haze colour of the horizon by its opacity alpha (c = alpha c_dust + (1 - alpha) c_haze, the
-colour seen through a thin veil), and its radius shrinks as it fades (r = size (0.4 + 0.6 alpha)); particles
+blended by its opacity alpha towards what lies behind it, taken as the mean of the horizon's haze and the
+ground's colour (c = alpha c_dust + (1 - alpha) c_behind: a thin veil over a road seen from a vehicle), and its radius shrinks as it fades (r = size (0.4 + 0.6 alpha)); particles
 below ``MIN_ALPHA`` are not drawn. The buffers grow to the pool's capacity on first use.
 """
 
@@ -11,7 +11,7 @@ import taichi as ti
 
 from ..engine.trees import FieldTrees
 from .camera import to_gl
-from .looks import rgb
+from .looks import GROUND_A, GROUND_B, rgb
 
 __all__ = ["DustLayer", "draw_dust", "dust_looks"]
 
@@ -21,7 +21,8 @@ MIN_ALPHA = 0.03
 def dust_looks(opacity, table, haze) -> tuple:
     """(colours (K, 3) f32, radii (K,) f32) of particles of ``opacity`` (see the module docstring)."""
     a = np.asarray(opacity, np.float32)[:, None]
-    col = a * np.asarray(rgb(table.color), np.float32) + (1.0 - a) * np.asarray(haze, np.float32)
+    behind = (np.asarray(haze, np.float32) + 0.5 * (np.asarray(GROUND_A, np.float32) + GROUND_B)) / 2.0
+    col = a * np.asarray(rgb(table.color), np.float32) + (1.0 - a) * behind
     rad = float(table.size) * (0.4 + 0.6 * a[:, 0])
     return col.astype(np.float32), rad.astype(np.float32)
 

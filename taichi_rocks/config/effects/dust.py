@@ -56,8 +56,7 @@ EXPORTS = ("dust",)  # frame["dust"] = {"positions": (K, 3) world m, "opacity": 
 
 
 class Dust(_Table):
-    """Dust lifted by the wake behind each splashing vehicle (with `[effects] dust = true`: docs/physics.md,
-    "Dust")."""
+    """Dust lifted by the wake behind each splashing vehicle."""
     model_config = ConfigDict(title="Dust")
     capacity: Int = _f(8192, "particles alive at most: a ring, the oldest replaced first, in [1, 1048576]", ge=1,
                        le=1 << 20)
@@ -76,8 +75,8 @@ class Dust(_Table):
     opacity: Float = _f(0.6, "opacity at emission, in (0, 1]", gt=0, le=1)
     spread: Float = _f(1.0, "m, length of the emission box behind the rear bumper", ge=0)
     height: Float = _f(0.4, "m, height of the emission box", ge=0)
-    size: Float = _f(0.06, "m, drawn radius of a fresh particle (drawing only)", gt=0)
-    color: Color = _f((0.78, 0.70, 0.56), 'RGB in [0, 1], or "#rrggbb" (drawing only)')
+    size: Float = _f(0.025, "m, drawn radius of a fresh particle (drawing only)", gt=0)
+    color: Color = _f((0.55, 0.48, 0.38), 'RGB in [0, 1], or "#rrggbb" (drawing only)')
 
 
 Table = Dust
