@@ -176,3 +176,16 @@ def test_a_simulation_with_dust_emits_behind_the_car_and_restore_clears_it():
     assert len(d["positions"]) > 10 and np.all(d["positions"][:, 0] < car[0])
     sim.restore(saved)
     assert len(sim.effect_arrays()["dust"]["positions"]) == 0
+
+
+def test_dust_drifts_on_while_the_rocks_coast():
+    """Once the vehicles stop for good, steps coast as one launch; dust keeps drifting and settling."""
+    car = {"name": "car", "path": {"points": [[0.0, 0.0], [20.0, 0.0]], "speed": [12.0, 0.0]}}
+    sim = Simulation(scene(rocks=200, vehicles=[car], effects={"dust": True},
+                           dust={"rate": 5.0, "life": 60.0, "fade": 60.0, "diffusion": 0.0}))
+    sim.advance_to(4.0)  # stopped after 20 m at a mean 6 m/s: 3.3 s
+    a = sim.effect_arrays()["dust"]["positions"]
+    sim.advance_to(6.0)
+    b = sim.effect_arrays()["dust"]["positions"]
+    assert sim.steps_coasted > 0 and len(a) == len(b) > 10
+    assert np.all(b[:, 2] >= sim.scene.world.ground_z) and np.any(np.abs(b - a) > 1e-3)  # still moving
