@@ -27,7 +27,8 @@ def taichi_on_the_cpu():
 
 
 def dust_scene(**table):
-    return scene(rocks=0, effects={"dust": True}, dust=table, world={"ground_z": 0.0})
+    """A scene with dust moving every step it is called with (the kernels' tests)."""
+    return scene(rocks=0, effects={"dust": True}, dust={"step": 0.0, **table}, world={"ground_z": 0.0})
 
 
 def pose(x=0.0, speed=10.0, heading=0.0, z=0.0):
@@ -147,7 +148,7 @@ def test_random_walk_variance_is_2_k_t():
 
 def test_same_seed_same_bits_other_seed_other_bits():
     def positions(seed):
-        sc = scene(rocks=0, effects={"dust": True}, dust={"rate": 5.0}, seed=seed)
+        sc = scene(rocks=0, effects={"dust": True}, dust={"rate": 5.0, "step": 0.0}, seed=seed)
         d = Dust(sc, ti.f32)
         return run(d, 30, 15.0)["positions"]
 
@@ -168,7 +169,7 @@ def test_off_allocates_nothing_and_on_counts_the_pool():
 
 
 def test_a_simulation_with_dust_emits_behind_the_car_and_restore_clears_it():
-    sim = Simulation(scene(rocks=200, effects={"dust": True}, dust={"rate": 1.0}))
+    sim = Simulation(scene(rocks=200, effects={"dust": True}, dust={"rate": 1.0}))  # its own step: 1/60 s
     saved = sim.checkpoint()
     sim.advance_to(0.5)
     d = sim.effect_arrays()["dust"]
@@ -189,3 +190,13 @@ def test_dust_drifts_on_while_the_rocks_coast():
     b = sim.effect_arrays()["dust"]["positions"]
     assert sim.steps_coasted > 0 and len(a) == len(b) > 10
     assert np.all(b[:, 2] >= sim.scene.world.ground_z) and np.any(np.abs(b - a) > 1e-3)  # still moving
+
+
+def test_its_own_step_moves_after_whole_steps_adding_up_to_it():
+    d = Dust(dust_scene(rate=100.0, lift_speed=0.0, step=0.025, life=100.0, fade=100.0), ti.f32)
+    emitted = []
+    for k in range(10):  # 0.01 s steps: the dust moves at the 3rd, 6th and 9th (0.03 s each)
+        d.after_step([pose(0.0, 1.0, z=10.0)], np.zeros(3), k + 1, DT)
+        emitted.append(d.emitted)
+    assert emitted == [0, 0, 3, 3, 3, 6, 6, 6, 9, 9]
+    assert d.pending == pytest.approx(0.01)

@@ -28,7 +28,9 @@ model, the wake's flow precomputed by CFD. Here (symbols: vehicle speed v, veloc
      ground stays there (deposited);
   opacity alpha = opacity exp(-age / fade) while age < life, then 0: the particle is gone.
 
-The particles live in a ring of ``capacity`` slots: particle k (counted from the start) takes slot k mod
+The dust moves with its own time step ``step`` (whole simulation steps adding up to it; the relaxation, the
+settling and the random walk's variance are exact for any step, the emission happens at the vehicle's pose of
+the step it moves at). The particles live in a ring of ``capacity`` slots: particle k (counted from the start) takes slot k mod
 capacity, so the newest ``capacity`` particles exist and the cost per step is constant. Random numbers are
 counter-based hashes of (seed, particle number, step, stream) (engine/randomness.py), never ti.random().
 """
@@ -49,7 +51,7 @@ STREAM = DUST
 S_ACROSS, S_ALONG, S_UP, S_LIFT, S_WALK_X, S_WALK_Y, S_WALK_Z = (DUST.id(k) for k in range(7))
 FIELDS = (("dust_pos", "real", 3), ("dust_vel", "real", 3), ("dust_wake", "real", 3), ("dust_age", "real", 1))
 PARAMS = ("carry", "lift", "wake_time", "wind", "diffusion", "diameter", "density", "fade", "life", "opacity",
-          "spread", "height")
+          "spread", "height")  # and on the host: rate, lift_speed (the emission), step, capacity
 HOOK = "after_step"
 DRAWS = "render/dust.py: translucent particles, the colour blended towards the sky by opacity, smaller as they fade"
 EXPORTS = ("dust",)  # frame["dust"] = {"positions": (K, 3) world m, "opacity": (K,)}: output/dust.py
@@ -75,6 +77,8 @@ class Dust(_Table):
     opacity: Float = _f(0.6, "opacity at emission, in (0, 1]", gt=0, le=1)
     spread: Float = _f(1.0, "m, length of the emission box behind the rear bumper", ge=0)
     height: Float = _f(0.4, "m, height of the emission box", ge=0)
+    step: Float = _f(1.0 / 60.0, "s, the dust's own time step: it moves once the simulation's steps since its last "
+                                 "move add up to this (0: every step); its motion is exact for any step", ge=0, le=1)
     size: Float = _f(0.025, "m, drawn radius of a fresh particle (drawing only)", gt=0)
     color: Color = _f((0.55, 0.48, 0.38), 'RGB in [0, 1], or "#rrggbb" (drawing only)')
 

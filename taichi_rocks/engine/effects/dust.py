@@ -3,7 +3,7 @@ relaxation towards the air with the Stokes response time, settling at the Stokes
 diffusion as a random walk, fading; a ring of ``capacity`` slots. The physics and its source (Chen, Fu & Wegman
 1999, with the proxies named): config/effects/dust.py, which also declares the fields, stream and parameters.
 
-One launch a step (:func:`dust_step`: every slot moves, then the step's new particles are placed) and one a read
+One launch a dust step (``[dust] step``, whole simulation steps: :func:`dust_step`: every slot moves, then the step's new particles are placed) and one a read
 (:func:`dust_read`). Positions are in the kernels' local frame (world = origin + local) and move with the
 floating origin. Random numbers: engine/randomness.py ``uniform01(seed, particle number, step, stream)`` for an
 emission, ``(seed, slot, step, stream)`` for the random walk (a slot holds one particle at a time).
@@ -150,6 +150,7 @@ class Dust:
         _clear(self.fields)
         self.carried = np.zeros(len(self.sources))  # fractions of a particle, per source
         self.emitted = 0  # particles since the start (particle numbers 0 .. emitted - 1)
+        self.pending = 0.0  # s of simulation steps since the dust last moved
         self.origin = None if origin is None else np.asarray(origin, np.float64).copy()
 
     def counts(self, speeds, dt: float) -> np.ndarray:
@@ -160,7 +161,12 @@ class Dust:
         return n.astype(np.int64)
 
     def after_step(self, poses, origin, step: int, dt: float) -> None:
-        """The hook (config/effects/dust.py HOOK "after_step"): the vehicles' poses at the step's end."""
+        """The hook (config/effects/dust.py HOOK "after_step"): the vehicles' poses at the step's end. The dust
+        moves once the steps since its last move add up to its own step ([dust] step)."""
+        self.pending += dt
+        if self.pending < self.table.step * (1.0 - 1e-9):
+            return
+        dt, self.pending = self.pending, 0.0
         origin = np.asarray(origin, np.float64)
         shift = np.zeros(3) if self.origin is None else origin - self.origin
         self.origin = origin.copy()
