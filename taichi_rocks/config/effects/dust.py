@@ -79,7 +79,7 @@ class Dust(_Table):
     height: Float = _f(0.4, "m, height of the emission box", ge=0)
     step: Float = _f(1.0 / 60.0, "s, the dust's own time step: it moves once the simulation's steps since its last "
                                  "move add up to this (0: every step); its motion is exact for any step", ge=0, le=1)
-    size: Float = _f(0.025, "m, drawn radius of a fresh particle (drawing only)", gt=0)
+    size: Float = _f(0.04, "m, drawn radius of a fresh particle (drawing only)", gt=0)
     color: Color = _f((0.55, 0.48, 0.38), 'RGB in [0, 1], or "#rrggbb" (drawing only)')
 
 
