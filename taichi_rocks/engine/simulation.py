@@ -9,6 +9,8 @@ the host state and the host side of a step (engine/host.py) and the stepper of i
   2. if the origin moved, the stepper moves every rock by the (exact) difference;
   3. the stepper's kernels: flight -> recycle -> hash -> tires over every rock ("full") or over the active list
      ("active", resting rocks in ground tiles), the same results.
+  4. the optional effects that run (engine/effects/, declared in config/effects/: dust), from the poses at
+     t + dt, on fields of their own; ``effect_arrays()`` gives what they hold.
 Passes nobody asked for are neither compiled nor called, and their fields are not allocated: no splashing
 tire -> no hash table, no tire pass and no flight (only launched rocks ever leave the ground). The kernels
 (engine/kernels.py) read which passes run from the Plan; the set-up (initial rocks, hash sizes, parameters)
