@@ -13,6 +13,7 @@ from scenes_util import scene
 from taichi_rocks.config.effects import dust as decl
 from taichi_rocks.engine.effects import RUNTIMES, effect_specs
 from taichi_rocks.engine.effects.dust import Dust
+from taichi_rocks.engine.randomness import uniform01_np
 from taichi_rocks.engine.layout import estimate_memory
 from taichi_rocks.engine.simulation import Simulation
 from taichi_rocks.engine.runtime import init_taichi
@@ -200,3 +201,58 @@ def test_its_own_step_moves_after_whole_steps_adding_up_to_it():
         emitted.append(d.emitted)
     assert emitted == [0, 0, 3, 3, 3, 6, 6, 6, 9, 9]
     assert d.pending == pytest.approx(0.01)
+
+
+def reference(sc, poses, steps_dt, seed):
+    """A NumPy twin of config/effects/dust.py without diffusion: the emission box from the same hashes
+    (engine/randomness.py uniform01_np), then the exact relaxation towards the decaying wake plus wind."""
+    t, w = sc.dust, sc.world
+    tau = t.density * t.diameter ** 2 / (18 * w.air_viscosity) if w.air_viscosity > 0 else math.inf
+    car = sc.vehicles[0]
+    pos, vel, wake, age = [], [], [], []
+    carried, number = 0.0, 0
+    for k, (p, dt) in enumerate(zip(poses, steps_dt)):
+        for i in range(len(pos)):  # move, then emit
+            if pos[i][2] > w.ground_z:
+                u = wake[i] * math.exp(-age[i] / t.wake_time) + np.array([*t.wind, 0.0])
+                a = math.exp(-dt / tau) if math.isfinite(tau) else 1.0
+                b = dt if not math.isfinite(tau) else tau * (1 - a)
+                v = u + (vel[i] - u) * a - np.array([0, 0, w.gravity * b])
+                x = pos[i] + v * dt
+                if x[2] <= w.ground_z:
+                    x[2], v = w.ground_z, np.zeros(3)
+                pos[i], vel[i] = x, v
+            age[i] += dt
+        carried += decl.emission_rate(p.speed, t) * dt
+        n = math.floor(carried)
+        carried -= n
+        f = np.array([math.cos(p.heading), math.sin(p.heading), 0.0])
+        side = np.array([-f[1], f[0], 0.0])
+        for j in range(n):
+            pid = number + j
+            u = [float(uniform01_np(seed, pid, k + 1, s)) for s in (decl.S_ACROSS, decl.S_ALONG, decl.S_UP,
+                                                                      decl.S_LIFT)]
+            x = (p.position - f * (car.length / 2 + t.spread * u[1]) + side * (car.width / 2 * (2 * u[0] - 1))
+                 + np.array([0, 0, t.height * u[2]]))
+            wk = np.array([t.carry * p.velocity[0], t.carry * p.velocity[1], t.lift * p.speed * (0.5 + u[3])])
+            pos.append(x), vel.append(wk.copy()), wake.append(wk), age.append(0.0)
+        number += n
+    return np.array(pos), np.array([t.opacity * math.exp(-a / t.fade) for a in age])
+
+
+@pytest.mark.parametrize("heading, viscosity, wind", [(0.0, 1.81e-5, (0.0, 0.0)), (1.9, 1.81e-5, (3.0, -1.0)),
+                                                      (-2.5, 0.0, (0.0, 2.0))])
+def test_trajectories_match_the_numpy_twin(heading, viscosity, wind):
+    """Any heading, a wind, and no air viscosity (no drag: free fall) against the reference above."""
+    sc = scene(rocks=0, seed=7, effects={"dust": True}, world={"ground_z": 0.0, "air_viscosity": viscosity},
+               dust={"step": 0.0, "rate": 8.0, "diffusion": 0.0, "wind": list(wind), "diameter": 5e-5,
+                     "life": 100.0, "fade": 2.0})
+    d = Dust(sc, ti.f32)
+    poses = [pose(0.0, 9.0 - 0.1 * k, heading, z=2.0) for k in range(40)]
+    for k, p in enumerate(poses):
+        d.after_step([p], np.zeros(3), k + 1, DT)
+    got = d.arrays(np.zeros(3))
+    want, alpha = reference(sc, poses, [DT] * len(poses), 7)
+    assert len(got["positions"]) == len(want) > 50
+    np.testing.assert_allclose(got["positions"], want, atol=2e-4)
+    np.testing.assert_allclose(got["opacity"], alpha, rtol=2e-5)
