@@ -52,6 +52,8 @@ SECTIONS = (
      '[effects]\nimpacts = true\ndrag = "linear"\n'),
     ("[impacts]", _impacts.Impacts, "`[impacts]` (with `[effects] impacts = true`: docs/physics.md, \"Impacts\")",
      '[impacts]\nrestitution = 0.5\ndamage_by = "momentum"\n'),
+    ("[dust]", models.EFFECTS["dust"].Table, "`[dust]` (with `[effects] dust = true`: docs/physics.md, \"Dust\")",
+     '[dust]\nrate = 2.0\nwind = [1.5, 0.0]\n'),
     ("[sim]", models.Sim, "`[sim]`", '[sim]\naccuracy = "balanced"\ndetection = "patch"   # set keys win over the '
                                      'preset\n'),
     ("[sim.hash]", models.Hash, "`[sim.hash]`", '[sim.hash]\ninsert = "center"\ncell_size = "auto"\n'),

@@ -73,6 +73,7 @@ def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = 
                 frame = make.frame(f, st, sim.origin)
                 if sim.plan.impacts:
                     frame["impacts"] = impact_frame(sim, sim.impacts())
+                frame.update(sim.effect_arrays())  # the optional effects' arrays (dust: output/dust.py)
                 writer.write(frame)
                 counts.append(len(frame["ids"]))
             size = writer.close()

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 from typing import Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, create_model, field_validator, model_validator
 
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
                      _f, _follow, _is_list, _raise_problems, _show, _Table, SEED_MAX)
 from .resolution import MIN_SIDE
 from .impacts import Impacts
 from .limits import MAX_STEPS, steps_estimate
+from .effects import EFFECTS
 from .presets import PRESETS
 
 
@@ -58,7 +59,7 @@ class Launch(_Table):
                                  "share of that spin (uniform in a ball), in [0, 2]", ge=0, le=2)
 
 
-class Effects(_Table):
+class _Effects(_Table):
     """Physical effects switched on or off."""
     splash: Bool = _f(True, "rear tires launch rocks")
     recycle: Bool = _f(True, "rocks left behind by the bed are moved back in front of it")
@@ -70,6 +71,11 @@ class Effects(_Table):
     tumble: Literal["auto", "always"] = _f("auto", "each rock's spin and orientation: auto tracks them for the "
                                                    "commands that draw or export them (render, view, export), "
                                                    "always also for simulate and the Python API")
+
+
+# the optional effects' switches, from their declarations (config/effects/): [effects] <name>, default off
+Effects = create_model("Effects", __base__=_Effects, __doc__=_Effects.__doc__,
+                       **{n: (Bool, _f(False, m.SWITCH)) for n, m in EFFECTS.items()})
 
 
 class Hash(_Table):
@@ -276,7 +282,7 @@ class Render(_Table):
         return v
 
 
-class Scene(_Table):
+class _Scene(_Table):
     """A taichi-rocks scene: a bed of rocks following a vehicle, and vehicles whose rear tires throw rocks.
     SI units, world Z up, angles in degrees."""
     name: Name = _f("scene", "scene name; defaults to the file stem")
@@ -328,9 +334,15 @@ class Scene(_Table):
         return self.vehicles[self.vehicle_index(name)]
 
 
+# the optional effects' tables, from their declarations (config/effects/): [<name>]
+Scene = create_model("Scene", __base__=_Scene, __doc__=_Scene.__doc__,
+                     **{n: (m.Table, _f(m.Table(), m.Table.__doc__)) for n, m in EFFECTS.items()})
+
+
 # tables by the key that holds them (or the path kind), to list the keys allowed where an unknown one is found
 _TABLES: dict[str, type[BaseModel]] = {
     "world": Environment, "bed": Bed, "launch": Launch, "effects": Effects, "impacts": Impacts, "sim": Sim, "hash": Hash,
-    "vehicle": Vehicle, "camera": CameraSettings, "shot": Shot, "render": Render, "sun": SunAngles, **PATH_KINDS}
+    "vehicle": Vehicle, "camera": CameraSettings, "shot": Shot, "render": Render, "sun": SunAngles, **PATH_KINDS,
+    **{n: m.Table for n, m in EFFECTS.items()}}
 _TAGS = {"@a", "@b", *PATH_KINDS}   # union-member labels pydantic puts in error locations
 

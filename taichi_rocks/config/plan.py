@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .effects import effects_on
+
 
 @dataclass(frozen=True)
 class Plan:
@@ -32,6 +34,7 @@ class Plan:
     targets: tuple = ()  # with impacts: the vehicles (scene indices) whose bodies stones hit
     spin: bool = False  # each rock's angular velocity and orientation (engine/tumble.py); see spin_on
     drawn: bool = False  # a mirror of each rock's drawn state for Simulation.changes() (engine/changes.py)
+    effects: tuple = ()  # the optional effects that run (config/effects/: their names; engine/effects/)
 
     @classmethod
     def from_scene(cls, scene, tumble: bool = False, changes: bool = True) -> "Plan":
@@ -52,7 +55,7 @@ class Plan:
                    integrator=sim.integrator, gravity=bool(fx.gravity), drag=fx.drag, ground=fx.ground,
                    cell_size=cell_size(scene), active=sim.stepping == "active" and n > 0,
                    impacts=impacts_on(scene, splash), targets=impact_targets(scene, splash),
-                   spin=spin_on(scene, tumble), drawn=bool(changes and n > 0))
+                   spin=spin_on(scene, tumble), drawn=bool(changes and n > 0), effects=effects_on(scene))
 
     def passes(self) -> list[str]:
         out = []
@@ -72,6 +75,7 @@ class Plan:
         if self.impacts:
             out.append(f"impacts (stones against {len(self.targets)} "
                        f"bod{'y' if len(self.targets) == 1 else 'ies'}, swept; events)")
+        out += [f"{name} (optional effect)" for name in self.effects]
         return out
 
 

@@ -62,6 +62,8 @@ LAUNCH_SPIN = _stream("engine", 301, 3, "engine/tumble.py: the scatter of a laun
                                         "azimuth, radius in the unit ball)")
 INITIAL_ORIENTATION = _stream("engine", 311, 3, "engine/setup.py: a rock's orientation before the first step "
                                                 "(Shoemake's three uniforms)")
+DUST = _stream("engine", 401, 7, "config/effects/dust.py: a dust particle's place in the emission box (across, "
+                                 "along, up), its lift, its random walk (x, y, z); (seed, particle, step)")
 
 # look: (rock id, salt)
 LOOK_COLOUR = _stream("look", 1, 3, "render/rocklook.py: a rock's colour (brown share, brightness, darkening)")

@@ -27,6 +27,7 @@ from ..config.plan import Plan
 from ..config.scene import SceneError
 from . import hashgrid
 from .active import store_sizing
+from .effects import effect_specs
 from .impact_pass import body_table, event_capacity
 from .rockfields import present
 from .setup import hash_sizing, initial_rocks
@@ -83,7 +84,8 @@ def _field_bytes(scene) -> dict:
         radius = initial_rocks(scene).radius if plan.splash and not plan.center else _Count(n)
         layout, _ = world_layout(scene, plan, radius)
     real = "f64" if scene.sim.precision == "f64" else "f32"
-    return {s.name: s.nbytes(real) for s in field_specs(n, real, **layout)}
+    specs = field_specs(n, real, **layout) + effect_specs(scene, plan)  # the optional effects' pools (engine/effects/)
+    return {s.name: s.nbytes(real) for s in specs}
 
 
 STORE_PER_ROCK = 16  # tile-store slots per rock beyond which the bed's size, not the rock count, is to blame

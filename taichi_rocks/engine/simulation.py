@@ -9,6 +9,8 @@ the host state and the host side of a step (engine/host.py) and the stepper of i
   2. if the origin moved, the stepper moves every rock by the (exact) difference;
   3. the stepper's kernels: flight -> recycle -> hash -> tires over every rock ("full") or over the active list
      ("active", resting rocks in ground tiles), the same results.
+  4. the optional effects that run (engine/effects/, declared in config/effects/: dust), from the poses at
+     t + dt, on fields of their own; ``effect_arrays()`` gives what they hold.
 Passes nobody asked for are neither compiled nor called, and their fields are not allocated: no splashing
 tire -> no hash table, no tire pass and no flight (only launched rocks ever leave the ground). The kernels
 (engine/kernels.py) read which passes run from the Plan; the set-up (initial rocks, hash sizes, parameters)
@@ -27,6 +29,7 @@ from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
 from . import changes, rocks
 from .rocks import state_arrays
+from .effects import Effects
 from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
@@ -144,6 +147,7 @@ class Simulation:
             self._impacts = ImpactLog(self.world.events)
         self._stepper.start()
         self._stepper.sync_drawn()
+        self._effects = Effects(scene, plan, self.real)  # the optional effects that run (engine/effects/)
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
         self._matter = sorted({self.follow, *(self.fleet.splashing if plan.splash else ())})
@@ -308,6 +312,7 @@ class Simulation:
         h.steps_coasted += n
         self._stepper.coast(n, self.dt, h.local_centre(), h.lead, step0)
         self._host_side.resume(h)
+        self._effects.coast(h, n * self.dt)
         h.last_launches = 0
 
     def _step(self, dt=None) -> None:
@@ -320,6 +325,7 @@ class Simulation:
             self._host.last_launches = launched
         if self._impacts is not None:
             self._impacts.after_step(self._host.step_count, self._host.time)
+        self._effects.after_step(self._host, self.dt if dt is None else float(dt))
 
     # ------------------------------------------------------------------------------------------ impacts
     def impacts(self) -> np.ndarray:
@@ -341,6 +347,15 @@ class Simulation:
         """Events lost so far: more between two drains than the device buffer holds ([impacts] capacity), or more
         than the host keeps waiting for ``impacts()`` (engine/impact_pass.py KEEP)."""
         return 0 if self._impacts is None else self._impacts.dropped
+
+    def effect_arrays(self) -> dict:
+        """What the optional effects that run ([effects], config/effects/) hold now, by effect name: dust's
+        "positions" (K, 3) world m and "opacity" (K,) in (0, 1]. Empty when none runs.
+
+        Returns:
+            A dict of dicts of NumPy arrays.
+        """
+        return self._effects.arrays(self.origin)
 
     # ------------------------------------------------------------------------------------------ rocks
     def rock_arrays(self) -> dict:
@@ -507,6 +522,7 @@ class Simulation:
             self._put_rays()
         if self._impacts is not None:  # the events of the steps after the checkpoint come again
             self._impacts.restore(h.step_count, h.time)
+        self._effects.reset(h)  # the optional effects are not in checkpoints: they start again, empty
 
     # ------------------------------------------------------------------------------------------ guard, probes
     def check_health(self) -> None:

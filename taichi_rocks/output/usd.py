@@ -68,6 +68,7 @@ import math
 
 import numpy as np
 
+from .dust import write_dust
 from .formats import FileWriter
 from .instances import PROTOTYPES
 from ..config.impacts import DAMAGE_CLASSES
@@ -353,6 +354,8 @@ class UsdWriter(FileWriter):
         self.last_camera = camera
         if "impacts" in fr:
             self._impact_samples(fr["impacts"], np.asarray(fr["origin"], np.float64), t)
+        if "dust" in fr:  # [effects] dust: output/dust.py
+            self.dust = write_dust(self.stage, getattr(self, "dust", None), fr["dust"], fr["origin"], t, self.run.scene.dust)
         self.layer.Save()
 
     def _impact_prim(self) -> dict:

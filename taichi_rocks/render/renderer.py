@@ -55,6 +55,7 @@ from . import kernels as K
 from .buffers import POOL, lease_frame
 from .camera import GL_UP, NEAR, View
 from .culling import RockLayer
+from .dust import draw_dust
 from .looks import AMBIENT, KEY, SUN_COLOR
 from .settings import (DEFAULT_LOD_PIXELS, ROCK_MODES, SHOTS, WINDOW_EVERY, Settings, Views, camera_basis,
                        check_rocks)
@@ -134,6 +135,7 @@ class Renderer:
         self.hits = self.vehicles.hits  # the impacts' flashes and windscreen marks (render/hits.py)
         self.inside = None  # the vehicle whose cabin the camera looks out of this frame
         self._overlays = self.fields.overlays
+        self._dust = None  # the dust layer (render/dust.py), made on the first frame with dust
         self._overlays.flags = s.flags
         self._raw = None
         self._win = HiddenWindow(s.resolution) if target is None else target
@@ -280,6 +282,7 @@ class Renderer:
         w, h = self.settings.resolution
         self.hits.draw(scene, poses, origin, eye, self.views.px_per_rad, h / w, self.inside, sd)
         self._overlays.draw(scene, self.sim, origin, self.views.ground_z)
+        self._dust = draw_dust(self._dust, scene, self.sim, origin, self.settings.horizon)  # render/dust.py
         win.canvas.scene(scene)
         return win
 

@@ -1,0 +1,54 @@
+"""The scene keys of dust: [effects] dust (from the effects' registry, config/effects/), the [dust] table, and
+the Plan's switch."""
+
+import pytest
+
+from scenes_util import scene
+from taichi_rocks.config.effects import EFFECTS, dust
+from taichi_rocks.config.plan import Plan
+from taichi_rocks.config.scene import SceneError, parse_scene, scene_json_schema, scene_to_dict
+
+CAR = {"name": "car", "path": {"points": [[0.0, 0.0], [400.0, 0.0]]}}
+
+
+def problems(data):
+    with pytest.raises(SceneError) as e:
+        parse_scene(data, source="s.toml")
+    return e.value.problems
+
+
+def test_the_switch_and_table_come_from_the_registry():
+    sc = scene()
+    assert set(EFFECTS) == {"dust"}
+    assert sc.effects.dust is False and sc.dust == dust.Dust()
+    schema = scene_json_schema()
+    assert "dust" in schema["$defs"]["Effects"]["properties"] and "dust" in schema["properties"]
+    again = parse_scene(scene_to_dict(scene(effects={"dust": True}, dust={"rate": 3.0})))
+    assert again.effects.dust is True and again.dust.rate == 3.0
+
+
+def test_plan_runs_dust_only_when_asked_and_a_vehicle_splashes():
+    assert Plan.from_scene(scene()).effects == ()
+    assert Plan.from_scene(scene(effects={"dust": True})).effects == ("dust",)
+    assert "dust (optional effect)" in Plan.from_scene(scene(effects={"dust": True})).passes()
+    quiet = [{**CAR, "splash": False}]
+    assert Plan.from_scene(scene(vehicles=quiet, effects={"dust": True})).effects == ()
+    assert Plan.from_scene(scene(rocks=0, effects={"dust": True})).effects == ("dust",)  # the air's, not the bed's
+
+
+def test_bad_values_name_the_key():
+    assert problems({"vehicle": [CAR], "dust": {"rate": -1.0}}) == ["s.toml: dust.rate: must be >= 0, got -1.0"]
+    assert problems({"vehicle": [CAR], "dust": {"capacity": 0, "opacity": 1.5}}) == [
+        "s.toml: dust.capacity: must be >= 1, got 0", "s.toml: dust.opacity: must be <= 1, got 1.5"]
+    assert problems({"vehicle": [CAR], "effects": {"dust": "yes"}}) == [
+        's.toml: effects.dust: expected true or false, got "yes"']
+    (p,) = problems({"vehicle": [CAR], "dust": {"rates": 1.0}})
+    assert p.startswith("s.toml: dust.rates: unknown key") and "rate" in p and "\n" not in p
+
+
+def test_the_closed_forms():
+    t = dust.Dust(rate=2.0, lift_speed=3.0, diameter=1e-4, density=2000.0)
+    assert dust.emission_rate(2.0, t) == 0.0 and dust.emission_rate(3.0, t) == 0.0
+    assert dust.emission_rate(13.0, t) == pytest.approx(200.0)
+    assert dust.settling_velocity(t, 9.81, 1.81e-5) == pytest.approx(2000 * 9.81 * 1e-8 / (18 * 1.81e-5))
+    assert dust.settling_velocity(t, 9.81, 0.0) == float("inf")
