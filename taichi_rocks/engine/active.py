@@ -492,20 +492,16 @@ def reset_counts(w: ti.template()):
 # ------------------------------------------------------------------------------------------------ kernels
 @ti.func
 def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
-    """Steps 4 to 6: the hash build and the tire pass over the active list, settling, compaction; returns the
-    rocks launched."""
-    launched = 0
+    """Steps 4 to 6: the hash build and the tire pass over the active list (the rocks it launched stay on the
+    device: ``tire_counts[LAUNCHED]``), settling, compaction."""
     w.a_counts[MARKED] = 0
     reset_counts(w)
     if ti.static(plan.splash):
         hashgrid.scan_counts(w)
         hashgrid.scatter_all(w, plan.center)
-        if ti.static(not plan.swept):
-            tires.trace_all(w)
-        launched = tires.launch_all(w, plan, step)
+        tires.launch_all(w, plan, step)
     settle_rocks(w, shift_tiles, plan.splash)
     compact(w)
-    return launched
 
 
 @ti.kernel
@@ -535,9 +531,9 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
 
 
 @ti.kernel
-def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32) -> ti.i32:
-    """Steps 4 to 6 (finish) of step row ``k``; returns the rocks launched."""
-    return finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
+def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32):
+    """Steps 4 to 6 (finish) of step row ``k``: no value comes back (a returned value waits for the device)."""
+    finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
 
 
 @ti.kernel

@@ -19,7 +19,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 
 import taichi as ti
 
-from .world import A0, ACTIVE, FLYING, IPar, P1, P2, P3, Par
+from .world import A0, ACTIVE, FLYING, MAX_OCC, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -144,16 +144,20 @@ def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
 
 @ti.func
 def scan_counts(w: ti.template()):
-    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total.
+    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total; the fullest slot's count to
+    ``tire_counts[MAX_OCC]``.
 
     ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
     about a nanosecond per slot there.
     """
     n = table_n(w)
+    most = w.cell_start[0]
     ti.loop_config(serialize=True)
     for s in range(1, n):
+        most = ti.max(most, w.cell_start[s])
         w.cell_start[s] += w.cell_start[s - 1]
     w.cell_start[n] = w.cell_start[n - 1]
+    w.tire_counts[MAX_OCC] = most  # the tire pass's places per slot (engine/tires.py)
 
 
 @ti.kernel

@@ -24,7 +24,8 @@ from . import patch, tumble
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
-from .world import A0, A1, ACTIVE, B0, B1, FLYING, HALF_L, HALF_W, SLIDING, IPar, Par
+from .world import A0, A1, ACTIVE, B0, B1, FLYING, HALF_L, HALF_W, LAUNCHED, MAX_OCC, SLIDING, SPAN_A, \
+    SPAN_B, SPAN_C, IPar, Par
 
 
 @ti.func
@@ -67,36 +68,23 @@ def trace_rays(w: ti.template()):
 
 
 @ti.func
-def trace_all(w: ti.template()):
-    """DDA cells of every ray of every substep (ray index = tire * substeps + s): serial, a handful of rays
-    (a parallel task's start-up would cost more than they do)."""
-    ti.loop_config(serialize=True)
-    for t, s in ti.ndrange(w.n_tires, w.substeps):
-        f = ti.cast(s + 1, w.real) / w.substeps
-        a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
-        b = ray_vec(w, t, B0) * (1.0 - f) + ray_vec(w, t, B1) * f
-        segment_cells(w, t * w.substeps + s, a, b)
+def substep_ray(w: ti.template(), t, s):
+    """Tire t's ray (a, b) at substep s: interpolated between the previous and the current step."""
+    f = ti.cast(s + 1, w.real) / w.substeps
+    a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
+    b = ray_vec(w, t, B0) * (1.0 - f) + ray_vec(w, t, B1) * f
+    return a, b
 
 
 @ti.func
-def try_launch(w: ti.template(), plan: ti.template(), i, t, step):
-    """Launch rock i by tire t unless already launched this step or flying; returns 1 if launched."""
-    launched = 0
-    if w.hit_step[i] != step and w.phase[i] != FLYING:
-        v, v_tread, alpha = MODELS[plan.throw].launch(w, plan, t, i, step)  # the model: a compile-time choice
-        if v.norm() > w.par[Par.REST_SPEED]:
-            w.hit_step[i] = step
-            w.vel[i] = v
-            if ti.static(plan.impacts):  # who threw it: its own body is not hit (engine/impact_pass.py)
-                w.thrower[i] = w.tire_vehicle[t]
-            if ti.static(plan.spin):  # it rolls off the tread (engine/tumble.py)
-                w.spin[i] = tumble.launch_spin(w, t, alpha, v_tread, w.radius[i], w.rock_id[i], step)
-            if ti.static(plan.ground == "none"):
-                w.phase[i] = FLYING
-            else:
-                w.phase[i] = FLYING if v[2] > 0.0 else SLIDING
-            launched = 1
-    return launched
+def trace_all(w: ti.template()):
+    """DDA cells of every ray of every substep (ray index = tire * substeps + s), one thread per ray; the most
+    cells of a ray go to ``tire_counts[SPAN_A]`` (the tire pass's items, :func:`launch_all`)."""
+    w.tire_counts[SPAN_A] = 0
+    for r in range(w.n_rays):
+        a, b = substep_ray(w, r // w.substeps, r % w.substeps)
+        segment_cells(w, r, a, b)
+        ti.atomic_max(w.tire_counts[SPAN_A], w.ray_cell_count[r])
 
 
 @ti.func
@@ -105,64 +93,178 @@ def slot_range(w: ti.template(), c):
     return w.cell_start[s], w.cell_start[s + 1]
 
 
+@ti.func
+def can_launch(w: ti.template(), plan: ti.template(), i, t, step):
+    """Would tire t launch rock i? Not if it was launched this step or flies; else if the launch model's
+    velocity beats the rest speed (the model's velocity depends on the tire, the rock and the step only)."""
+    yes = False
+    if w.hit_step[i] != step and w.phase[i] != FLYING:
+        v, _, _ = MODELS[plan.throw].launch(w, plan, t, i, step)  # the model: a compile-time choice
+        yes = v.norm() > w.par[Par.REST_SPEED]
+    return yes
+
+
+@ti.func
+def launch_rock(w: ti.template(), plan: ti.template(), i, t, step):
+    """Launch rock i by tire t (can_launch said yes): the same velocity, the same random numbers."""
+    v, v_tread, alpha = MODELS[plan.throw].launch(w, plan, t, i, step)
+    w.hit_step[i] = step
+    w.vel[i] = v
+    if ti.static(plan.impacts):  # who threw it: its own body is not hit (engine/impact_pass.py)
+        w.thrower[i] = w.tire_vehicle[t]
+    if ti.static(plan.spin):  # it rolls off the tread (engine/tumble.py)
+        w.spin[i] = tumble.launch_spin(w, t, alpha, v_tread, w.radius[i], w.rock_id[i], step)
+    if ti.static(plan.ground == "none"):
+        w.phase[i] = FLYING
+    else:
+        w.phase[i] = FLYING if v[2] > 0.0 else SLIDING
+
+
+@ti.func
+def swept_query(w: ti.template(), plan: ti.template(), t):
+    """Tire t's swept test (a0, e1, e2: the parallelogram; with ``plan.patch`` whether the tread's footprint
+    counts and the highest a run-over rock's bottom may be) and its XY-and-Z query box (lo, hi)."""
+    a0, b0 = ray_vec(w, t, A0), ray_vec(w, t, B0)
+    a1 = ray_vec(w, t, A1)
+    e1 = a1 - a0  # the step's motion
+    e2 = b0 - a0  # the ray
+    lo = ti.min(ti.min(a0, b0), ti.min(a1, a1 + e2))
+    hi = ti.max(ti.max(a0, b0), ti.max(a1, a1 + e2))
+    tread = False  # patch: the footprint counts (an active tire with a footprint of some size)
+    floor = b0[2]  # patch: the highest a run-over rock's bottom may be
+    if ti.static(plan.patch):
+        tread = w.ray[t, ACTIVE] != 0.0 and (w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0)
+        floor = ti.min(b0[2], w.ray[t, B1 + 2]) + w.par[Par.PATCH_TOL]
+        if tread:
+            f_lo, f_hi = patch.footprint_box(w, t)
+            lo = ti.Vector([ti.min(lo[0], f_lo[0]), ti.min(lo[1], f_lo[1]), lo[2]])
+            hi = ti.Vector([ti.max(hi[0], f_hi[0]), ti.max(hi[1], f_hi[1]), hi[2]])
+    return a0, e1, e2, tread, floor, lo, hi
+
+
+@ti.func
+def swept_hits(w: ti.template(), plan: ti.template(), t, i):
+    """Does tire t's swept test (and with ``plan.patch`` its tread) run over rock i?"""
+    a0, e1, e2, tread, floor, _, _ = swept_query(w, plan, t)
+    r2 = w.radius[i] * w.radius[i]
+    hit = parallelogram_dist2(a0, e1, e2, w.pos[i]) <= r2
+    if ti.static(plan.patch):
+        if tread and not hit and w.pos[i][2] - w.radius[i] <= floor:
+            hit = patch.footprint_dist2(w, t, ti.Vector([w.pos[i][0], w.pos[i][1]])) <= r2
+    return hit
+
+
+@ti.func
+def box_all(w: ti.template(), plan: ti.template()):
+    """Swept detection: every tire's cells (first and last, dilated) into ``w.tire_cells``, one thread per
+    tire, and the largest box's size in cells per axis into ``tire_counts[SPAN_A..SPAN_C]``."""
+    for k in ti.static(range(3)):
+        w.tire_counts[SPAN_A + k] = 0
+    dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
+    for t in range(w.n_tires):
+        _, _, _, _, _, lo, hi = swept_query(w, plan, t)
+        cell = w.par[Par.CELL]
+        c_lo = cell_of(lo, cell) - dil
+        c_hi = cell_of(hi, cell) + dil
+        w.tire_cells[t, 0] = c_lo
+        w.tire_cells[t, 1] = c_hi
+        for k in ti.static(range(3)):
+            ti.atomic_max(w.tire_counts[SPAN_A + k], c_hi[k] - c_lo[k] + 1)
+
+
+@ti.func
+def item_rock(w: ti.template(), plan: ti.template(), q):
+    """Item q of the tire pass: (tire, substep, rock index or -1). Swept: (tire, cell of its box, place in the cell's
+    slot); else (ray, its k-th cell, offset within the dilation, place in the slot). The places run to the
+    fullest slot's count (``MAX_OCC``), the cells to the largest box or the longest ray: one flat loop (no
+    atomic inside an inner loop of varying length: on Vulkan, Taichi 1.7.4 loses iterations there)."""
+    occ = w.tire_counts[MAX_OCC]
+    j = q % occ
+    r = q // occ
+    t, s = 0, 0
+    c = ti.Vector([0, 0, 0])
+    ok = False
+    if ti.static(plan.swept):
+        sx, sy, sz = w.tire_counts[SPAN_A], w.tire_counts[SPAN_B], w.tire_counts[SPAN_C]
+        t = r // (sx * sy * sz)
+        u = r % (sx * sy * sz)
+        c = w.tire_cells[t, 0] + ti.Vector([u // (sy * sz), (u // sz) % sy, u % sz])
+        hi = w.tire_cells[t, 1]
+        ok = c[0] <= hi[0] and c[1] <= hi[1] and c[2] <= hi[2]
+    else:
+        dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
+        side = 2 * dil + 1
+        cube = side * side * side
+        o = r % cube
+        r2 = r // cube
+        k = r2 % w.tire_counts[SPAN_A]
+        ray = r2 // w.tire_counts[SPAN_A]
+        t = ray // w.substeps
+        s = ray % w.substeps
+        if k < w.ray_cell_count[ray]:
+            c = w.ray_cells[ray, k] + ti.Vector([o // (side * side), (o // side) % side, o % side]) - dil
+            ok = True
+    i = -1
+    if ok:
+        start, end = slot_range(w, c)
+        if start + j < end:
+            i = w.entries[start + j]
+    return t, s, i
+
+
+@ti.func
+def item_hits(w: ti.template(), plan: ti.template(), t, s, i):
+    """Does tire t's ray at substep s (swept: its swept test) hit rock i?"""
+    hit = False
+    if ti.static(plan.swept):
+        hit = swept_hits(w, plan, t, i)
+    else:
+        a, b = substep_ray(w, t, s)
+        hit = segment_hits_sphere(a, b, w.pos[i], w.radius[i])
+    return hit
+
+
 @ti.kernel
-def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32) -> ti.i32:
-    """The tire pass alone (``plan``: the switches of kernels.hash_and_tires)."""
-    return launch_all(w, plan, step)
+def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32):
+    """The tire pass alone (``plan``: the switches of kernels.hash_and_tires), after the hash's scan (its
+    ``MAX_OCC``) and scatter."""
+    launch_all(w, plan, step)
 
 
 @ti.func
 def launch_all(w: ti.template(), plan: ti.template(), step):
-    """Find and launch the rocks under every tire ray. Serial over tires: the first tire wins a rock,
-    whatever the thread count (a handful of rays; the cost is in the cells, not the loop). Reads the switches
-    ``center``, ``swept``, ``patch``, ``ground``, ``throw`` and ``fenders`` of ``plan``."""
-    launched = 0
-    ti.loop_config(serialize=True)
-    for t in range(w.n_tires):
+    """Find and launch the rocks under every tire ray, the first tire in scene order winning a rock, whatever
+    the thread count or the backend, in three parallel loops: the tires' query cells (one thread per ray or
+    tire); the claims: each (tire, candidate) that would launch its rock (hit, not launched, not flying, fast
+    enough) writes n_tires - t into the rock's ``claim`` with an atomic maximum, so that the smallest t holds
+    it; the launches: the winning tire's items launch the rock with the same arguments as a serial pass would,
+    one of them (an atomic exchange of the claim with 0, which also leaves the claims clear for the next step).
+    The rocks launched go to ``tire_counts[LAUNCHED]`` and ``w.launches``: nothing is read back. Reads the
+    switches ``center``, ``swept``, ``patch``, ``ground``, ``throw`` and ``fenders`` of ``plan``; the hash's
+    scan left the fullest slot's count in ``tire_counts[MAX_OCC]``."""
+    w.tire_counts[LAUNCHED] = 0
+    if ti.static(plan.swept):
+        box_all(w, plan)
+    else:
+        trace_all(w)
+    n_items = w.tire_counts[MAX_OCC] * w.tire_counts[SPAN_A]
+    if ti.static(plan.swept):
+        n_items *= w.n_tires * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
+    else:
         dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
-        if ti.static(plan.swept):
-            a0, b0 = ray_vec(w, t, A0), ray_vec(w, t, B0)
-            a1 = ray_vec(w, t, A1)
-            e1 = a1 - a0  # the step's motion
-            e2 = b0 - a0  # the ray
-            lo = ti.min(ti.min(a0, b0), ti.min(a1, a1 + e2))
-            hi = ti.max(ti.max(a0, b0), ti.max(a1, a1 + e2))
-            tread = False  # patch: the footprint counts (an active tire with a footprint of some size)
-            floor = b0[2]  # patch: the highest a run-over rock's bottom may be
-            if ti.static(plan.patch):
-                tread = w.ray[t, ACTIVE] != 0.0 and (w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0)
-                floor = ti.min(b0[2], w.ray[t, B1 + 2]) + w.par[Par.PATCH_TOL]
-                if tread:
-                    f_lo, f_hi = patch.footprint_box(w, t)
-                    lo = ti.Vector([ti.min(lo[0], f_lo[0]), ti.min(lo[1], f_lo[1]), lo[2]])
-                    hi = ti.Vector([ti.max(hi[0], f_hi[0]), ti.max(hi[1], f_hi[1]), hi[2]])
-            cell = w.par[Par.CELL]
-            c_lo = cell_of(lo, cell) - dil
-            c_hi = cell_of(hi, cell) + dil
-            for cx, cy, cz in ti.ndrange((c_lo[0], c_hi[0] + 1), (c_lo[1], c_hi[1] + 1), (c_lo[2], c_hi[2] + 1)):
-                start, end = slot_range(w, ti.Vector([cx, cy, cz]))
-                for e in range(start, end):
-                    i = w.entries[e]
-                    r2 = w.radius[i] * w.radius[i]
-                    hit = parallelogram_dist2(a0, e1, e2, w.pos[i]) <= r2
-                    if ti.static(plan.patch):
-                        if tread and not hit and w.pos[i][2] - w.radius[i] <= floor:
-                            hit = patch.footprint_dist2(w, t, ti.Vector([w.pos[i][0], w.pos[i][1]])) <= r2
-                    if hit:
-                        launched += try_launch(w, plan, i, t, step)
-        else:
-            for s in range(w.substeps):
-                f = ti.cast(s + 1, w.real) / w.substeps
-                a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
-                b = ray_vec(w, t, B0) * (1.0 - f) + ray_vec(w, t, B1) * f
-                ray = t * w.substeps + s
-                for k in range(w.ray_cell_count[ray]):
-                    c = w.ray_cells[ray, k]
-                    for dx, dy, dz in ti.ndrange((-dil, dil + 1), (-dil, dil + 1), (-dil, dil + 1)):
-                        start, end = slot_range(w, c + ti.Vector([dx, dy, dz]))
-                        for e in range(start, end):
-                            i = w.entries[e]
-                            if segment_hits_sphere(a, b, w.pos[i], w.radius[i]):
-                                launched += try_launch(w, plan, i, t, step)
-    w.launches[None] += launched
-    return launched
+        side = 2 * dil + 1
+        n_items *= w.n_rays * side * side * side
+    for q in range(n_items):
+        t, s, i = item_rock(w, plan, q)
+        if i >= 0:
+            if item_hits(w, plan, t, s, i):
+                if can_launch(w, plan, i, t, step):
+                    ti.atomic_max(w.claim[i], w.n_tires - t)
+    for q in range(n_items):
+        t, _, i = item_rock(w, plan, q)
+        if i >= 0:
+            if w.claim[i] == w.n_tires - t:
+                if ti.atomic_min(w.claim[i], 0) == w.n_tires - t:
+                    launch_rock(w, plan, i, t, step)
+                    ti.atomic_add(w.tire_counts[LAUNCHED], 1)
+    w.launches[None] += w.tire_counts[LAUNCHED]
