@@ -225,7 +225,7 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
     the next step's rock pass."""
     hashgrid.scan_counts(w)
     hashgrid.scatter_all(w, plan.center)
-    tires.launch_all(w, plan, step)
+    tires.launch_all(w, plan, step, True)
     hashgrid.clear_all(w)
 
 

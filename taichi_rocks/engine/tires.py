@@ -19,6 +19,7 @@ Switches, engine/kernels.py).
 """
 
 import taichi as ti
+from taichi.lang import impl
 
 from . import patch, tumble
 from .geometry import closest_on_segment
@@ -78,13 +79,11 @@ def substep_ray(w: ti.template(), t, s):
 
 @ti.func
 def trace_all(w: ti.template()):
-    """DDA cells of every ray of every substep (ray index = tire * substeps + s), one thread per ray; the most
-    cells of a ray go to ``tire_counts[SPAN_A]`` (the tire pass's items, :func:`launch_all`)."""
-    w.tire_counts[SPAN_A] = 0
+    """DDA cells of every ray of every substep (ray index = tire * substeps + s), one thread per ray (the tire
+    pass queries each ray's box of cells, which holds these)."""
     for r in range(w.n_rays):
         a, b = substep_ray(w, r // w.substeps, r % w.substeps)
         segment_cells(w, r, a, b)
-        ti.atomic_max(w.tire_counts[SPAN_A], w.ray_cell_count[r])
 
 
 @ti.func
@@ -154,117 +153,150 @@ def swept_hits(w: ti.template(), plan: ti.template(), t, i):
     return hit
 
 
+def places_one_per_item() -> bool:
+    """Compile-time: does each item of the claims and launches take one place of its cell's slot (Vulkan), or
+    walk the slot's entries (CPU, CUDA)? On Vulkan (Taichi 1.7.4, lavapipe) an atomic inside an inner loop
+    with a run-time trip count loses updates, even with a trip count the same for every thread; so there the
+    places are items of the flat loop (up to the fullest slot's count, ``MAX_OCC``), elsewhere a short loop."""
+    return impl.current_cfg().arch == ti.vulkan
+
+
+@ti.func
+def query_box(w: ti.template(), plan: ti.template(), q):
+    """Query q's cells (first, last): swept, tire q's box (the parallelogram's and the footprint's XY box);
+    else ray q's (tire q // substeps at substep q % substeps) box, which holds every cell the ray crosses;
+    dilated by ``DILATE`` with centre insertion."""
+    lo = ti.Vector([0.0, 0.0, 0.0], dt=w.real)
+    hi = lo
+    if ti.static(plan.swept):
+        _, _, _, _, _, lo, hi = swept_query(w, plan, q)
+    else:
+        a, b = substep_ray(w, q // w.substeps, q % w.substeps)
+        lo, hi = ti.min(a, b), ti.max(a, b)
+    dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
+    cell = w.par[Par.CELL]
+    return cell_of(lo, cell) - dil, cell_of(hi, cell) + dil
+
+
 @ti.func
 def box_all(w: ti.template(), plan: ti.template()):
-    """Swept detection: every tire's cells (first and last, dilated) into ``w.tire_cells``, one thread per
-    tire, and the largest box's size in cells per axis into ``tire_counts[SPAN_A..SPAN_C]``."""
+    """Every query's cells into ``w.tire_cells`` (one thread per query: a tire, or with ray detection a ray of
+    a substep) and the largest box's size in cells per axis into ``tire_counts[SPAN_A..SPAN_C]``; returns the
+    queries."""
     for k in ti.static(range(3)):
         w.tire_counts[SPAN_A + k] = 0
-    dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
-    for t in range(w.n_tires):
-        _, _, _, _, _, lo, hi = swept_query(w, plan, t)
-        cell = w.par[Par.CELL]
-        c_lo = cell_of(lo, cell) - dil
-        c_hi = cell_of(hi, cell) + dil
-        w.tire_cells[t, 0] = c_lo
-        w.tire_cells[t, 1] = c_hi
+    n_queries = w.n_tires if ti.static(plan.swept) else w.n_rays
+    for q in range(n_queries):
+        c_lo, c_hi = query_box(w, plan, q)
+        w.tire_cells[q, 0] = c_lo
+        w.tire_cells[q, 1] = c_hi
         for k in ti.static(range(3)):
             ti.atomic_max(w.tire_counts[SPAN_A + k], c_hi[k] - c_lo[k] + 1)
+    return n_queries
 
 
 @ti.func
-def item_rock(w: ti.template(), plan: ti.template(), q):
-    """Item q of the tire pass: (tire, substep, rock index or -1). Swept: (tire, cell of its box, place in the cell's
-    slot); else (ray, its k-th cell, offset within the dilation, place in the slot). The places run to the
-    fullest slot's count (``MAX_OCC``), the cells to the largest box or the longest ray: one flat loop (no
-    atomic inside an inner loop of varying length: on Vulkan, Taichi 1.7.4 loses iterations there)."""
-    occ = w.tire_counts[MAX_OCC]
-    j = q % occ
-    r = q // occ
-    t, s = 0, 0
-    c = ti.Vector([0, 0, 0])
-    ok = False
-    if ti.static(plan.swept):
-        sx, sy, sz = w.tire_counts[SPAN_A], w.tire_counts[SPAN_B], w.tire_counts[SPAN_C]
-        t = r // (sx * sy * sz)
-        u = r % (sx * sy * sz)
-        c = w.tire_cells[t, 0] + ti.Vector([u // (sy * sz), (u // sz) % sy, u % sz])
-        hi = w.tire_cells[t, 1]
-        ok = c[0] <= hi[0] and c[1] <= hi[1] and c[2] <= hi[2]
-    else:
-        dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
-        side = 2 * dil + 1
-        cube = side * side * side
-        o = r % cube
-        r2 = r // cube
-        k = r2 % w.tire_counts[SPAN_A]
-        ray = r2 // w.tire_counts[SPAN_A]
-        t = ray // w.substeps
-        s = ray % w.substeps
-        if k < w.ray_cell_count[ray]:
-            c = w.ray_cells[ray, k] + ti.Vector([o // (side * side), (o // side) % side, o % side]) - dil
-            ok = True
-    i = -1
-    if ok:
+def item_cell(w: ti.template(), plan: ti.template(), q):
+    """Item q of the tire pass: (query, place in its cell's slot (0 unless one place per item), the slot's
+    entries (start, end), or an empty range)."""
+    per = 1
+    if ti.static(places_one_per_item()):
+        per = w.tire_counts[MAX_OCC]
+    j = q % per
+    r = q // per
+    sx, sy, sz = w.tire_counts[SPAN_A], w.tire_counts[SPAN_B], w.tire_counts[SPAN_C]
+    query = r // (sx * sy * sz)
+    u = r % (sx * sy * sz)
+    c = w.tire_cells[query, 0] + ti.Vector([u // (sy * sz), (u // sz) % sy, u % sz])
+    hi = w.tire_cells[query, 1]
+    start, end = 0, 0
+    if c[0] <= hi[0] and c[1] <= hi[1] and c[2] <= hi[2]:
         start, end = slot_range(w, c)
-        if start + j < end:
-            i = w.entries[start + j]
-    return t, s, i
+    return query, j, start, end
 
 
 @ti.func
-def item_hits(w: ti.template(), plan: ti.template(), t, s, i):
-    """Does tire t's ray at substep s (swept: its swept test) hit rock i?"""
+def query_hits(w: ti.template(), plan: ti.template(), query, i):
+    """Does the query (swept: tire ``query``'s swept test; else ray ``query``) hit rock i?"""
     hit = False
     if ti.static(plan.swept):
-        hit = swept_hits(w, plan, t, i)
+        hit = swept_hits(w, plan, query, i)
     else:
-        a, b = substep_ray(w, t, s)
+        a, b = substep_ray(w, query // w.substeps, query % w.substeps)
         hit = segment_hits_sphere(a, b, w.pos[i], w.radius[i])
     return hit
+
+
+@ti.func
+def claim_rock(w: ti.template(), plan: ti.template(), query, i, step):
+    """The query's tire claims rock i if it would launch it; the first claim of a rock counts it."""
+    t = query if ti.static(plan.swept) else query // w.substeps
+    if query_hits(w, plan, query, i):
+        if can_launch(w, plan, i, t, step):
+            if ti.atomic_max(w.claim[i], w.n_tires - t) == 0:
+                ti.atomic_add(w.tire_counts[LAUNCHED], 1)
+
+
+@ti.func
+def launch_claimed(w: ti.template(), plan: ti.template(), query, i, step):
+    """Item side of the launches: the query's tire launches rock i if it holds the claim (once)."""
+    t = query if ti.static(plan.swept) else query // w.substeps
+    if w.claim[i] == w.n_tires - t:
+        if ti.atomic_min(w.claim[i], 0) == w.n_tires - t:  # one of the winner's items launches it
+            launch_rock(w, plan, i, t, step)
+
+
+@ti.func
+def launch_if_claimed(w: ti.template(), plan: ti.template(), i, step):
+    """Rock side of the launches, in a loop over the rocks (active stepping's settle loop): rock i is launched
+    by the tire holding its claim, if any, and its claim cleared."""
+    code = w.claim[i]
+    if code != 0:
+        w.claim[i] = 0
+        launch_rock(w, plan, i, w.n_tires - code, step)
 
 
 @ti.kernel
 def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32):
     """The tire pass alone (``plan``: the switches of kernels.hash_and_tires), after the hash's scan (its
     ``MAX_OCC``) and scatter."""
-    launch_all(w, plan, step)
+    launch_all(w, plan, step, True)
 
 
 @ti.func
-def launch_all(w: ti.template(), plan: ti.template(), step):
+def launch_all(w: ti.template(), plan: ti.template(), step, launch: ti.template()):
     """Find and launch the rocks under every tire ray, the first tire in scene order winning a rock, whatever
-    the thread count or the backend, in three parallel loops: the tires' query cells (one thread per ray or
-    tire); the claims: each (tire, candidate) that would launch its rock (hit, not launched, not flying, fast
-    enough) writes n_tires - t into the rock's ``claim`` with an atomic maximum, so that the smallest t holds
-    it; the launches: the winning tire's items launch the rock with the same arguments as a serial pass would,
-    one of them (an atomic exchange of the claim with 0, which also leaves the claims clear for the next step).
-    The rocks launched go to ``tire_counts[LAUNCHED]`` and ``w.launches``: nothing is read back. Reads the
-    switches ``center``, ``swept``, ``patch``, ``ground``, ``throw`` and ``fenders`` of ``plan``; the hash's
-    scan left the fullest slot's count in ``tire_counts[MAX_OCC]``."""
+    the thread count or the backend, in three parallel loops: the queries' boxes of cells (one thread per tire
+    with swept detection, else per ray of a substep; a box holds every cell the query can find a rock in); the
+    claims, over (query, cell of the largest box): each (tire, rock of the cell's slot) that would launch the
+    rock (a hit, not launched, not flying, fast enough) writes n_tires - t into the rock's ``claim`` with an
+    atomic maximum, so that the smallest t holds it; the launches, over the same items: the winning tire
+    launches the rock with the same arguments as a serial pass in scene order would, once (an atomic exchange
+    of the claim with 0, which leaves the claims clear for the next pass). Without ``launch`` the caller
+    launches the claimed rocks in a loop of its own over the rocks (:func:`launch_if_claimed`; active stepping:
+    its settle loop, no task of its own). The rocks claimed, which are the rocks launched, go to
+    ``tire_counts[LAUNCHED]`` and ``w.launches`` after the claims: nothing is read back. Reads the switches ``center``,
+    ``swept``, ``patch``, ``ground``, ``throw`` and ``fenders`` of ``plan``; the hash's scan left the fullest
+    slot's count in ``tire_counts[MAX_OCC]``."""
     w.tire_counts[LAUNCHED] = 0
-    if ti.static(plan.swept):
-        box_all(w, plan)
-    else:
-        trace_all(w)
-    n_items = w.tire_counts[MAX_OCC] * w.tire_counts[SPAN_A]
-    if ti.static(plan.swept):
-        n_items *= w.n_tires * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
-    else:
-        dil = w.ipar[IPar.DILATE] if ti.static(plan.center) else 0
-        side = 2 * dil + 1
-        n_items *= w.n_rays * side * side * side
+    n_items = box_all(w, plan) * w.tire_counts[SPAN_A] * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
+    if ti.static(places_one_per_item()):
+        n_items *= w.tire_counts[MAX_OCC]
     for q in range(n_items):
-        t, s, i = item_rock(w, plan, q)
-        if i >= 0:
-            if item_hits(w, plan, t, s, i):
-                if can_launch(w, plan, i, t, step):
-                    ti.atomic_max(w.claim[i], w.n_tires - t)
-    for q in range(n_items):
-        t, _, i = item_rock(w, plan, q)
-        if i >= 0:
-            if w.claim[i] == w.n_tires - t:
-                if ti.atomic_min(w.claim[i], 0) == w.n_tires - t:
-                    launch_rock(w, plan, i, t, step)
-                    ti.atomic_add(w.tire_counts[LAUNCHED], 1)
+        query, j, start, end = item_cell(w, plan, q)
+        if ti.static(places_one_per_item()):
+            if start + j < end:
+                claim_rock(w, plan, query, w.entries[start + j], step)
+        else:
+            for e in range(start, end):
+                claim_rock(w, plan, query, w.entries[e], step)
     w.launches[None] += w.tire_counts[LAUNCHED]
+    if ti.static(launch):
+        for q in range(n_items):
+            query, j, start, end = item_cell(w, plan, q)
+            if ti.static(places_one_per_item()):
+                if start + j < end:
+                    launch_claimed(w, plan, query, w.entries[start + j], step)
+            else:
+                for e in range(start, end):
+                    launch_claimed(w, plan, query, w.entries[e], step)

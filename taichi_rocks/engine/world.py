@@ -115,7 +115,7 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
         out += [FieldSpec("ray", "real", 1, (n_tires, RAY_FIELDS)),
                 FieldSpec("ray_cells", "i32", 3, (n_rays, max(ray_capacity, 1))),
                 FieldSpec("ray_cell_count", "i32", 1, (n_rays,)),
-                FieldSpec("tire_cells", "i32", 3, (n_tires, 2))]  # swept detection: each tire's cells (first, last)
+                FieldSpec("tire_cells", "i32", 3, (n_rays, 2))]  # the tire pass: each query's cells (first, last)
     if reorder:  # the re-sort's buffers: one per (dtype, components) of the carried rock fields
         out += [FieldSpec(tmp_name(f), f.dtype, f.n, (cap,)) for f in _distinct_kinds(rocks)]
     if store is not None:
