@@ -33,13 +33,15 @@ One step (two kernel launches, :func:`active_step` and :func:`active_finish`; th
   6. compaction of the active list (survivors above the new count fill the holes below it).
 Same results as "full": every rock that "full" would change this step is in the active list when the rock pass
 and the tire pass run, and each one goes through the same functions with the same arguments (the random
-numbers are hashes of the rock's id and the step, the tire pass tests tires in the same order, first tire wins);
+numbers are hashes of the rock's id and the step, the first tire in scene order wins a rock);
 a resting rock in the tiles is not touched by a step of "full" either (no flight, inside the bed, under no
 tire). Only the memory order of the rocks differs (``state()`` is by rock id). Cost per step: the active rocks,
 the rim tiles' rocks (a band one tile wide along half the rim), the tire tiles' rocks and one pass over the G^2
 slots; not N.
-Every loop is parallel (atomic counters, parallel compaction); the serial loops are the hash's prefix sum over
-its table (sized to the active list) and the tire pass over tires, as in "full" stepping.
+Every loop is parallel (atomic counters, parallel compaction, the set-up of step 1 one item per band line and
+per tire, the tire pass over (query, cell) with per-rock claims, engine/tires.py); the one serial loop is the
+hash's prefix sum over its table (sized to the active list). Nothing is read back: the rocks launched stay in
+``tire_counts`` until asked for (Simulation.last_launches).
 
 Loaded rocks (a new Simulation, a restored checkpoint) all start in the active list with the tiles empty: the
 first step takes every rock through its rock pass, a step of "full", and its step 5 settles the resting ones.
@@ -69,8 +71,8 @@ NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes t
 # are parallel loops.
 TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: band widths, tire rays and boxes",
                          "(serial: bounds)", "classify rim band and tire tiles", "(serial: bounds)",
-                         "gather rocks from marked tiles", "(serial: bounds)", "close marked tiles",
-                         "(serial: bounds)", "rock pass: flight, recycle, hash count"),
+                         "gather rocks from marked tiles", "close marked tiles", "(serial: bounds)",
+                         "rock pass: flight, recycle, hash count"),
          "active_finish": ("counters, hash scan (serial)", "hash scatter", "(serial: tire counters)",
                            "tire pass: query boxes", "(serial: bounds)", "tire pass: claims",
                            "(serial: launch count, bounds)", "launch claimed, settle, count survivors, clear hash",

@@ -9,8 +9,17 @@ the ray at several positions interpolated within the step.
 
 Launch. A rock run over is thrown with the velocity of the scene's launch model (engine/launch/, a module per
 model), picked at compile time from the Plan's ``throw``. A rock is launched at most once per step, by the
-first ray (in tire order) that finds it; flying rocks are not re-launched. With the Plan's ``spin`` a launched
-rock also gets the spin of a stone rolling off the tread at the model's release angle (engine/tumble.py).
+first tire in scene order that would launch it (a tire that finds it but throws it slower than the rest speed
+leaves it to the next); flying rocks are not re-launched. With the Plan's ``spin`` a launched rock also gets the
+spin of a stone rolling off the tread at the model's release angle (engine/tumble.py).
+
+In parallel (:func:`launch_all`), whatever the backend or thread count: a query is a tire (swept) or a ray of a
+substep, and its box of hash cells holds every cell it can find a rock in (the ray's DDA cells, dilated with
+centre insertion); the items (query, cell of the largest box) test their slot's rocks and claim a rock they
+would launch with an atomic maximum of n_tires - t on its ``claim``: the smallest t holds it. A launch model's
+velocity is a function of (tire, rock, step) and the rock's state, which no claim changes, so the winner is the
+serial pass's; the winner then launches the rock with the same call (the same random numbers) and clears the
+claim. No serial loop: one thread per query, per (query, cell), per rock.
 
 "patch" detection (engine/patch.py) adds the tread's swept footprint to the swept test: a rock on the ground
 anywhere under the tread is run over. The query box is then the union of the swept ray's box and the

@@ -1,5 +1,11 @@
 """Tire rays: segment-sphere and swept tests, hash queries in both insert modes against brute force."""
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import taichi as ti
@@ -271,3 +277,53 @@ def test_first_tire_wins_a_rock_many_tires_share():
         got, launched = claimed_by(probe, rays, rays, tuple(range(first)), step)
         np.testing.assert_array_equal(got, np.full(n, first))
         assert launched == n
+
+
+def shared_rocks_case(rng_seed=23):
+    """Rocks under six rays a few centimetres apart (the reaches overlap), tires 0 and 3 dead (see above)."""
+    rng = np.random.default_rng(rng_seed)
+    n = 2500
+    r = rng.uniform(0.015, 0.03, n)
+    pos = np.column_stack([rng.uniform(-0.12, 0.12, (n, 2)), r])
+    xy = rng.uniform(-0.04, 0.04, (6, 2))
+    rays = np.array([[[x, y, 0.33], [x + 0.01, y, 0.0]] for x, y in xy])
+    return pos, r, rays, (0, 3)
+
+
+def test_the_first_tire_wins_on_vulkan():
+    """The same claims on Vulkan (lavapipe; its tire pass takes one place of a slot per item, engine/tires.py
+    places_one_per_item), in a process of its own started there: the NumPy reference's winners, with centre
+    insertion ("aabb" insertion loses rocks in the hash's count on Vulkan, an atomic in a loop over each rock's
+    cells: 336 of 340 hits here, with the serial tire pass too). No skip: a machine without a Vulkan driver fails
+    here (the driver says so)."""
+    here = Path(__file__).resolve()
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(here.parents[2]), str(here.parents[1])]))  # harness
+    run = subprocess.run([sys.executable, __file__, "vulkan"], capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = json.loads(run.stdout.strip().splitlines()[-1])
+    assert got["arch"] == "vulkan"
+    pos, r, rays, dead = shared_rocks_case()
+    ref, unsure, under = first_tire_reference(pos, r, rays, rays, dead, False)
+    assert np.count_nonzero(under >= 2) > 50
+    tire = np.array(got["tire"])
+    np.testing.assert_array_equal(tire[~unsure], ref[~unsure])
+    assert got["launched"] == np.count_nonzero(tire >= 0) > 100
+
+
+def _claims_on(arch: str) -> int:
+    """The Vulkan side of test_the_first_tire_wins_on_vulkan: one JSON line (arch, the winners, the launch
+    count)."""
+    from taichi_rocks.engine.runtime import init_taichi
+
+    used = init_taichi(arch)
+    out = {"arch": used}
+    if used == arch:
+        pos, r, rays, dead = shared_rocks_case()
+        tire, launched = claimed_by(Probe(pos, r, cell=0.05, rays=rays), rays, rays, dead, 1)
+        out.update(tire=tire.tolist(), launched=launched)
+    print(json.dumps(out))
+    return 0 if used == arch else 1
+
+
+if __name__ == "__main__":
+    sys.exit(_claims_on(sys.argv[1]))
