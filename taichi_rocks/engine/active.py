@@ -73,11 +73,11 @@ TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: ban
                          "(serial: bounds)", "classify rim band and tire tiles", "(serial: bounds)",
                          "gather rocks from marked tiles", "close marked tiles", "(serial: bounds)",
                          "rock pass: flight, recycle, hash count"),
-         "active_finish": ("counters, hash scan (serial)", "hash scatter", "(serial: tire counters)",
-                           "tire pass: query boxes", "(serial: bounds)", "tire pass: claims",
-                           "(serial: launch count, bounds)", "launch claimed, settle, count survivors, clear hash",
-                           "(serial: bounds)", "compaction: holes and movers", "(serial: bounds)",
-                           "compaction: copy", "(serial: list length)")}
+         "active_finish": ("counters, hash scan (serial)", "hash scatter, tire pass: query boxes", "(serial: bounds)",
+                           "tire pass: claims", "(serial: launch count, bounds)",
+                           "launch claimed, settle, count survivors, clear hash", "(serial: bounds)",
+                           "compaction: holes and movers", "(serial: bounds)", "compaction: copy",
+                           "(serial: list length)")}
 
 # World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
 # rocks above it (compaction), the slots marked this step (mark()), the band's widest row and column and the
@@ -516,8 +516,7 @@ def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
     reset_counts(w)
     if ti.static(plan.splash):
         hashgrid.scan_counts(w)
-        hashgrid.scatter_all(w, plan.center)
-        tires.launch_all(w, plan, step, False)  # settle_rocks launches the claimed rocks
+        tires.scatter_and_launch(w, plan, step, False)  # settle_rocks launches the claimed rocks
     settle_rocks(w, shift_tiles, plan.splash, plan, step)
     compact(w)
 

@@ -185,16 +185,31 @@ def scatter_rock(w: ti.template(), i, center: ti.template()):
 def scatter_all(w: ti.template(), center: ti.template()):
     """Place each counted rock in its slots. atomic_sub on the inclusive ends leaves cell_start[s] = start
     of slot s."""
+    for k in range(scatter_items(w)):
+        scatter_item(w, k, center)
+
+
+@ti.func
+def scatter_items(w: ti.template()):
+    """The items of the scatter: the listed rocks (scope "tires") or the rock arrays."""
+    n = 0
     if ti.static(w.masked):
-        for k in range(w.n_listed[None]):
-            scatter_rock(w, w.listed[k], center)
+        n = w.n_listed[None]
     else:
-        for i in range(w.ipar[IPar.N_ROCKS]):
-            if ti.static(w.stored):  # active stepping counts only the rocks not flying (engine/active.py)
-                if w.phase[i] != FLYING:
-                    scatter_rock(w, i, center)
-            else:
-                scatter_rock(w, i, center)
+        n = w.ipar[IPar.N_ROCKS]
+    return n
+
+
+@ti.func
+def scatter_item(w: ti.template(), k, center: ti.template()):
+    """Item k of the scatter (:func:`scatter_items`; a loop of the caller's, which may hold other items)."""
+    if ti.static(w.masked):
+        scatter_rock(w, w.listed[k], center)
+    elif ti.static(w.stored):  # active stepping counts only the rocks not flying (engine/active.py)
+        if w.phase[k] != FLYING:
+            scatter_rock(w, k, center)
+    else:
+        scatter_rock(w, k, center)
 
 
 @ti.kernel

@@ -224,8 +224,7 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
     launches; the rocks launched stay on the device, ``tire_counts[LAUNCHED]``), and clearing the counts for
     the next step's rock pass."""
     hashgrid.scan_counts(w)
-    hashgrid.scatter_all(w, plan.center)
-    tires.launch_all(w, plan, step, True)
+    tires.scatter_and_launch(w, plan, step, True)
     hashgrid.clear_all(w)
 
 

@@ -30,7 +30,7 @@ Switches, engine/kernels.py).
 import taichi as ti
 from taichi.lang import impl
 
-from . import patch, tumble
+from . import hashgrid, patch, tumble
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
@@ -188,20 +188,25 @@ def query_box(w: ti.template(), plan: ti.template(), q):
 
 
 @ti.func
-def box_all(w: ti.template(), plan: ti.template()):
-    """Every query's cells into ``w.tire_cells`` (one thread per query: a tire, or with ray detection a ray of
-    a substep) and the largest box's size in cells per axis into ``tire_counts[SPAN_A..SPAN_C]``; returns the
-    queries."""
+def reset_counts(w: ti.template()):
+    for k in ti.static((SPAN_A, SPAN_B, SPAN_C, LAUNCHED)):
+        w.tire_counts[k] = 0
+
+
+@ti.func
+def n_queries(w: ti.template(), plan: ti.template()):
+    return w.n_tires if ti.static(plan.swept) else w.n_rays
+
+
+@ti.func
+def box_query(w: ti.template(), plan: ti.template(), q):
+    """Query q's cells into ``w.tire_cells``, the largest box's size in cells per axis into
+    ``tire_counts[SPAN_A..SPAN_C]`` (atomic maxima)."""
+    c_lo, c_hi = query_box(w, plan, q)
+    w.tire_cells[q, 0] = c_lo
+    w.tire_cells[q, 1] = c_hi
     for k in ti.static(range(3)):
-        w.tire_counts[SPAN_A + k] = 0
-    n_queries = w.n_tires if ti.static(plan.swept) else w.n_rays
-    for q in range(n_queries):
-        c_lo, c_hi = query_box(w, plan, q)
-        w.tire_cells[q, 0] = c_lo
-        w.tire_cells[q, 1] = c_hi
-        for k in ti.static(range(3)):
-            ti.atomic_max(w.tire_counts[SPAN_A + k], c_hi[k] - c_lo[k] + 1)
-    return n_queries
+        ti.atomic_max(w.tire_counts[SPAN_A + k], c_hi[k] - c_lo[k] + 1)
 
 
 @ti.func
@@ -269,14 +274,32 @@ def launch_if_claimed(w: ti.template(), plan: ti.template(), i, step):
 def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32):
     """The tire pass alone (``plan``: the switches of kernels.hash_and_tires), after the hash's scan (its
     ``MAX_OCC``) and scatter."""
+    reset_counts(w)
+    for q in range(n_queries(w, plan)):
+        box_query(w, plan, q)
     launch_all(w, plan, step, True)
+
+
+@ti.func
+def scatter_and_launch(w: ti.template(), plan: ti.template(), step, launch: ti.template()):
+    """The hash's scatter and the tire pass (:func:`launch_all`), its first loop (the queries' boxes) in the
+    scatter's loop: one parallel task less."""
+    reset_counts(w)
+    n = hashgrid.scatter_items(w)
+    for q in range(n + n_queries(w, plan)):
+        if q < n:
+            hashgrid.scatter_item(w, q, plan.center)
+        else:
+            box_query(w, plan, q - n)
+    launch_all(w, plan, step, launch)
 
 
 @ti.func
 def launch_all(w: ti.template(), plan: ti.template(), step, launch: ti.template()):
     """Find and launch the rocks under every tire ray, the first tire in scene order winning a rock, whatever
-    the thread count or the backend, in three parallel loops: the queries' boxes of cells (one thread per tire
-    with swept detection, else per ray of a substep; a box holds every cell the query can find a rock in); the
+    the thread count or the backend, in parallel loops, after the queries' boxes of cells (:func:`box_query`,
+    one thread per tire with swept detection, else per ray of a substep; a box holds every cell the query can
+    find a rock in, :func:`query_box`; a loop of the caller's, :func:`tire_pass`, :func:`scatter_and_launch`): the
     claims, over (query, cell of the largest box): each (tire, rock of the cell's slot) that would launch the
     rock (a hit, not launched, not flying, fast enough) writes n_tires - t into the rock's ``claim`` with an
     atomic maximum, so that the smallest t holds it; the launches, over the same items: the winning tire
@@ -287,8 +310,7 @@ def launch_all(w: ti.template(), plan: ti.template(), step, launch: ti.template(
     ``tire_counts[LAUNCHED]`` and ``w.launches`` after the claims: nothing is read back. Reads the switches ``center``,
     ``swept``, ``patch``, ``ground``, ``throw`` and ``fenders`` of ``plan``; the hash's scan left the fullest
     slot's count in ``tire_counts[MAX_OCC]``."""
-    w.tire_counts[LAUNCHED] = 0
-    n_items = box_all(w, plan) * w.tire_counts[SPAN_A] * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
+    n_items = n_queries(w, plan) * w.tire_counts[SPAN_A] * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
     if ti.static(places_one_per_item()):
         n_items *= w.tire_counts[MAX_OCC]
     for q in range(n_items):
