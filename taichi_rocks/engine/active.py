@@ -71,8 +71,8 @@ NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes t
 # are parallel loops.
 TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: band widths, tire rays and boxes",
                          "(serial: bounds)", "classify rim band and tire tiles", "(serial: bounds)",
-                         "gather rocks from marked tiles", "close marked tiles", "(serial: bounds)",
-                         "rock pass: flight, recycle, hash count"),
+                         "gather rocks from marked tiles", "(serial: bounds)",
+                         "close marked tiles; rock pass: flight, recycle, hash count"),
          "active_finish": ("counters, hash scan (serial)", "hash scatter, tire pass: query boxes", "(serial: bounds)",
                            "tire pass: claims", "(serial: launch count, bounds)",
                            "launch claimed, settle, count survivors, clear hash", "(serial: bounds)",
@@ -418,22 +418,21 @@ def gather(w: ti.template(), c):
 
 
 @ti.func
-def close_tiles(w: ti.template()):
-    """After step 2: each marked tile's remaining rocks compacted in place, its marks cleared (a loop over the
-    marked tiles)."""
+def close_tile(w: ti.template(), k):
+    """After step 2: marked tile k's remaining rocks compacted in place, its marks cleared (an item of the rock
+    pass's loop in active_step: the two touch different fields, and one loop is one parallel task less)."""
     cap = w.store_capacity
-    for k in range(w.a_counts[MARKED]):
-        t = w.ts_list[k]
-        keep = 0
-        for j in range(w.ts_count[t]):
-            if w.ts_rock_id[t * cap + j] >= 0:
-                if keep != j:
-                    store_copy(w, t * cap + j, t * cap + keep)
-                keep += 1
-        w.ts_count[t] = keep
-        w.ts_sel[t] = NONE
-        if ti.static(w.n_tires > 0):
-            w.ts_tires[t] = 0
+    t = w.ts_list[k]
+    keep = 0
+    for j in range(w.ts_count[t]):
+        if w.ts_rock_id[t * cap + j] >= 0:
+            if keep != j:
+                store_copy(w, t * cap + j, t * cap + keep)
+            keep += 1
+    w.ts_count[t] = keep
+    w.ts_sel[t] = NONE
+    if ti.static(w.n_tires > 0):
+        w.ts_tires[t] = 0
 
 
 @ti.func
@@ -537,11 +536,14 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     h = ti.cast(w.step_frame[k, CLOCK][0], w.real)
     classify(w, plan, k, c, m, st, check_all)
     gather(w, c)
-    close_tiles(w)
     if ti.static(plan.impacts):
         w.fly_count[None] = 0
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: g is unused
+    marked = w.a_counts[MARKED]
+    for q in range(marked + w.ipar[IPar.N_ROCKS]):
+        if q < marked:
+            close_tile(w, q)
+        else:
+            rock_step(w, plan, q - marked, h, c, m, d, c, step, False)  # no tire mask: g is unused
     if ti.static(plan.impacts):  # the step's time and poses from its batch row (engine/stepdata.py)
         impacts_loop(w, plan, h, c, m, d, c, step, False, w.body_rows, 0)
 
