@@ -33,13 +33,15 @@ One step (two kernel launches, :func:`active_step` and :func:`active_finish`; th
   6. compaction of the active list (survivors above the new count fill the holes below it).
 Same results as "full": every rock that "full" would change this step is in the active list when the rock pass
 and the tire pass run, and each one goes through the same functions with the same arguments (the random
-numbers are hashes of the rock's id and the step, the tire pass tests tires in the same order, first tire wins);
+numbers are hashes of the rock's id and the step, the first tire in scene order wins a rock);
 a resting rock in the tiles is not touched by a step of "full" either (no flight, inside the bed, under no
 tire). Only the memory order of the rocks differs (``state()`` is by rock id). Cost per step: the active rocks,
 the rim tiles' rocks (a band one tile wide along half the rim), the tire tiles' rocks and one pass over the G^2
 slots; not N.
-Every loop is parallel (atomic counters, parallel compaction); the serial loops are the hash's prefix sum over
-its table (sized to the active list) and the tire pass over tires, as in "full" stepping.
+Every loop is parallel (atomic counters, parallel compaction, the set-up of step 1 one item per band line and
+per tire, the tire pass over (query, cell) with per-rock claims, engine/tires.py); the one serial loop is the
+hash's prefix sum over its table (sized to the active list). Nothing is read back: the rocks launched stay in
+``tire_counts`` until asked for (Simulation.last_launches).
 
 Loaded rocks (a new Simulation, a restored checkpoint) all start in the active list with the tiles empty: the
 first step takes every rock through its rock pass, a step of "full", and its step 5 settles the resting ones.
@@ -56,7 +58,8 @@ from . import changes, hashgrid, stepdata, tires
 from .bed import outside_bed
 from .kernels import impacts_loop, rock_step
 from .patch import footprint_box
-from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RESTING, TILES, IPar, Par
+from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RAY_FIELDS, RESTING, \
+    TILES, IPar, Par
 
 __all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health"]
 
@@ -66,12 +69,15 @@ NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes t
 # What each offloaded task of the step's two kernels does, in launch order (Taichi's kernel profiler names
 # tasks by index; engine/probes.py hands these to the benchmark): serial tasks run on one thread, the others
 # are parallel loops.
-TASKS = {"active_step": ("rays in, rim plan, tire boxes (serial)", "classify rim band and tire tiles",
-                         "(serial: bounds)", "gather rocks from marked tiles", "close marked tiles",
-                         "(serial: bounds)", "rock pass: flight, recycle, hash count"),
-         "active_finish": ("counters, hash scan (serial)", "hash scatter", "tire pass (serial)",
-                           "settle, count survivors, clear hash", "(serial: bounds)", "compaction: holes and movers",
-                           "(serial: bounds)", "compaction: copy", "(serial: list length)")}
+TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: band widths, tire rays and boxes",
+                         "(serial: bounds)", "classify rim band and tire tiles", "(serial: bounds)",
+                         "gather rocks from marked tiles", "(serial: bounds)",
+                         "close marked tiles; rock pass: flight, recycle, hash count"),
+         "active_finish": ("counters, hash scan (serial)", "hash scatter, tire pass: query boxes", "(serial: bounds)",
+                           "tire pass: claims", "(serial: launch count, bounds)",
+                           "launch claimed, settle, count survivors, clear hash", "(serial: bounds)",
+                           "compaction: holes and movers", "(serial: bounds)", "compaction: copy",
+                           "(serial: list length)")}
 
 # World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
 # rocks above it (compaction), the slots marked this step (mark()), the band's widest row and column and the
@@ -221,16 +227,13 @@ def rim_plan(w: ti.template(), c, d, check_all):
     |q - c| = R crosses, widened by the move (a tile whose rocks were inside the old disk and are not all
     inside the new one lies in it); none for a bed that did not move. The band is walked by rows of tiles
     where the circle is steep (|y - c_y| <= 3/4 of its radius) and by columns elsewhere, each line as wide as
-    the widest line of its kind (a serial loop over the lines: a few hundred), a few tiles, not the width of
-    the band's top row. A tile in no walked row has |y - c_y| > 3/4 r_out everywhere, so its band points have
-    |x - c_x| < 3/4 r_out: its column is walked. Returns (every, lines per kind, widths (rows, columns), first
-    row, first column)."""
+    the widest line of its kind (:func:`band_width`, one item per line and side of the set-up loop), a few
+    tiles, not the width of the band's top row. A tile in no walked row has |y - c_y| > 3/4 r_out everywhere,
+    so its band points have |x - c_x| < 3/4 r_out: its column is walked. Returns (every, lines per kind, first
+    row, first column); O(1)."""
     s = w.store_tile
-    outer, inner, eps = band_radii(w, c, d)
+    outer, _, _ = band_radii(w, c, d)
     every, lines = 0, 0
-    cnt = ti.static(w.a_counts)  # the widths, found in a serial loop, are read by the parallel one: in a field
-    cnt[WIDTH_ROWS] = 0
-    cnt[WIDTH_COLS] = 0
     reach = 0.75 * outer
     k0 = ti.Vector([ti.cast(ti.floor((c[1] - reach) / s), ti.i32), ti.cast(ti.floor((c[0] - reach) / s), ti.i32)])
     if ti.static(w.recycles_rocks):
@@ -238,12 +241,18 @@ def rim_plan(w: ti.template(), c, d, check_all):
             every = w.store_grid * w.store_grid
         elif d.norm() > 0.0:
             lines = ti.cast(ti.floor((c[1] + reach) / s), ti.i32) - k0[0] + 1  # as many columns: a square
-            for q in range(4 * lines):  # (kind, line, side): kind 0 rows, 1 columns
-                kind = q // (2 * lines)
-                first = k0[0] if kind == 0 else k0[1]  # (no dynamic index into a local vector: SPIR-V)
-                lo, hi = band_span(w, c, first + (q // 2) % lines, outer, inner, eps, q % 2, 1 - kind)
-                cnt[WIDTH_ROWS + kind] = ti.max(cnt[WIDTH_ROWS + kind], hi - lo + 2)
-    return every, lines, ti.Vector([cnt[WIDTH_ROWS], cnt[WIDTH_COLS]]), k0
+    return every, lines, k0
+
+
+@ti.func
+def band_width(w: ti.template(), q, c, d, lines, k0):
+    """Item q of the band's (kind, line, side) (kind 0 rows, 1 columns): its tiles, into the widest line of
+    its kind (``a_counts[WIDTH_ROWS + kind]``, an atomic maximum)."""
+    outer, inner, eps = band_radii(w, c, d)
+    kind = q // (2 * lines)
+    first = k0[0] if kind == 0 else k0[1]  # (no dynamic index into a local vector: SPIR-V)
+    lo, hi = band_span(w, c, first + (q // 2) % lines, outer, inner, eps, q % 2, 1 - kind)
+    ti.atomic_max(w.a_counts[WIDTH_ROWS + kind], hi - lo + 2)
 
 
 @ti.func
@@ -269,28 +278,23 @@ def band_slot(w: ti.template(), q, c, d, shift_tiles, lines, width, k0):
 
 
 @ti.func
-def tire_boxes(w: ti.template(), plan: ti.template(), c, shift_tiles):
-    """Step 1 for the tires, serially (a handful): every active tire's query box to ``w.tire_box`` and its tiles
-    (first and last key) to ``w.tire_keys``; returns the largest box's size in tiles (x, y) (also kept in
-    ``w.a_counts``, as rim_plan's widths)."""
-    cnt = ti.static(w.a_counts)
-    cnt[SPAN_X] = 0
-    cnt[SPAN_Y] = 0
-    if ti.static(w.n_tires > 0):
-        reach = w.par[Par.R_MAX] + rounding_margin(w, c)
-        g = w.store_grid
-        ti.loop_config(serialize=True)
-        for t in range(w.n_tires):
-            lo, hi = tire_box(w, plan, t, reach)
-            on = w.ray[t, ACTIVE] != 0.0
-            w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
-            k_lo = tile_key(w, lo, shift_tiles)
-            k_hi = ti.min(tile_key(w, hi, shift_tiles), k_lo + g - 1)
-            k = ti.Vector([k_lo[0], k_lo[1], k_hi[0], k_hi[1]]) if on else ti.Vector([0, 0, -1, -1])
-            w.tire_keys[t] = k
-            cnt[SPAN_X] = ti.max(cnt[SPAN_X], k[2] - k[0] + 1)
-            cnt[SPAN_Y] = ti.max(cnt[SPAN_Y], k[3] - k[1] + 1)
-    return cnt[SPAN_X], cnt[SPAN_Y]
+def take_tire(w: ti.template(), plan: ti.template(), k, t, c, shift_tiles):
+    """Step 1 for tire t of step row ``k``: its ray row into ``w.ray`` (the layout every tire function reads,
+    in the World's precision), its query box to ``w.tire_box`` and its tiles (first and last key) to
+    ``w.tire_keys``; the largest box's size in tiles into ``a_counts[SPAN_X]``, ``[SPAN_Y]`` (atomic maxima)."""
+    for f in range(RAY_FIELDS):
+        w.ray[t, f] = ti.cast(w.step_rays[k, t, f], w.real)
+    reach = w.par[Par.R_MAX] + rounding_margin(w, c)
+    g = w.store_grid
+    lo, hi = tire_box(w, plan, t, reach)
+    on = w.ray[t, ACTIVE] != 0.0
+    w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
+    k_lo = tile_key(w, lo, shift_tiles)
+    k_hi = ti.min(tile_key(w, hi, shift_tiles), k_lo + g - 1)
+    key = ti.Vector([k_lo[0], k_lo[1], k_hi[0], k_hi[1]]) if on else ti.Vector([0, 0, -1, -1])
+    w.tire_keys[t] = key
+    ti.atomic_max(w.a_counts[SPAN_X], key[2] - key[0] + 1)
+    ti.atomic_max(w.a_counts[SPAN_Y], key[3] - key[1] + 1)
 
 
 @ti.func
@@ -310,19 +314,29 @@ def classify_tire_tile(w: ti.template(), q, span_x, span_y):
 
 
 @ti.func
-def classify(w: ti.template(), plan: ti.template(), c, d, shift_tiles, check_all):
-    """Step 1 in one parallel task: the rim's slots or band (rim_plan) and the tires' tiles (tire_boxes), one
-    flat loop over all their items (Taichi runs only top-level loops in parallel, each a task with its own
-    start-up; and on Vulkan (Taichi 1.7.4) an atomic on one address inside an inner loop whose trip count
-    differs between threads loses iterations, so no loop here has a varying inner loop around an atomic)."""
-    every, lines, width, k0 = rim_plan(w, c, d, check_all)
-    span_x, span_y = 0, 0
+def classify(w: ti.template(), plan: ti.template(), k, c, d, shift_tiles, check_all):
+    """Step 1 of step row ``k`` in two parallel tasks: the set-up (one item per band line and side: the
+    widest line of each kind, rim_plan; one per tire: its rays taken in and its box, take_tire), then the
+    rim's slots or band and the tires' tiles, one flat loop over all their items (Taichi runs only top-level
+    loops in parallel, each a task with its own start-up; and on Vulkan (Taichi 1.7.4) an atomic on one
+    address inside an inner loop whose trip count differs between threads loses iterations, so no loop here
+    has a varying inner loop around an atomic)."""
+    every, lines, k0 = rim_plan(w, c, d, check_all)
+    for m in ti.static((WIDTH_ROWS, WIDTH_COLS, SPAN_X, SPAN_Y)):
+        w.a_counts[m] = 0
+    n_tires = 0
     if ti.static(plan.splash):
-        span_x, span_y = tire_boxes(w, plan, c, shift_tiles)
+        n_tires = w.n_tires
+    for q in range(4 * lines + n_tires):
+        if q < 4 * lines:
+            band_width(w, q, c, d, lines, k0)
+        else:
+            if ti.static(plan.splash):
+                take_tire(w, plan, k, q - 4 * lines, c, shift_tiles)
+    width = ti.Vector([w.a_counts[WIDTH_ROWS], w.a_counts[WIDTH_COLS]])
+    span_x, span_y = w.a_counts[SPAN_X], w.a_counts[SPAN_Y]
     n_band = lines * 2 * (width[0] + width[1])
-    n_tire = 0
-    if ti.static(plan.splash):
-        n_tire = w.n_tires * span_x * span_y
+    n_tire = n_tires * span_x * span_y
     radius = w.par[Par.BED_RADIUS]
     eps = rounding_margin(w, c)
     for q in range(every + n_band + n_tire):
@@ -404,31 +418,32 @@ def gather(w: ti.template(), c):
 
 
 @ti.func
-def close_tiles(w: ti.template()):
-    """After step 2: each marked tile's remaining rocks compacted in place, its marks cleared (a loop over the
-    marked tiles)."""
+def close_tile(w: ti.template(), k):
+    """After step 2: marked tile k's remaining rocks compacted in place, its marks cleared (an item of the rock
+    pass's loop in active_step: the two touch different fields, and one loop is one parallel task less)."""
     cap = w.store_capacity
-    for k in range(w.a_counts[MARKED]):
-        t = w.ts_list[k]
-        keep = 0
-        for j in range(w.ts_count[t]):
-            if w.ts_rock_id[t * cap + j] >= 0:
-                if keep != j:
-                    store_copy(w, t * cap + j, t * cap + keep)
-                keep += 1
-        w.ts_count[t] = keep
-        w.ts_sel[t] = NONE
-        if ti.static(w.n_tires > 0):
-            w.ts_tires[t] = 0
+    t = w.ts_list[k]
+    keep = 0
+    for j in range(w.ts_count[t]):
+        if w.ts_rock_id[t * cap + j] >= 0:
+            if keep != j:
+                store_copy(w, t * cap + j, t * cap + keep)
+            keep += 1
+    w.ts_count[t] = keep
+    w.ts_sel[t] = NONE
+    if ti.static(w.n_tires > 0):
+        w.ts_tires[t] = 0
 
 
 @ti.func
-def settle_rocks(w: ti.template(), shift_tiles, clear_hash: ti.template()):
+def settle_rocks(w: ti.template(), shift_tiles, clear_hash: ti.template(), plan: ti.template(), step):
     """Step 5: active rocks at rest join their tile (they are inside the bed: the rock pass recycled those
     outside); one whose tile is full (or, never in a bed, taken by another key) stays active. Settled rocks
     get id -1 in the active list; those still listed are counted (SURVIVORS, for the compaction). With
-    ``clear_hash``, the same loop clears the hash's counts for the next step (no barrier is needed between
-    the two: both only follow the tire pass)."""
+    ``clear_hash`` (after the tire pass's claims, ``plan`` its switches), the same loop first launches each
+    claimed rock (engine/tires.py launch_if_claimed: the rock's own thread, so before its settling) and
+    clears the hash's counts for the next step (no barrier is needed between the two: both only follow the
+    claims)."""
     cap = w.store_capacity
     n = w.ipar[IPar.N_ROCKS]
     total = n
@@ -436,6 +451,8 @@ def settle_rocks(w: ti.template(), shift_tiles, clear_hash: ti.template()):
         total = ti.max(n, hashgrid.table_n(w) + 1)
     for i in range(total):
         if i < n:
+            if ti.static(clear_hash):
+                tires.launch_if_claimed(w, plan, i, step)
             changes.note(w, i)  # what a reader of changes() sees: this step's state, before the rock leaves
             if w.phase[i] == RESTING:
                 key = tile_key(w, w.pos[i], shift_tiles)
@@ -493,20 +510,15 @@ def reset_counts(w: ti.template()):
 # ------------------------------------------------------------------------------------------------ kernels
 @ti.func
 def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
-    """Steps 4 to 6: the hash build and the tire pass over the active list, settling, compaction; returns the
-    rocks launched."""
-    launched = 0
+    """Steps 4 to 6: the hash build and the tire pass over the active list (the rocks it launched stay on the
+    device: ``tire_counts[LAUNCHED]``), settling, compaction."""
     w.a_counts[MARKED] = 0
     reset_counts(w)
     if ti.static(plan.splash):
         hashgrid.scan_counts(w)
-        hashgrid.scatter_all(w, plan.center)
-        if ti.static(not plan.swept):
-            tires.trace_all(w)
-        launched = tires.launch_all(w, plan, step)
-    settle_rocks(w, shift_tiles, plan.splash)
+        tires.scatter_and_launch(w, plan, step, False)  # settle_rocks launches the claimed rocks
+    settle_rocks(w, shift_tiles, plan.splash, plan, step)
     compact(w)
-    return launched
 
 
 @ti.kernel
@@ -516,7 +528,6 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     test every rim tile's rocks against the new disk whatever the move (the first step after rocks were
     loaded). Two kernels, not one: Taichi 1.7.4 compiles the two in about two thirds of the time it takes for
     them fused (measured by ``bench --only activity``: compile times), for one more launch of three scalars."""
-    stepdata.take_rays(w, plan, k)
     if ti.static(plan.impacts):
         stepdata.take_bodies(w, k)
     c = stepdata.frame_row(w, k, CENTRE)
@@ -524,28 +535,31 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     d = stepdata.frame_row(w, k, LEAD)
     st = ti.cast(w.step_frame[k, TILES], ti.i32)
     h = ti.cast(w.step_frame[k, CLOCK][0], w.real)
-    classify(w, plan, c, m, st, check_all)
+    classify(w, plan, k, c, m, st, check_all)
     gather(w, c)
-    close_tiles(w)
     if ti.static(plan.impacts):
         w.fly_count[None] = 0
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, c, step, False)  # no tire mask: g is unused
+    marked = w.a_counts[MARKED]
+    for q in range(marked + w.ipar[IPar.N_ROCKS]):
+        if q < marked:
+            close_tile(w, q)
+        else:
+            rock_step(w, plan, q - marked, h, c, m, d, c, step, False)  # no tire mask: g is unused
     if ti.static(plan.impacts):  # the step's time and poses from its batch row (engine/stepdata.py)
         impacts_loop(w, plan, h, c, m, d, c, step, False, w.body_rows, 0)
 
 
 @ti.kernel
-def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32) -> ti.i32:
-    """Steps 4 to 6 (finish) of step row ``k``; returns the rocks launched."""
-    return finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
+def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32):
+    """Steps 4 to 6 (finish) of step row ``k``: no value comes back (a returned value waits for the device)."""
+    finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
 
 
 @ti.kernel
 def settle(w: ti.template(), tiles: vec2):
     """Steps 5 and 6 alone, after coasting."""
     reset_counts(w)
-    settle_rocks(w, ti.cast(tiles, ti.i32), False)
+    settle_rocks(w, ti.cast(tiles, ti.i32), False, None, 0)
     compact(w)
 
 

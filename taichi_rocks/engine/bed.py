@@ -16,6 +16,7 @@ vehicle's heading and a crescent one rock diameter thick. Rocks that fall more t
 """
 
 import taichi as ti
+from taichi.lang import impl
 
 from ..config.streams import RECYCLE_CHORD, RECYCLE_TRIES
 from .randomness import uniform01
@@ -70,4 +71,24 @@ def recycle_to_leading_edge(w: ti.template(), i, center_xy, move, lead, step):
         w.pos[i] = ti.Vector([q[0], q[1], ground + r])
         w.vel[i] = ti.Vector([0.0, 0.0, 0.0])
         w.phase[i] = RESTING
+        count_recycle(w)
+
+
+def counts_per_thread() -> bool:
+    """Compile-time: may a 0-d counter's ``+=`` in a parallel loop be Taichi's per-thread reduction? On the CPU
+    it is one atomic per block of iterations (cheap). On a GPU each thread of the launch's grid ends with one
+    atomic on the counter, zero or not, and a loop over a run-time count launches a grid that fills the device
+    (some 270,000 threads on an H200): that many atomics on one address, whatever the rocks."""
+    return impl.current_cfg().arch in (ti.x64, ti.arm64)
+
+
+@ti.func
+def count_recycle(w: ti.template()):
+    """One more rock recycled. Off the CPU the atomic's old value is used (a store that cannot happen: the
+    count is never negative), which keeps Taichi from turning it into a per-thread reduction
+    (:func:`counts_per_thread`): one atomic per recycled rock instead."""
+    if ti.static(counts_per_thread()):
         w.recycles[None] += 1
+    else:
+        if ti.atomic_add(w.recycles[None], 1) < 0:
+            w.recycles[None] = 0

@@ -19,7 +19,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 
 import taichi as ti
 
-from .world import A0, ACTIVE, FLYING, IPar, P1, P2, P3, Par
+from .world import A0, ACTIVE, FLYING, MAX_OCC, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -144,16 +144,20 @@ def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
 
 @ti.func
 def scan_counts(w: ti.template()):
-    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total.
+    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total; the fullest slot's count to
+    ``tire_counts[MAX_OCC]``.
 
     ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
     about a nanosecond per slot there.
     """
     n = table_n(w)
+    most = w.cell_start[0]
     ti.loop_config(serialize=True)
     for s in range(1, n):
+        most = ti.max(most, w.cell_start[s])
         w.cell_start[s] += w.cell_start[s - 1]
     w.cell_start[n] = w.cell_start[n - 1]
+    w.tire_counts[MAX_OCC] = most  # the tire pass's places per slot (engine/tires.py)
 
 
 @ti.kernel
@@ -181,16 +185,31 @@ def scatter_rock(w: ti.template(), i, center: ti.template()):
 def scatter_all(w: ti.template(), center: ti.template()):
     """Place each counted rock in its slots. atomic_sub on the inclusive ends leaves cell_start[s] = start
     of slot s."""
+    for k in range(scatter_items(w)):
+        scatter_item(w, k, center)
+
+
+@ti.func
+def scatter_items(w: ti.template()):
+    """The items of the scatter: the listed rocks (scope "tires") or the rock arrays."""
+    n = 0
     if ti.static(w.masked):
-        for k in range(w.n_listed[None]):
-            scatter_rock(w, w.listed[k], center)
+        n = w.n_listed[None]
     else:
-        for i in range(w.ipar[IPar.N_ROCKS]):
-            if ti.static(w.stored):  # active stepping counts only the rocks not flying (engine/active.py)
-                if w.phase[i] != FLYING:
-                    scatter_rock(w, i, center)
-            else:
-                scatter_rock(w, i, center)
+        n = w.ipar[IPar.N_ROCKS]
+    return n
+
+
+@ti.func
+def scatter_item(w: ti.template(), k, center: ti.template()):
+    """Item k of the scatter (:func:`scatter_items`; a loop of the caller's, which may hold other items)."""
+    if ti.static(w.masked):
+        scatter_rock(w, w.listed[k], center)
+    elif ti.static(w.stored):  # active stepping counts only the rocks not flying (engine/active.py)
+        if w.phase[k] != FLYING:
+            scatter_rock(w, k, center)
+    else:
+        scatter_rock(w, k, center)
 
 
 @ti.kernel

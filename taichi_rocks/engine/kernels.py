@@ -219,16 +219,13 @@ def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, cen
 
 
 @ti.kernel
-def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32) -> ti.i32:
-    """Passes after the rock pass, in one launch: scan, scatter, ray cells, tire pass, and clearing the
-    counts for the next step's rock pass. Returns the rocks launched."""
+def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
+    """Passes after the rock pass, in one launch: scan, scatter, the tire pass (its ray cells, claims and
+    launches; the rocks launched stay on the device, ``tire_counts[LAUNCHED]``), and clearing the counts for
+    the next step's rock pass."""
     hashgrid.scan_counts(w)
-    hashgrid.scatter_all(w, plan.center)
-    if ti.static(not plan.swept):
-        tires.trace_all(w)
-    launched = tires.launch_all(w, plan, step)
+    tires.scatter_and_launch(w, plan, step, True)
     hashgrid.clear_all(w)
-    return launched
 
 
 @ti.kernel

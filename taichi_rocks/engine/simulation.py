@@ -193,8 +193,9 @@ class Simulation:
 
     @property
     def last_launches(self) -> int:
-        """Rocks launched in the last step."""
-        return self._host.last_launches
+        """Rocks launched in the last step (read from the device when asked: a step reads nothing back)."""
+        n = self._host.last_launches
+        return self._stepper.launched() if n is None else n
 
     @property
     def lookahead(self) -> int:
@@ -320,9 +321,9 @@ class Simulation:
             s = self._host_side.advance(self._host, self.dt if dt is None else float(dt))
         if s.origin_moved is not None and self.n_rocks:
             self._stepper.shift_origin(s.origin_moved)
-        launched = self._stepper.step(s)
+        tires_ran = self._stepper.step(s)
         if self.plan.splash:
-            self._host.last_launches = launched
+            self._host.last_launches = None if tires_ran else 0  # None: on the device (Stepper.launched)
         if self._impacts is not None:
             self._impacts.after_step(self._host.step_count, self._host.time)
         self._effects.after_step(self._host, self.dt if dt is None else float(dt))

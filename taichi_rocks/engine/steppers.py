@@ -25,7 +25,7 @@ from .impact_pass import time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
 from .rockfields import ID
 from .runtime import current_arch, on_cpu
-from .world import IPar, next_prime
+from .world import LAUNCHED, IPar, next_prime
 
 __all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for"]
 
@@ -100,9 +100,14 @@ class Stepper:
             self.world.ray.from_numpy(rays.astype(self.world.np_real()))
 
     # -------------------------------------------------------------------------------------------- steps
-    def step(self, s) -> int:
-        """One step's kernels for the host input ``s`` (engine/host.py StepInput); return the rocks launched."""
+    def step(self, s) -> bool:
+        """One step's kernels for the host input ``s`` (engine/host.py StepInput); return whether a tire pass
+        ran (its launch count stays on the device: :meth:`launched`)."""
         raise NotImplementedError
+
+    def launched(self) -> int:
+        """Rocks launched by the last tire pass (a read of the device)."""
+        return int(self.world.tire_counts[LAUNCHED])
 
     def coast(self, n: int, dt: float, centre: np.ndarray, lead: np.ndarray, step0: int) -> None:
         """``n`` steps of a bed standing still with no tire launching, as one launch (engine/kernels.py)."""
@@ -172,18 +177,19 @@ class FullStepper(Stepper):
         """Re-sort the rocks in memory by slot (after a scatter; entries is then the identity)."""
         reorder_rocks(self.world)
 
-    def step(self, s) -> int:
+    def step(self, s) -> bool:
         if self.moves:
             with self.timer("rock pass"):
                 frame = np.array([s.centre, s.move, s.lead, self.grid_origin(s.centre)])  # kernels.CENTRE..GRID
                 frame = self.with_bodies(frame, s)
                 rock_pass(self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
-        launched = self._hash_and_tires(s.step) if self.plan.splash else 0
+        if self.plan.splash:
+            self._hash_and_tires(s.step)
         if self.moves:
             self.note_all()
-        return launched
+        return self.plan.splash
 
-    def _hash_and_tires(self, step: int) -> int:
+    def _hash_and_tires(self, step: int) -> None:
         """Everything after the rock pass. The entry capacity is an upper bound of the (rock, cell) pairs by
         construction (engine/setup.py), so the scatter cannot lose a rock."""
         w, p, timer = self.world, self.plan, self.timer
@@ -194,16 +200,13 @@ class FullStepper(Stepper):
                 hashgrid.scatter(w, p.center)
             with timer("reorder"):
                 self.reorder()
-            if not p.swept:
-                with timer("trace rays"):
-                    tires.trace_rays(w)
             with timer("tire pass"):
-                launched = tires.tire_pass(w, self.switches["hash_and_tires"], step)
+                tires.tire_pass(w, self.switches["hash_and_tires"], step)
             with timer("hash clear"):
                 hashgrid.clear_counts(w)
-            return launched
+            return
         with timer("hash + tires"):
-            return hash_and_tires(w, self.switches["hash_and_tires"], step)
+            hash_and_tires(w, self.switches["hash_and_tires"], step)
 
 
 class ActiveStepper(Stepper):
@@ -253,20 +256,20 @@ class ActiveStepper(Stepper):
             return rocks.in_id_order(self.n_rocks, listed)
         return rocks.in_id_order(self.n_rocks, listed, rocks.read_stored(w))
 
-    def step(self, s) -> int:
+    def step(self, s) -> bool:
         if not self.moves:
-            return 0
+            return False
         row = self._upload(s)
         if s.bodies is not None and self._t_ref != self.world.events.t_ref:  # changed by a drain or a reset
             self._t_ref = self.world.events.t_ref
             stepdata.put_t_ref(self.world, self._t_ref)
         with self.timer("active step"):
             active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
-            launched = active.active_finish(self.world, self.switches["active_finish"], row, s.step)
+            active.active_finish(self.world, self.switches["active_finish"], row, s.step)
         if self.check_all or s.step % 32 == 0:  # and after the first step: the loaded rocks have settled
             self._fit_table()
         self.check_all = False
-        return launched
+        return self.plan.splash
 
     def _upload(self, s) -> int:
         """The step's inputs on the device (engine/stepdata.py): its lookahead batch's rows, uploaded with the

@@ -105,7 +105,9 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
     if hashed:
         # cell_start[s] .. cell_start[s + 1] is slot s's range of `entries` after a build
         out += [FieldSpec("cell_start", "i32", 1, (hash_table + 1,)),
-                FieldSpec("entries", "i32", 1, (max(hash_entries, 1),))]
+                FieldSpec("entries", "i32", 1, (max(hash_entries, 1),)),
+                FieldSpec("claim", "i32", 1, (cap,)),  # the tire pass: the first tire to launch a rock (0: none)
+                FieldSpec("tire_counts", "i32", 1, (TIRE_COUNTS,))]
     if hashed and tiles is not None:  # scope "tires": the mask's tiles, the rocks listed on them
         out += [FieldSpec("tile_mask", "i32", 1, tuple(int(t) for t in tiles)), FieldSpec("listed", "i32", 1, (cap,)),
                 FieldSpec("n_listed", "i32", 1, ())]
@@ -113,7 +115,8 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
         n_rays = n_tires * substeps
         out += [FieldSpec("ray", "real", 1, (n_tires, RAY_FIELDS)),
                 FieldSpec("ray_cells", "i32", 3, (n_rays, max(ray_capacity, 1))),
-                FieldSpec("ray_cell_count", "i32", 1, (n_rays,))]
+                FieldSpec("ray_cell_count", "i32", 1, (n_rays,)),
+                FieldSpec("tire_cells", "i32", 3, (n_rays, 2))]  # the tire pass: each query's cells (first, last)
     if reorder:  # the re-sort's buffers: one per (dtype, components) of the carried rock fields
         out += [FieldSpec(tmp_name(f), f.dtype, f.n, (cap,)) for f in _distinct_kinds(rocks)]
     if store is not None:
@@ -184,6 +187,10 @@ def _impact_specs(bodies, n_tires: int, events: int, cap: int) -> list[FieldSpec
 
 
 A_COUNTS = 8  # active stepping's counters (engine/active.py)
+# World.tire_counts (engine/tires.py): the tire pass's spans (the longest ray in cells, or the largest swept box
+# in cells per axis), the fullest hash slot's count (the scan's), the rocks launched in the last tire pass
+SPAN_A, SPAN_B, SPAN_C, MAX_OCC, LAUNCHED = range(5)
+TIRE_COUNTS = 8
 
 
 def tmp_name(f) -> str:
