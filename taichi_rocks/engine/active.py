@@ -61,7 +61,7 @@ from .patch import footprint_box
 from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RAY_FIELDS, RESTING, \
     TILES, IPar, Par
 
-__all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle", "shift_store", "store_health"]
+__all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle"]
 
 ROCKS_PER_TILE = 32  # the tile edge is the power of two giving about this many rocks per tile
 NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes the highest that applies)
@@ -561,42 +561,3 @@ def settle(w: ti.template(), tiles: vec2):
     reset_counts(w)
     settle_rocks(w, ti.cast(tiles, ti.i32), False, None, 0)
     compact(w)
-
-
-@ti.kernel
-def shift_store(w: ti.template(), shift: vec2):
-    """The floating origin moved by ``shift`` (whole multiples of 64 m): stored rocks' local positions move by
-    -shift (keys are anchor-relative and stay)."""
-    dv = ti.Vector([ti.cast(shift[0], w.real), ti.cast(shift[1], w.real), 0.0])
-    cap = w.store_capacity
-    for t, k in ti.ndrange(w.store_grid * w.store_grid, cap):
-        if k < w.ts_count[t]:
-            w.ts_pos[t * cap + k] -= dv
-
-
-@ti.kernel
-def store_health(w: ti.template(), centre: vec2, slack: ti.f64, tiles: vec2):
-    """The runtime guard over the stored rocks, into ``w.health_out`` after kernels.health: non-finite [0],
-    outside the bed [1], below the ground or off its tile [2]; a bad stored rock's index goes to [3..5] as
-    -1 - its store index (negative: it wins the atomic_min over an active rock's, and the host tells them
-    apart by the sign)."""
-    out = ti.static(w.health_out)
-    radius = w.par[Par.BED_RADIUS] + ti.cast(slack, w.real)
-    cap = w.store_capacity
-    st = ti.cast(tiles, ti.i32)
-    for t, k in ti.ndrange(w.store_grid * w.store_grid, cap):
-        if k < w.ts_count[t]:
-            j = t * cap + k
-            p = w.ts_pos[j]
-            if not (ti.abs(p[0]) < 1e30 and ti.abs(p[1]) < 1e30 and ti.abs(p[2]) < 1e30):
-                out[0] += 1
-                ti.atomic_min(out[3], -1 - j)
-            else:
-                d2 = (p[0] - centre[0]) ** 2 + (p[1] - centre[1]) ** 2
-                if ti.static(w.recycles_rocks):
-                    if d2 > radius * radius:
-                        out[1] += 1
-                        ti.atomic_min(out[4], -1 - j)
-                if not same_key(tile_key(w, p, st), w.ts_key[t]) or p[2] < w.par[Par.GROUND_Z] - ti.cast(slack, w.real):
-                    out[2] += 1
-                    ti.atomic_min(out[5], -1 - j)

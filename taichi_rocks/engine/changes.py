@@ -95,7 +95,7 @@ def note_listed(w: ti.template()):
 @ti.kernel
 def shift_drawn(w: ti.template(), d: vec2, before: vec2, after: vec2, exact: ti.template()):
     """The floating origin moved by ``d`` (XY) from ``before`` to ``after`` (float64, world): every mirror
-    position moves as its rock does (kernels.shift_origin, active.shift_store: p - d in the World's precision),
+    position moves as its rock does (kernels.shift_origin, tilestore.shift_store: p - d in the World's precision),
     and a rock whose world position float64(p) + origin differs after the move (the f32 move rounds, or the
     float64 sum does) is listed. ``exact``: the backend computes in float64 (CPU, CUDA); without it every rock
     is listed."""

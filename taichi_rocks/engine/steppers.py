@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import active, changes, hashgrid, rocks, stepdata, tires
+from . import active, changes, hashgrid, rocks, stepdata, tilestore, tires
 from .impact_pass import time_row
 from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
 from .rockfields import ID
@@ -301,18 +301,18 @@ class ActiveStepper(Stepper):
     def shift_origin(self, d: np.ndarray) -> None:
         with self.timer("origin shift"):
             shift_origin(self.world, d)
-            active.shift_store(self.world, d)
+            tilestore.shift_store(self.world, d)
             self._shift_drawn(d)
 
     def health(self, centre: np.ndarray, slack: float):
         health(self.world, self.switches["health"], centre, slack)
-        active.store_health(self.world, centre, slack, self.tile_shift())
+        tilestore.store_health(self.world, centre, slack, self.tile_shift())
         return self.world.health_out.to_numpy()
 
     def locate(self, i: int):
         if i >= 0:
             return super().locate(i)
-        j = -1 - i  # a rock in the tiles (engine/active.py: store_health)
+        j = -1 - i  # a rock in the tiles (engine/tilestore.py: store_health)
         w = self.world
         return int(w.ts_rock_id[j]), w.ts_pos[j].to_numpy(), np.zeros(3)
 

@@ -185,6 +185,25 @@ def sweep_estimate(sweep, base, n: int) -> str:
             f"at {STEP_PACE_S * 1e3:g} ms a step, shared by the workers")
 
 
+def _checked_runs(path: Path, out: Path, backend, workers, threads, address, resume, overwrite, yes, announce):
+    """Every check of run_sweep before anything is written or removed (the file, the run count, the results
+    folder, the placement), then the runs: (sweep, base scene, runs, fingerprint, rows kept by ``resume``)."""
+    sweep, base = load_sweep(path, METRICS)
+    n = sweep_size(sweep)
+    if n > MAX_SWEEP_RUNS and not yes:
+        raise SweepError([f"{path}: grid: {sweep_estimate(sweep, base, n)}; more than {MAX_SWEEP_RUNS} runs: pass "
+                          f"--yes to run them"])
+    fingerprint = sweep_fingerprint(sweep, base)
+    ids = {f"r{i:04d}" for i in range(n)}  # sweep_runs's ids, known before the runs are built
+    _check_out(out, fingerprint, resume, overwrite, remove=False)  # nothing removed or written before every check
+    kept = _done_rows(out, ids) if resume and out.is_dir() else {}
+    _check_placement(backend, n - len(kept), workers, threads, address)
+    runs = sweep_runs(sweep, base, str(path),
+                      checked=None if announce is None else lambda: announce(f"sweep: {sweep_estimate(sweep, base, n)}"))
+    _check_out(out, fingerprint, resume, overwrite)
+    return sweep, base, runs, fingerprint, kept
+
+
 def run_sweep(path, out, backend: str = "local", workers=None, threads=None, address=None, resume: bool = False,
               overwrite: bool = False, arch: str = "cpu", progress=None, retries: int = 2, yes: bool = False,
               announce=None) -> list[dict]:
@@ -216,20 +235,9 @@ def run_sweep(path, out, backend: str = "local", workers=None, threads=None, add
         SweepOutputError: results in ``out`` that may not be touched, before anything is written.
     """
     path, out = Path(path), Path(out)
-    sweep, base = load_sweep(path, METRICS)
-    n = sweep_size(sweep)
-    if n > MAX_SWEEP_RUNS and not yes:
-        raise SweepError([f"{path}: grid: {sweep_estimate(sweep, base, n)}; more than {MAX_SWEEP_RUNS} runs: pass "
-                          f"--yes to run them"])
-    fingerprint = sweep_fingerprint(sweep, base)
-    ids = {f"r{i:04d}" for i in range(n)}  # sweep_runs's ids, known before the runs are built
-    _check_out(out, fingerprint, resume, overwrite, remove=False)  # nothing removed or written before every check
-    kept = _done_rows(out, ids) if resume and out.is_dir() else {}
-    _check_placement(backend, n - len(kept), workers, threads, address)
-    runs = sweep_runs(sweep, base, str(path),
-                      checked=None if announce is None else lambda: announce(f"sweep: {sweep_estimate(sweep, base, n)}"))
+    sweep, base, runs, fingerprint, kept = _checked_runs(path, out, backend, workers, threads, address, resume,
+                                                         overwrite, yes, announce)
     by_id = {r.id: r for r in runs}
-    _check_out(out, fingerprint, resume, overwrite)
     keys, metrics = list(sweep.grid), list(sweep.measure.metrics)
     with new_folders(out / "runs"):
         rows = kept
