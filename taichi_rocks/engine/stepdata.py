@@ -83,16 +83,6 @@ def put_t_ref(w, t_ref: float) -> None:
 
 
 @ti.func
-def take_rays(w: ti.template(), plan: ti.template(), k):
-    """Step row ``k``'s tire rays into ``World.ray`` (the layout every tire function reads), in the World's
-    precision: one serial task (a handful of tires)."""
-    if ti.static(plan.splash):
-        ti.loop_config(serialize=True)
-        for t, f in ti.ndrange(w.n_tires, RAY_FIELDS):
-            w.ray[t, f] = ti.cast(w.step_rays[k, t, f], w.real)
-
-
-@ti.func
 def take_bodies(w: ti.template(), k):
     """Step row ``k``'s impacts rows into ``World.body_rows`` (the layout engine/impact_pass.py ``hit_bodies``
     reads): its start time relative to the reference time (float64: the host's subtraction), then its pose
