@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
+from .effects import EFFECTS
 from .plan import Plan
 
 
@@ -48,7 +49,8 @@ def summarise(scene, memory_bytes: Optional[int] = None) -> str:
           for v in scene.vehicles),
         f"effects: splash {on[e.splash]}, recycle {on[e.recycle]}, gravity {on[e.gravity]}, drag {e.drag},"
         f" ground {e.ground}, impacts {on[plan.impacts]}"
-        + (f" ({', '.join(scene.vehicles[i].name for i in plan.targets)} hit)" if plan.impacts else ""),
+        + (f" ({', '.join(scene.vehicles[i].name for i in plan.targets)} hit)" if plan.impacts else "")
+        + "".join(f", {name} {on[name in plan.effects]}" for name in EFFECTS),
         "passes per step: " + (", ".join(passes) or "none"),
         f"time: dt {sim.dt:g} s, {math.ceil(round(scene.duration / sim.dt, 6))} steps, integrator {sim.integrator},"
         f" detection {sim.detection} (substeps {sim.substeps}), precision {sim.precision}, origin {sim.origin}",

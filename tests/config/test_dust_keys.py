@@ -6,7 +6,7 @@ import pytest
 from scenes_util import scene
 from taichi_rocks.config.effects import EFFECTS, dust
 from taichi_rocks.config.plan import Plan
-from taichi_rocks.config.scene import SceneError, parse_scene, scene_json_schema, scene_to_dict
+from taichi_rocks.config.scene import SceneError, parse_scene, scene_json_schema, scene_to_dict, summarise
 
 CAR = {"name": "car", "path": {"points": [[0.0, 0.0], [400.0, 0.0]]}}
 
@@ -52,3 +52,8 @@ def test_the_closed_forms():
     assert dust.emission_rate(13.0, t) == pytest.approx(200.0)
     assert dust.settling_velocity(t, 9.81, 1.81e-5) == pytest.approx(2000 * 9.81 * 1e-8 / (18 * 1.81e-5))
     assert dust.settling_velocity(t, 9.81, 0.0) == float("inf")
+
+
+def test_check_lists_every_effect_on_its_effects_line():
+    line = lambda sc: next(x for x in summarise(sc).splitlines() if x.startswith("effects:"))
+    assert line(scene()).endswith(", dust off") and line(scene(effects={"dust": True})).endswith(", dust on")
