@@ -1,8 +1,9 @@
 """Small scenes built in code for tests."""
 
 import numpy as np
+import pytest
 
-from taichi_rocks.config.scene import parse_scene
+from taichi_rocks.config.scene import SceneError, parse_scene
 
 
 def scene(rocks=2000, radius=8.0, vehicles=None, effects=None, sim=None, world=None, bed=None, launch=None,
@@ -28,6 +29,14 @@ class FakePath:
         x, y, heading, speed = self.fn(t)
         return Pose(np.array([x, y], float), heading, speed, 0.0,
                     np.array([speed * np.cos(heading), speed * np.sin(heading)]))
+
+
+
+def problems(data, source="s.toml"):
+    """The problems SceneError lists for the scene dict ``data`` (it must be refused)."""
+    with pytest.raises(SceneError) as e:
+        parse_scene(data, source=source)
+    return e.value.problems
 
 
 def equal_area_bins(xy, center, radius, rings=5, sectors=8):

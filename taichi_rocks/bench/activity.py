@@ -205,7 +205,7 @@ def run_point(p: dict, cfg: dict, arch: str) -> dict:
     return out
 
 
-def _task_rows(records: list, steps: int) -> list:
+def task_rows(records: list, steps: int) -> list:
     """Per (kernel, task): what it does, its kind, its launches per step and its median and minimum ms."""
     labels = probes.task_labels()
     by = {}
@@ -247,7 +247,7 @@ def run_profile(p: dict, cfg: dict, arch: str) -> dict:
     out["tasks_per_step"] = len(records) / m
     out["parallel_tasks_per_step"] = sum(1 for r in records if r.kind != "serial") / m
     out["device_ms"] = sum(r.ms for r in records) / m
-    out["tasks"] = _task_rows(records, m)
+    out["tasks"] = task_rows(records, m)
     out["in_air"] = int(np.count_nonzero(sim.rock_arrays()["phase"]))
     out["active_count"] = sim.active_count
     sim = None  # the World goes back to the pool (a del here reads as an undefined name in the lambda above)

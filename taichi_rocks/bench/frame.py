@@ -37,12 +37,12 @@ from ..engine.runtime import auto_threads, init_taichi, threads_in_use
 from ..engine.simulation import Simulation
 from ..engine.timing import clear_kernel_tasks, kernel_tasks
 from ..output.atomic import new_folders, write_atomically
-from .activity import _task_rows
+from .activity import task_rows
 from .config import PRESET_SPEED, SAMPLE_EVERY, V_LAUNCH_MAX, make_config
 from .detection import detection_runs
 from .flight import exact_gravity, exact_quadratic_vertical, fly
 from .machine import Progress, loadavg, machine
-from .measure import Built
+from .measure import Built, stats
 from .report import check_out_dir
 from .scenes import probe_scene
 
@@ -53,8 +53,8 @@ OUTPUTS = ("frame.json", "frame.md")
 
 
 def _stats(ms: list) -> dict:
-    a = np.asarray(ms, float)
-    return {"median_ms": float(np.median(a)), "p95_ms": float(np.percentile(a, 95)), "max_ms": float(a.max())}
+    """measure.stats of times in ms, with the 95th percentile."""
+    return {**stats(np.asarray(ms, float) / 1e3), "p95_ms": float(np.percentile(ms, 95))}
 
 
 def _scene(overrides: dict, path=SCENE):
@@ -107,7 +107,7 @@ def measure_tasks(overrides: dict, arch: str, steps: int, warm: int, path=SCENE)
     sim.step(steps)
     ti.sync()
     records = kernel_tasks()
-    rows = _task_rows(records, steps)
+    rows = task_rows(records, steps)
     serial = [r for r in rows if r["kind"] == "serial"]
     return {"steps": steps, "tasks": rows, "tasks_per_step": len(records) / steps,
             "launches_per_step": sum(1 for r in records if r.task == 0) / steps,

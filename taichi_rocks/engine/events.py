@@ -19,6 +19,7 @@ import taichi as ti
 
 from ..config.impacts import DAMAGE_CLASSES
 from ..motion.bodies import LABELS
+from .runtime import on_cpu
 from .trees import FieldTrees
 
 __all__ = ["EVENT_FIELDS", "EVENT_DTYPE", "EventBuffer", "append", "LABELS", "DAMAGE_CLASSES"]
@@ -95,7 +96,7 @@ class EventBuffer:
         given ``t_now`` (the simulation time), makes it the reference of the times appended from now on. On the
         CPU one launch writes them into host arrays kept for it (Taichi writes NumPy arrays in place there); on a
         device the count is read first and exactly that many rows come back."""
-        if ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64):
+        if on_cpu():
             if getattr(self, "_host", None) is None:
                 self._host = (np.empty((self.capacity, N_INT), np.int32),
                               np.empty((self.capacity, N_REAL), self.np_real))

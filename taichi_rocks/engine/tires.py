@@ -261,6 +261,19 @@ def launch_claimed(w: ti.template(), plan: ti.template(), query, i, step):
 
 
 @ti.func
+def each_item_rock(w: ti.template(), plan: ti.template(), q, step, visit: ti.template()):
+    """``visit(w, plan, query, rock, step)`` for the rocks item q of the claims or the launches covers: one place
+    of its cell's slot, or the slot's every entry (:func:`places_one_per_item`)."""
+    query, j, start, end = item_cell(w, plan, q)
+    if ti.static(places_one_per_item()):
+        if start + j < end:
+            visit(w, plan, query, w.entries[start + j], step)
+    else:
+        for e in range(start, end):
+            visit(w, plan, query, w.entries[e], step)
+
+
+@ti.func
 def launch_if_claimed(w: ti.template(), plan: ti.template(), i, step):
     """Rock side of the launches, in a loop over the rocks (active stepping's settle loop): rock i is launched
     by the tire holding its claim, if any, and its claim cleared."""
@@ -314,20 +327,8 @@ def launch_all(w: ti.template(), plan: ti.template(), step, launch: ti.template(
     if ti.static(places_one_per_item()):
         n_items *= w.tire_counts[MAX_OCC]
     for q in range(n_items):
-        query, j, start, end = item_cell(w, plan, q)
-        if ti.static(places_one_per_item()):
-            if start + j < end:
-                claim_rock(w, plan, query, w.entries[start + j], step)
-        else:
-            for e in range(start, end):
-                claim_rock(w, plan, query, w.entries[e], step)
+        each_item_rock(w, plan, q, step, claim_rock)
     w.launches[None] += w.tire_counts[LAUNCHED]
     if ti.static(launch):
         for q in range(n_items):
-            query, j, start, end = item_cell(w, plan, q)
-            if ti.static(places_one_per_item()):
-                if start + j < end:
-                    launch_claimed(w, plan, query, w.entries[start + j], step)
-            else:
-                for e in range(start, end):
-                    launch_claimed(w, plan, query, w.entries[e], step)
+            each_item_rock(w, plan, q, step, launch_claimed)

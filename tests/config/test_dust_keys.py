@@ -3,18 +3,12 @@ the Plan's switch."""
 
 import pytest
 
-from scenes_util import scene
+from scenes_util import problems, scene
 from taichi_rocks.config.effects import EFFECTS, dust
 from taichi_rocks.config.plan import Plan
-from taichi_rocks.config.scene import SceneError, parse_scene, scene_json_schema, scene_to_dict, summarise
+from taichi_rocks.config.scene import parse_scene, scene_json_schema, scene_to_dict, summarise
 
 CAR = {"name": "car", "path": {"points": [[0.0, 0.0], [400.0, 0.0]]}}
-
-
-def problems(data):
-    with pytest.raises(SceneError) as e:
-        parse_scene(data, source="s.toml")
-    return e.value.problems
 
 
 def test_the_switch_and_table_come_from_the_registry():

@@ -4,19 +4,13 @@ import json
 
 import pytest
 
-from scenes_util import scene
+from scenes_util import problems, scene
 from taichi_rocks.config.impacts import DAMAGE_CLASSES, Impacts
 from taichi_rocks.config.plan import Plan
-from taichi_rocks.config.scene import SceneError, parse_scene, scene_json_schema, scene_to_dict
+from taichi_rocks.config.scene import parse_scene, scene_json_schema, scene_to_dict
 
 CAR = {"name": "car", "path": {"points": [[0.0, 0.0], [400.0, 0.0]]}}
 BEHIND = {"name": "behind", "splash": False, "path": {"points": [[-20.0, 0.0], [380.0, 0.0]]}}
-
-
-def problems(data):
-    with pytest.raises(SceneError) as e:
-        parse_scene(data, source="s.toml")
-    return e.value.problems
 
 
 def test_defaults_off_and_round_trip():
