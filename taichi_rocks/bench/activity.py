@@ -213,9 +213,9 @@ def task_rows(records: list, steps: int) -> list:
         by.setdefault((r.kernel, r.task), []).append(r)
     rows = []
     for (kernel, task), rs in by.items():
-        names = labels.get(kernel, ())
         n_tasks = 1 + max(t for k, t in by if k == kernel)
-        what = names[task] if len(names) == n_tasks else f"task {task}"
+        names = next((v for v in labels.get(kernel, ()) if len(v) == n_tasks), None)
+        what = names[task] if names else f"task {task}"
         ms = np.array([r.ms for r in rs])
         rows.append({"kernel": kernel, "task": task, "what": what, "kind": rs[0].kind, "per_step": len(rs) / steps,
                      "median_ms": float(np.median(ms)), "min_ms": float(ms.min()), "ms_per_step": float(ms.sum()) / steps})

@@ -39,8 +39,9 @@ tire). Only the memory order of the rocks differs (``state()`` is by rock id). C
 the rim tiles' rocks (a band one tile wide along half the rim), the tire tiles' rocks and one pass over the G^2
 slots; not N.
 Every loop is parallel (atomic counters, parallel compaction, the set-up of step 1 one item per band line and
-per tire, the tire pass over (query, cell) with per-rock claims, engine/tires.py); the one serial loop is the
-hash's prefix sum over its table (sized to the active list). Nothing is read back: the rocks launched stay in
+per tire, the tire pass over (query, cell) with per-rock claims, engine/tires.py). The hash's prefix sum over its
+table (sized to the active list) is serial on the CPU and a parallel scan over blocks elsewhere
+(engine/hashgrid.py). Nothing is read back: the rocks launched stay in
 ``tire_counts`` until asked for (Simulation.last_launches).
 
 Loaded rocks (a new Simulation, a restored checkpoint) all start in the active list with the tiles empty: the
@@ -68,7 +69,8 @@ NONE, RIM, TIRE, MOVE_ALL = 0, 1, 2, 3  # tile classes of a step (a tile takes t
 
 # What each offloaded task of the step's two kernels does, in launch order (Taichi's kernel profiler names
 # tasks by index; engine/probes.py hands these to the benchmark): serial tasks run on one thread, the others
-# are parallel loops.
+# are parallel loops. The impacts' pass adds two tasks to active_step, a parallel scan (off the CPU) four per
+# level to active_finish: task_labels() gives every variant.
 TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: band widths, tire rays and boxes",
                          "(serial: bounds)", "classify rim band and tire tiles", "(serial: bounds)",
                          "gather rocks from marked tiles", "(serial: bounds)",
@@ -78,6 +80,20 @@ TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: ban
                            "launch claimed, settle, count survivors, clear hash", "(serial: bounds)",
                            "compaction: holes and movers", "(serial: bounds)", "compaction: copy",
                            "(serial: list length)")}
+IMPACT_TASKS = ("(serial: bounds)", "impacts: flying rocks against the vehicles")
+
+
+def task_labels(max_levels: int = 6) -> dict:
+    """Kernel name -> the variants of its tasks' labels (one tuple each, of distinct lengths): with and without
+    impacts, and the serial scan or the parallel one of 1 .. ``max_levels`` levels (engine/hashgrid.py)."""
+    finish = [TASKS["active_finish"]]
+    for levels in range(1, max_levels + 1):
+        up = [x for k in range(levels) for x in (f"hash scan: up-sweep, level {k}", "(serial: bounds)")]
+        down = [x for k in reversed(range(levels)) for x in (f"hash scan: down-sweep, level {k}", "(serial: bounds)")]
+        up[-1], down[-1] = "(serial: top level's scan, bounds)", "(serial: total, bounds)"
+        finish.append(("counters (serial)", *up, *down, *TASKS["active_finish"][1:]))
+    return {"active_step": [TASKS["active_step"], TASKS["active_step"] + IMPACT_TASKS], "active_finish": finish}
+
 
 # World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
 # rocks above it (compaction), the slots marked this step (mark()), the band's widest row and column and the

@@ -19,7 +19,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 
 import taichi as ti
 
-from .world import A0, ACTIVE, FLYING, MAX_OCC, IPar, P1, P2, P3, Par
+from .world import A0, ACTIVE, FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -144,20 +144,79 @@ def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
 
 @ti.func
 def scan_counts(w: ti.template()):
-    """Serial inclusive prefix sum of the counts, in place; cell_start[n] = total; the fullest slot's count to
-    ``tire_counts[MAX_OCC]``.
+    """Inclusive prefix sum of the counts of the table's slots in use, in place; cell_start[n] = total; the
+    fullest slot's count to ``tire_counts[MAX_OCC]`` (the tire pass's places per slot, engine/tires.py).
 
-    ti.algorithms.PrefixSumExecutor does not run on the CPU backend; a serial pass over the table costs
-    about a nanosecond per slot there.
+    Serial on the CPU (about a nanosecond per slot), in parallel over blocks of slots elsewhere
+    (:func:`block_scan`; ``World.scan_levels``). ti.algorithms.PrefixSumExecutor is not used: it refuses the CPU
+    backend, and on Vulkan it relies on the subgroup size (on Mesa lavapipe it gives wrong sums past 63 slots).
+    The sums are integers: both ways give the same bits.
     """
+    if ti.static(w.scan_levels > 0):
+        block_scan(w)
+    else:
+        n = table_n(w)
+        most = w.cell_start[0]
+        ti.loop_config(serialize=True)
+        for s in range(1, n):
+            most = ti.max(most, w.cell_start[s])
+            w.cell_start[s] += w.cell_start[s - 1]
+        w.cell_start[n] = w.cell_start[n - 1]
+        w.tire_counts[MAX_OCC] = most
+
+
+def scan_level(w, k: int):
+    """Level k of the parallel scan (compile time): the slots' counts (k = 0), else level k - 1's block sums."""
+    return w.cell_start if k == 0 else getattr(w, "scan_sums" + str(k - 1))
+
+
+@ti.func
+def level_count(n, k: ti.template()):
+    """Entries of level k of the parallel scan over n slots: ceil(n / 32^k) (level 0: the slots)."""
+    size = ti.static(SCAN_BLOCK ** k)
+    return (n + size - 1) // size
+
+
+@ti.func
+def scan_blocks(src: ti.template(), dst: ti.template(), m, counts: ti.template(), slots: ti.template()):
+    """Up-sweep of one level: each block of 32 entries of ``src`` (m in use) scanned in place by one thread, its
+    total to ``dst``; on the slots' level (``slots``), the largest count to ``counts[MAX_OCC]``."""
+    for b in range((m + SCAN_BLOCK - 1) // SCAN_BLOCK):
+        total = 0
+        top = 0
+        for j in ti.static(range(SCAN_BLOCK)):
+            i = b * SCAN_BLOCK + j
+            if i < m:
+                v = src[i]
+                top = ti.max(top, v)
+                total += v
+                src[i] = total
+        dst[b] = total
+        if ti.static(slots):
+            ti.atomic_max(counts[MAX_OCC], top)
+
+
+@ti.func
+def block_scan(w: ti.template()):
+    """The parallel inclusive scan (Blelloch's two sweeps over blocks, 1990, with blocks of 32 and one thread
+    per block): up-sweep, each level's blocks scanned in place and their totals one level up
+    (``scan_sums<k>``, world.scan_level_sizes); the last level (at most 32 sums) by one thread; down-sweep,
+    each entry past its level's first block adds the scanned total of the blocks before its own. Every loop is
+    parallel but that last one; the serial work is at most 32 additions whatever the table."""
     n = table_n(w)
-    most = w.cell_start[0]
+    w.tire_counts[MAX_OCC] = 0
+    for k in ti.static(range(w.scan_levels)):
+        scan_blocks(ti.static(scan_level(w, k)), ti.static(scan_level(w, k + 1)), level_count(n, k),
+                    w.tire_counts, ti.static(k == 0))
+    last = ti.static(scan_level(w, w.scan_levels))
     ti.loop_config(serialize=True)
-    for s in range(1, n):
-        most = ti.max(most, w.cell_start[s])
-        w.cell_start[s] += w.cell_start[s - 1]
+    for i in range(1, level_count(n, w.scan_levels)):
+        last[i] += last[i - 1]
+    for k in ti.static(list(reversed(range(w.scan_levels)))):
+        src, sums = ti.static(scan_level(w, k), scan_level(w, k + 1))
+        for i in range(SCAN_BLOCK, level_count(n, k)):
+            src[i] += sums[i // SCAN_BLOCK - 1]
     w.cell_start[n] = w.cell_start[n - 1]
-    w.tire_counts[MAX_OCC] = most  # the tire pass's places per slot (engine/tires.py)
 
 
 @ti.kernel

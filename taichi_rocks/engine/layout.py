@@ -31,7 +31,7 @@ from .effects import effect_specs
 from .impact_pass import body_table, event_capacity
 from .rockfields import present
 from .setup import hash_sizing, initial_rocks
-from .world import field_specs
+from .world import field_specs, scan_in_parallel
 
 __all__ = ["world_layout", "estimate_memory", "memory_problem", "check_fits", "physical_memory", "n_tires_of",
            "demand_key", "frame_bytes", "frame_problem", "check_machine"]
@@ -84,7 +84,8 @@ def _field_bytes(scene) -> dict:
         radius = initial_rocks(scene).radius if plan.splash and not plan.center else _Count(n)
         layout, _ = world_layout(scene, plan, radius)
     real = "f64" if scene.sim.precision == "f64" else "f32"
-    specs = field_specs(n, real, **layout) + effect_specs(scene, plan)  # the optional effects' pools (engine/effects/)
+    # the optional effects' pools (engine/effects/); the scan's block sums where it runs in parallel (off the CPU)
+    specs = field_specs(n, real, parallel_scan=scan_in_parallel(), **layout) + effect_specs(scene, plan)
     return {s.name: s.nbytes(real) for s in specs}
 
 

@@ -249,6 +249,6 @@ def launch_costs(sim, reps: int = 2000) -> dict:
 
 
 def task_labels() -> dict:
-    """Kernel name -> what each of its offloaded tasks does, in order (active stepping's step kernels and the
-    batch upload)."""
-    return {**active.TASKS, **stepdata.TASKS}
+    """Kernel name -> the variants of what each of its offloaded tasks does, in order, one tuple per variant of
+    distinct length (active stepping's step kernels: active.task_labels; the batch upload)."""
+    return {**active.task_labels(), **{k: [v] for k, v in stepdata.TASKS.items()}}

@@ -9,6 +9,7 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
+import os
 import warnings
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -88,14 +89,44 @@ class FieldSpec:
         return size * self.n * math.prod(self.shape)
 
 
+SCAN_BLOCK = 32  # slots per block of the parallel prefix sum (engine/hashgrid.py block_scan)
+
+
+def scan_level_sizes(table: int) -> tuple:
+    """The block sums of the hash's parallel prefix sum over ``table`` slots, one field per level: level k
+    holds ceil(table / 32^(k + 1)) sums, and the last level (at most 32 sums) is scanned by one thread."""
+    sizes, m = [], int(table)
+    while m > SCAN_BLOCK:
+        m = -(-m // SCAN_BLOCK)
+        sizes.append(m)
+    return tuple(sizes)
+
+
+PARALLEL_SCAN = "TAICHI_ROCKS_PARALLEL_SCAN"  # "1" or "0": the scan's way on any backend (tests, profiling)
+
+
+def scan_in_parallel(requested: Optional[bool] = None) -> bool:
+    """Does a World's hash build scan its counts in parallel (engine/hashgrid.py block_scan)? As ``requested``,
+    else as ``TAICHI_ROCKS_PARALLEL_SCAN`` says ("1" or "0"), else off the CPU only: one GPU thread pays some
+    15 ns per slot for a serial scan, a CPU core about 1 ns."""
+    if requested is not None:
+        return bool(requested)
+    env = os.environ.get(PARALLEL_SCAN, "").strip()
+    if env in ("0", "1"):
+        return env == "1"
+    return ti.lang.impl.current_cfg().arch not in (ti.x64, ti.arm64)
+
+
 def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                 substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None, store=None,
-                rocks=None, bodies=None, events: int = 0, drawn: bool = False, **_switches) -> list[FieldSpec]:
+                rocks=None, bodies=None, events: int = 0, drawn: bool = False, parallel_scan: bool = False,
+                **_switches) -> list[FieldSpec]:
     """Every field of the World of this layout (``real``: "f32" | "f64"; the arguments are World's), in the
     order they are allocated: the one list both the World and the memory estimate (engine/layout.py) read.
     ``rocks``: the rock fields (engine/rockfields.py ``present``; default: those of this layout's mode);
     ``bodies``: (vehicles hit, their parts) with impacts, and ``events`` the event buffer's capacity; ``drawn``:
-    the mirror of each rock's drawn state that ``Simulation.changes()`` reads (engine/changes.py)."""
+    the mirror of each rock's drawn state that ``Simulation.changes()`` reads (engine/changes.py);
+    ``parallel_scan``: the block sums of the hash's parallel prefix sum (:func:`scan_level_sizes`)."""
     cap = max(n, 1)  # Taichi fields cannot be empty
     hashed = hash_table > 0
     rocks = default_rock_fields(hashed, store is not None) if rocks is None else rocks
@@ -108,6 +139,8 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
                 FieldSpec("entries", "i32", 1, (max(hash_entries, 1),)),
                 FieldSpec("claim", "i32", 1, (cap,)),  # the tire pass: the first tire to launch a rock (0: none)
                 FieldSpec("tire_counts", "i32", 1, (TIRE_COUNTS,))]
+        if parallel_scan:
+            out += [FieldSpec(f"scan_sums{k}", "i32", 1, (m,)) for k, m in enumerate(scan_level_sizes(hash_table))]
     if hashed and tiles is not None:  # scope "tires": the mask's tiles, the rocks listed on them
         out += [FieldSpec("tile_mask", "i32", 1, tuple(int(t) for t in tiles)), FieldSpec("listed", "i32", 1, (cap,)),
                 FieldSpec("n_listed", "i32", 1, ())]
@@ -220,7 +253,7 @@ class World:
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
                  tile_size: float = 1.0, store=None, rocks=None, bodies=None, events: int = 0,
-                 drawn: bool = False):
+                 drawn: bool = False, parallel_scan: Optional[bool] = None):
         self.n = n
         self.drawn = bool(drawn)  # the mirror changes() reads (engine/changes.py)
         self.stored = store is not None  # active stepping's tile store (below)
@@ -231,6 +264,8 @@ class World:
         if self.hashed:
             self.table_size = hash_table
             self.entry_capacity = max(hash_entries, 1)
+        # the hash's prefix sum: in parallel over blocks of slots (off the CPU) or serial (compile-time switch)
+        self.scan_levels = len(scan_level_sizes(hash_table)) if self.hashed and scan_in_parallel(parallel_scan) else 0
         # scope "tires": a coarse XY mask around the tires' query regions; only rocks on marked tiles are
         # hashed, listed in `listed` (compile-time switch: `masked` is a Python attribute)
         self.masked = self.hashed and tiles is not None
@@ -257,7 +292,8 @@ class World:
         for spec in field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table,
                                 hash_entries=hash_entries, n_tires=n_tires, substeps=substeps,
                                 ray_capacity=ray_capacity, reorder=reorder, tiles=tiles, store=store,
-                                rocks=self.rocks, bodies=bodies, events=events, drawn=drawn):
+                                rocks=self.rocks, bodies=bodies, events=events, drawn=drawn,
+                                parallel_scan=self.scan_levels > 0):
             setattr(self, spec.name, trees.place(spec, real))
         trees.finalize()
         self.trees = trees  # destroyed by the pool when the process runs short of trees (_evict)
@@ -341,6 +377,7 @@ def acquire(owner, n: int, real, **layout) -> World:
     Re-using released Worlds makes the second and later Simulations of a layout start at once: notebooks
     re-running a cell, parameter sweeps, tests. Two live Simulations never share a World. Released Worlds
     stay until the process runs short of SNode trees (engine/trees.py :class:`Pool`)."""
+    layout = dict(layout, parallel_scan=scan_in_parallel(layout.get("parallel_scan")))  # fixed now: part of the key
     key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
     return _POOL.lease(owner, key, lambda: World(n, real, **layout), _zero)
 

@@ -54,3 +54,48 @@ def test_verdicts_say_by_how_much():
     assert activity._verdict(0.25, 0.5, True) == (True, "PASS, 50 % under the limit")
     assert activity._verdict(1.0, 0.5, True) == (False, "MISS, 2.00x the limit")
     assert activity._verdict(0.8, 1.0, False) == (False, "MISS, 20 % short")
+
+
+TASK_SCRIPT = """
+import os, sys
+import taichi as ti
+from taichi_rocks.bench.activity import task_rows
+from taichi_rocks.engine import timing
+from taichi_rocks.engine.runtime import init_taichi
+from taichi_rocks.engine.simulation import Simulation
+from taichi_rocks.engine.world import PARALLEL_SCAN
+init_taichi("cpu", profiler=True)
+for scene, scan in (("minimal", "0"), ("convoy", "1")):
+    os.environ[PARALLEL_SCAN] = scan
+    sim = Simulation.from_scene(os.path.join(sys.argv[1], scene + ".toml"))
+    sim.step(2)
+    ti.sync()
+    ti.profiler.clear_kernel_profiler_info()
+    sim.step(3)
+    rows = task_rows(timing.kernel_tasks(), 3)
+    print(scene, sim.world.scan_levels, ";".join(r["kernel"] + ":" + r["what"] for r in rows))
+"""
+
+
+def test_every_task_of_a_step_has_its_label(tmp_path):
+    """The benchmark's task table names every task of the step's kernels (engine/active.py task_labels): with
+    and without impacts, with the CPU's serial scan and with the parallel one of the GPU backends (run here on
+    the CPU: TAICHI_ROCKS_PARALLEL_SCAN=1), Taichi's kernel profiler on, in a process of its own."""
+    import subprocess
+    import sys
+
+    from cli_util import ROOT, _env
+
+    out = subprocess.run([sys.executable, "-c", TASK_SCRIPT, str(ROOT / "scenes")], env=_env(), capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    lines = dict(line.split(" ", 1) for line in out.stdout.splitlines() if line.startswith(("minimal ", "convoy ")))
+    levels = {k: int(v.split(" ", 1)[0]) for k, v in lines.items()}
+    assert levels == {"minimal": 0, "convoy": 2}
+    for scene, text in lines.items():
+        rows = text.split(" ", 1)[1].split(";")
+        step = [r for r in rows if r.startswith(("active_step:", "active_finish:"))]
+        assert len(step) >= 19, (scene, rows)
+        assert not [r for r in step if ":task " in r], (scene, rows)  # a label for every task
+    assert "active_finish:hash scan: down-sweep, level 1" in lines["convoy"]
+    assert "active_step:impacts: flying rocks against the vehicles" in lines["convoy"]

@@ -160,3 +160,24 @@ def test_dda_matches_brute_force_cells(l):
         assert must <= got, (a, b, must - got)
         assert got <= may, (a, b, got - may)
         assert tuple(np_cell(a, l)) in got and tuple(np_cell(b, l)) in got
+
+
+# the hash's prefix sum, serial (the CPU's) and over blocks (off the CPU), against NumPy: table sizes on and
+# around the block edges of each level (32, 32^2, 32^3), counts with zeros, ones and one crowded slot
+@pytest.mark.parametrize("parallel", [False, True])
+def test_scan_matches_numpy_at_block_edges(parallel):
+    from taichi_rocks.engine.world import MAX_OCC, World, scan_level_sizes
+
+    rng = np.random.default_rng(5)
+    for table in (1, 2, 31, 32, 33, 1023, 1024, 1025, 32769):
+        w = World(4, ti.f32, hash_table=table, hash_entries=4, parallel_scan=parallel)
+        assert w.scan_levels == (len(scan_level_sizes(table)) if parallel else 0)
+        for counts in (rng.integers(0, 4, table), np.zeros(table, np.int64), np.eye(1, table, table // 2)[0] * 1000):
+            before = np.concatenate([counts, [7]]).astype(np.int32)  # the slot past the table: overwritten
+            w.cell_start.from_numpy(before)
+            total = hashgrid.inclusive_scan(w)
+            got = w.cell_start.to_numpy()
+            want = np.cumsum(counts)
+            np.testing.assert_array_equal(got[:table], want, err_msg=f"table {table}")
+            assert got[table] == want[-1] == total
+            assert w.tire_counts[MAX_OCC] == counts.max()
