@@ -6,7 +6,7 @@ in engine/rockfields.py), so a new per-rock quantity needs nothing here.
   stepping) and of the tile store, each as arrays in memory order plus their ids;
 * :func:`in_id_order` - such pieces merged into one array per field in rock-id order (``rock_arrays``);
 * :func:`write` - id-ordered arrays into the rock arrays, padded to the World's capacity (restore, set_rocks);
-* :func:`checkpoint_arrays` / :func:`from_checkpoint` - the rock part of a checkpoint (``rock_<name>`` keys);
+* :func:`checkpoint_fields` / :func:`from_checkpoint` - the rock part of a checkpoint (``rock_<name>`` keys);
 * :func:`state_arrays` - the rock part of ``Simulation.state()``.
 """
 
@@ -17,7 +17,7 @@ import numpy as np
 from . import transfer
 from .rockfields import ID
 
-__all__ = ["initial_arrays", "read_listed", "read_stored", "in_id_order", "write", "checkpoint_arrays",
+__all__ = ["initial_arrays", "read_listed", "read_stored", "in_id_order", "write", "checkpoint_fields",
            "from_checkpoint", "state_arrays", "saved_fields"]
 
 
@@ -107,12 +107,10 @@ def write(w, arrays: dict, n: int) -> None:
     transfer.put(g, out, cap)
 
 
-def checkpoint_arrays(w, rock_arrays: dict, n: int) -> dict:
-    """The rock part of a checkpoint: ``rock_<name>`` for every saved field (the id: 0 .. n-1)."""
-    out = {}
-    for f in saved_fields(w):
-        out[f"rock_{f.name}"] = np.arange(n, dtype=np.int32) if f.name == ID else rock_arrays[f.name]
-    return out
+def checkpoint_fields(w, rock_arrays: dict, n: int) -> dict:
+    """The rock part of a checkpoint: every saved field by name (the id: 0 .. n-1); a checkpoint's dict names
+    them ``rock_<name>`` (engine/records.py Checkpoint)."""
+    return {f.name: np.arange(n, dtype=np.int32) if f.name == ID else rock_arrays[f.name] for f in saved_fields(w)}
 
 
 def from_checkpoint(w, data: dict) -> dict:

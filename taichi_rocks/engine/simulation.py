@@ -28,6 +28,7 @@ from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
 from ..motion.vehicles import Fleet
 from . import changes, rocks
+from .records import Changes, Checkpoint, State
 from .rocks import state_arrays
 from .effects import Effects
 from .events import EVENT_DTYPE
@@ -407,23 +408,21 @@ class Simulation:
                 the vehicles alone, for a reader that takes the rocks from ``changes()``.
 
         Returns:
-            A dict: "time" (s), "step", "positions" (N, 3) float64 world m, "velocities" (N, 3) m/s, "radii" (N,)
-            m, "phase" (N,) int8 (0 resting, 1 flying, 2 sliding), with tumbling "angular_velocities" and
-            "orientations" (quaternions x, y, z, w), "bed_center" (3,), "vehicle_positions" (V, 3),
-            "vehicle_headings" (V,) rad, "vehicle_names" (V,), "launches_total", "recycles_total".
+            A :class:`~taichi_rocks.engine.records.State` (its fields and their units: docs/records.md): "time"
+            (s), "step", "positions" (N, 3) float64 world m, "velocities" (N, 3) m/s, "radii" (N,) m, "phase" (N,)
+            int8 (0 resting, 1 flying, 2 sliding), with tumbling "angular_velocities" and "orientations"
+            (quaternions x, y, z, w), "bed_center" (3,), "vehicle_positions" (V, 3), "vehicle_headings" (V,) rad,
+            "vehicle_names" (V,), "launches_total", "recycles_total". Read as attributes (``st.positions``) or
+            as a dict (``st["positions"]``, ``st.as_dict()``).
         """
         poses = self._host.poses
-        return {
-            "time": self.time,
-            "step": self.step_count,
-            **(state_arrays(self.world, self.rock_arrays(), self.origin) if rocks else {}),
-            "bed_center": self.bed_center.copy(),
-            "vehicle_positions": np.array([p.position for p in poses]).reshape(-1, 3),
-            "vehicle_headings": np.array([p.heading for p in poses]),
-            "vehicle_names": np.array(self.fleet.names),
-            "launches_total": self.launches_total,
-            "recycles_total": self.recycles_total,
-        }
+        return State.with_rocks(
+            state_arrays(self.world, self.rock_arrays(), self.origin) if rocks else {},
+            time=self.time, step=self.step_count, bed_center=self.bed_center.copy(),
+            vehicle_positions=np.array([p.position for p in poses]).reshape(-1, 3),
+            vehicle_headings=np.array([p.heading for p in poses]),
+            vehicle_names=np.array(self.fleet.names),
+            launches_total=self.launches_total, recycles_total=self.recycles_total)
 
     def changes(self, velocities: bool = False) -> dict:
         """The rocks whose drawn state changed since the previous call (every rock the first time, and after
@@ -434,7 +433,7 @@ class Simulation:
                 that move (the active list: O(rocks in it); every rock with full stepping).
 
         Returns:
-            A dict of arrays with one row per rock: "ids" (int32), "positions" (float64, world coordinates: the
+            A :class:`~taichi_rocks.engine.records.Changes`, arrays with one row per rock: "ids" (int32), "positions" (float64, world coordinates: the
             numbers ``state()`` gives), "phase" (int8) and, when the simulation tumbles, "orientations"
             (quaternions x, y, z, w, as ``rock_arrays()["orient"]``). Applied to a mirror of the bed
             (``mirror[ids] = positions``), the rows reproduce ``state()`` exactly at every call.
@@ -467,14 +466,11 @@ class Simulation:
             changes.gather_packed(w, buf)
         return self._rows(buf[:k, 0], buf[:k, 1], buf[:k, 2:5], buf[:k, 5:9], velocities)
 
-    def _rows(self, ids, phase, local, orient, velocities: bool = False) -> dict:
-        out = {"ids": ids.astype(np.int32), "positions": local.astype(np.float64) + self.origin,
-               "phase": phase.astype(np.int8)}
-        if self.plan.spin:
-            out["orientations"] = orient.astype(self.world.np_real())
-        if velocities:
-            out["velocities"] = self._stepper.velocities_of(out["ids"])
-        return out
+    def _rows(self, ids, phase, local, orient, velocities: bool = False) -> Changes:
+        ids = ids.astype(np.int32)
+        return Changes(ids=ids, positions=local.astype(np.float64) + self.origin, phase=phase.astype(np.int8),
+                       orientations=orient.astype(self.world.np_real()) if self.plan.spin else None,
+                       velocities=self._stepper.velocities_of(ids) if velocities else None)
 
     # ------------------------------------------------------------------------------------------ checkpoints
     def checkpoint(self) -> dict:
@@ -483,15 +479,15 @@ class Simulation:
         are drained first (a checkpoint holds none: a restore records the steps after it again).
 
         Returns:
-            A dict of NumPy arrays and scalars for ``restore`` (``np.savez`` can store it).
+            A :class:`~taichi_rocks.engine.records.Checkpoint` for ``restore``: NumPy arrays and scalars that
+            read as a dict (``np.savez(path, **cp)`` stores it; ``restore`` takes it or the file's ``np.load``).
         """
         if self._impacts is not None:
             self._impacts.drain(self.time)
-        data = rocks.checkpoint_arrays(self.world, self.rock_arrays(), self.n_rocks)
-        data.update(self._host.saved())
-        data.update(launches=np.int64(self.launches_total), recycles=np.int64(self.recycles_total),
-                    scene=np.array(self.scene.name), seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
-        return data
+        return Checkpoint(rock_fields=rocks.checkpoint_fields(self.world, self.rock_arrays(), self.n_rocks),
+                          **self._host.saved(), launches=np.int64(self.launches_total),
+                          recycles=np.int64(self.recycles_total), scene=np.array(self.scene.name),
+                          seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
 
     def restore(self, data: dict) -> None:
         """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint

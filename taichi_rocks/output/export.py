@@ -13,19 +13,46 @@ palette nearest to it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from ..config.records import Record, entry
 from ..motion.camera import scene_camera
 from .instances import RockTracker, VehicleTracker
 from .looks import nearest_tint, rock_tints, tint_palette
 from .runs import crop_mask, crop_vehicle
 
-__all__ = ["ExportFrames"]
+__all__ = ["ExportFrames", "ExportFrame"]
+
+
+@dataclass(kw_only=True, eq=False)
+class ExportFrame(Record):
+    """One exported frame, what every writer of output/formats.py gets: M rocks chosen (``--only``, ``--crop``),
+    V vehicles."""
+
+    frame: int = entry("", "the frame's index")
+    time: float = entry("s", "the simulation's clock at the frame")
+    origin: np.ndarray = entry("m", "(3,) float64: the engine's floating origin, world coordinates")
+    world: np.ndarray = entry("m", "(M, 3) float64: each rock's centre, world coordinates")
+    local: np.ndarray = entry("m", "(M, 3) float32: world - origin")
+    velocities: np.ndarray = entry("m/s", "(M, 3): each rock's velocity")
+    radii: np.ndarray = entry("m", "(M,): each rock's radius")
+    ids: np.ndarray = entry("", "(M,) int64: the instance's id (a new one after each recycle: output/instances.py)")
+    proto: np.ndarray = entry("", "(M,): the rock's shape, an index of the prototypes")
+    orientations: np.ndarray = entry("-", "(M, 4): unit quaternions (x, y, z, w)")
+    tints: np.ndarray = entry("-", "(M, 3): the renderer's resting colour of each rock (RGB)")
+    tint: np.ndarray = entry("", "(M,): the nearest entry of the stage's tint palette (output/looks.py)")
+    angular_velocities: np.ndarray = entry("rad/s", "(M, 3): each rock's spin")
+    vehicles: dict = entry("", "positions (V, 3) m, unwrapped headings (V,) rad, wheel angles front and rear "
+                               "(V,) rad")
+    camera: tuple = entry("m", "(eye, target): the scene camera's points, world coordinates")
+    cut: bool = entry("-", "a shot of the camera starts at this frame")
+    state: Record = entry("", "the engine's whole state of the frame (Simulation.state(): engine/records.py)")
 
 
 class ExportFrames:
-    """The frames of one export, in order: :meth:`frame` turns frame f's state into the dict of
-    output/formats.py."""
+    """The frames of one export, in order: :meth:`frame` turns frame f's state into an :class:`ExportFrame`."""
 
     def __init__(self, scene, n_rocks: int, fps: float, only: str, crop):
         self.camera = scene_camera(scene)  # the renderer's camera: the same shots in the stage
@@ -36,7 +63,7 @@ class ExportFrames:
         self.palette = tint_palette()
         self.tint = nearest_tint(self.tints, self.palette)
 
-    def frame(self, f: int, st: dict, origin) -> dict:
+    def frame(self, f: int, st, origin) -> ExportFrame:
         """Frame ``f``: ``st`` = ``Simulation.state()`` at f / fps, ``origin`` the engine's floating origin."""
         origin = np.asarray(origin, np.float64)
         r = self.rocks.update(st)
@@ -49,9 +76,9 @@ class ExportFrames:
         cam, t = self.camera, float(st["time"])
         cut = cam.t is not None and cam.index_at(cam.t) != cam.index_at(t)
         eye_target = cam.update(st["vehicle_positions"], st["vehicle_headings"], t)[:2]
-        return {"frame": f, "time": float(st["time"]), "origin": origin, "world": world,
-                "local": (world - origin).astype(np.float32), "velocities": st["velocities"][idx],
-                "radii": st["radii"][idx], "ids": r["ids"][idx], "proto": r["proto"][idx],
-                "orientations": r["orientations"][idx], "tints": self.tints[idx], "tint": self.tint[idx],
-                "angular_velocities": r["angular_velocities"][idx], "vehicles": v, "camera": eye_target,
-                "cut": cut, "state": st}
+        return ExportFrame(frame=f, time=float(st["time"]), origin=origin, world=world,
+                           local=(world - origin).astype(np.float32), velocities=st["velocities"][idx],
+                           radii=st["radii"][idx], ids=r["ids"][idx], proto=r["proto"][idx],
+                           orientations=r["orientations"][idx], tints=self.tints[idx], tint=self.tint[idx],
+                           angular_velocities=r["angular_velocities"][idx], vehicles=v, camera=eye_target, cut=cut,
+                           state=st)

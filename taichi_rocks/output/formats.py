@@ -10,16 +10,14 @@ Every format is a writer with the same four calls, as the viewers of newton-phys
 * ``close()``: finish, ``out`` complete under its final name; returns its size in bytes. ``abort()`` instead,
   on a failure or Ctrl-C: remove what was written.
 
-app/export.py runs the frames and drives the writer; output/export.py makes the frames. A frame is a dict:
-``frame`` (index), ``time`` (s), ``origin`` (3,) float64 (the engine's floating origin); the rocks chosen
+app/export.py runs the frames and drives the writer; output/export.py makes the frames. A frame is an
+``ExportFrame`` (output/export.py; its fields, units and meanings: docs/records.md), read by attribute or as a
+dict: ``frame`` (index), ``time`` (s), ``origin`` (3,) float64 (the engine's floating origin); the rocks chosen
 (``--only``, ``--crop``), M of them: ``world`` (M, 3) float64 world metres, ``local`` (M, 3) float32
-(``world - origin``), ``velocities`` (M, 3), ``radii`` (M,), ``ids`` (M,) int64 (new after a recycle),
-``proto`` (M,) rock shape, ``orientations`` (M, 4) quaternions (x, y, z, w), ``angular_velocities`` (M, 3)
-rad/s (output/instances.py), ``tints`` (M, 3) the renderer's resting colour of each rock and ``tint`` (M,)
-the nearest entry of the stage's tint palette (output/looks.py); ``vehicles``: positions (V, 3), unwrapped
-headings (V,), wheel angles ``front`` and ``rear`` (V,); ``camera``: (eye, target) of the scene's camera,
-world points; ``cut``: True where a shot of the camera starts (a cut between the previous frame and this
-one); and ``state``: the engine's whole state of the frame (``Simulation.state()``: every rock, phase included).
+(``world - origin``), ``velocities``, ``radii``, ``ids`` (new after a recycle), ``proto`` (rock shape),
+``orientations``, ``angular_velocities``, ``tints`` and ``tint``; ``vehicles`` (positions, headings, wheel
+angles); ``camera`` (eye, target); ``cut`` (a shot starts here); and ``state``: the engine's whole state of the
+frame (``Simulation.state()``: every rock, phase included).
 
 Adding a format (impact events as CSV or PLY from the phase changes in ``frame["state"]``, per-rock
 orientations as a table, ...) is one module and one line: a module ``output/<name>.py`` with a subclass of
