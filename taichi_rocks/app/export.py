@@ -72,8 +72,8 @@ def export_run(sim, out, frames: int, fps: float, fmt: str = "usd", only: str = 
             for f, st in frame_states(sim, frames, fps, guard, progress):
                 frame = make.frame(f, st, sim.origin)
                 if sim.plan.impacts:
-                    frame["impacts"] = impact_frame(sim, sim.impacts())
-                frame.update(sim.effect_arrays())  # the optional effects' arrays (dust: output/dust.py)
+                    frame.impacts = impact_frame(sim, sim.impacts())
+                frame.effects = sim.effect_arrays()  # the optional effects' arrays (dust: output/dust.py)
                 writer.write(frame)
                 counts.append(len(frame["ids"]))
             size = writer.close()

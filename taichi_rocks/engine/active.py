@@ -55,11 +55,11 @@ from dataclasses import dataclass
 
 import taichi as ti
 
-from . import changes, hashgrid, stepdata, tires
+from . import changes, hashgrid, stepdata, tirerow, tires
 from .bed import outside_bed
 from .kernels import impacts_loop, rock_step
 from .patch import footprint_box
-from .world import A0, A1, ACTIVE, B0, B1, CENTRE, CLOCK, HALF_L, HALF_W, LEAD, MOVE, RAY_FIELDS, RESTING, \
+from .world import A0, A1, B0, B1, CENTRE, CLOCK, LEAD, MOVE, RAY_FIELDS, RESTING, \
     TILES, IPar, Par
 
 __all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle"]
@@ -192,17 +192,17 @@ def classify_slot(w: ti.template(), sl, c, mid, d, shift_tiles, radius, eps, che
 def tire_box(w: ti.template(), plan: ti.template(), t, reach):
     """XY box (lo, hi) of everything tire t can hit this step: its rays, the swept parallelogram's fourth
     corner, the tread's footprint; grown by ``reach``."""
-    lo = ti.Vector([w.ray[t, A0], w.ray[t, A0 + 1]])
+    lo = tirerow.xy(w, t, A0)
     hi = lo
     for k in ti.static((B0, A1, B1)):
-        q = ti.Vector([w.ray[t, k], w.ray[t, k + 1]])
+        q = tirerow.xy(w, t, k)
         lo = ti.min(lo, q)
         hi = ti.max(hi, q)
-    q = ti.Vector([w.ray[t, A1] + w.ray[t, B0] - w.ray[t, A0], w.ray[t, A1 + 1] + w.ray[t, B0 + 1] - w.ray[t, A0 + 1]])
+    q = tirerow.xy(w, t, A1) + tirerow.xy(w, t, B0) - tirerow.xy(w, t, A0)
     lo = ti.min(lo, q)
     hi = ti.max(hi, q)
     if ti.static(plan.patch):
-        if w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0:
+        if tirerow.has_tread(w, t):
             f_lo, f_hi = footprint_box(w, t)
             lo = ti.min(lo, f_lo)
             hi = ti.max(hi, f_hi)
@@ -303,7 +303,7 @@ def take_tire(w: ti.template(), plan: ti.template(), k, t, c, shift_tiles):
     reach = w.par[Par.R_MAX] + rounding_margin(w, c)
     g = w.store_grid
     lo, hi = tire_box(w, plan, t, reach)
-    on = w.ray[t, ACTIVE] != 0.0
+    on = tirerow.near_bed(w, t)
     w.tire_box[t] = ti.Vector([lo[0], lo[1], hi[0], hi[1]]) if on else ti.Vector([1.0, 1.0, -1.0, -1.0])
     k_lo = tile_key(w, lo, shift_tiles)
     k_hi = ti.min(tile_key(w, hi, shift_tiles), k_lo + g - 1)

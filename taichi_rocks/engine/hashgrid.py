@@ -19,7 +19,8 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 
 import taichi as ti
 
-from .world import A0, ACTIVE, FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
+from . import tirerow
+from .world import A0, A1, B0, B1, FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -76,11 +77,11 @@ def mark_tire_tiles(w: ti.template(), grid_origin):
     margin = w.par[Par.MARGIN]
     ti.loop_config(serialize=True)
     for t in range(w.n_tires):
-        if w.ray[t, ACTIVE] != 0.0:
-            lo = ti.Vector([w.ray[t, A0], w.ray[t, A0 + 1]])
+        if tirerow.near_bed(w, t):
+            lo = tirerow.xy(w, t, A0)
             hi = lo
-            for k in ti.static(range(1, 4)):
-                q = ti.Vector([w.ray[t, A0 + 3 * k], w.ray[t, A0 + 3 * k + 1]])
+            for k in ti.static((B0, A1, B1)):
+                q = tirerow.xy(w, t, k)
                 lo = ti.min(lo, q)
                 hi = ti.max(hi, q)
             # one more tile on each side: the per-rock lookup rounds differently (it multiplies)

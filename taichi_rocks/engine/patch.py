@@ -24,6 +24,7 @@ only the edge distances count.
 import numpy as np
 import taichi as ti
 
+from . import tirerow
 from .geometry import closest_on_segment
 from .world import HULL, HULL_VERTICES
 
@@ -137,7 +138,7 @@ def swept_footprint_hulls(b0, f0, b1, f1, half_width, half_length) -> np.ndarray
 # ------------------------------------------------------------------------------------------------ kernels
 @ti.func
 def hull_vertex(w: ti.template(), t, k: ti.template()):
-    return ti.Vector([w.ray[t, HULL + 2 * k], w.ray[t, HULL + 2 * k + 1]])
+    return tirerow.xy(w, t, HULL + 2 * k)
 
 
 @ti.func

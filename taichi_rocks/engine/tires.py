@@ -30,11 +30,11 @@ Switches, engine/kernels.py).
 import taichi as ti
 from taichi.lang import impl
 
-from . import hashgrid, patch, tumble
+from . import hashgrid, patch, tirerow, tumble
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
-from .world import A0, A1, ACTIVE, B0, B1, FLYING, HALF_L, HALF_W, LAUNCHED, MAX_OCC, SLIDING, SPAN_A, \
+from .world import A0, A1, B0, B1, FLYING, LAUNCHED, MAX_OCC, SLIDING, SPAN_A, \
     SPAN_B, SPAN_C, IPar, Par
 
 
@@ -67,11 +67,6 @@ def parallelogram_dist2(o, e1, e2, c):
     return best
 
 
-@ti.func
-def ray_vec(w: ti.template(), t, k):
-    return ti.Vector([w.ray[t, k], w.ray[t, k + 1], w.ray[t, k + 2]])
-
-
 @ti.kernel
 def trace_rays(w: ti.template()):
     trace_all(w)
@@ -81,8 +76,8 @@ def trace_rays(w: ti.template()):
 def substep_ray(w: ti.template(), t, s):
     """Tire t's ray (a, b) at substep s: interpolated between the previous and the current step."""
     f = ti.cast(s + 1, w.real) / w.substeps
-    a = ray_vec(w, t, A0) * (1.0 - f) + ray_vec(w, t, A1) * f
-    b = ray_vec(w, t, B0) * (1.0 - f) + ray_vec(w, t, B1) * f
+    a = tirerow.point(w, t, A0) * (1.0 - f) + tirerow.point(w, t, A1) * f
+    b = tirerow.point(w, t, B0) * (1.0 - f) + tirerow.point(w, t, B1) * f
     return a, b
 
 
@@ -132,8 +127,8 @@ def launch_rock(w: ti.template(), plan: ti.template(), i, t, step):
 def swept_query(w: ti.template(), plan: ti.template(), t):
     """Tire t's swept test (a0, e1, e2: the parallelogram; with ``plan.patch`` whether the tread's footprint
     counts and the highest a run-over rock's bottom may be) and its XY-and-Z query box (lo, hi)."""
-    a0, b0 = ray_vec(w, t, A0), ray_vec(w, t, B0)
-    a1 = ray_vec(w, t, A1)
+    a0, b0 = tirerow.point(w, t, A0), tirerow.point(w, t, B0)
+    a1 = tirerow.point(w, t, A1)
     e1 = a1 - a0  # the step's motion
     e2 = b0 - a0  # the ray
     lo = ti.min(ti.min(a0, b0), ti.min(a1, a1 + e2))
@@ -141,8 +136,8 @@ def swept_query(w: ti.template(), plan: ti.template(), t):
     tread = False  # patch: the footprint counts (an active tire with a footprint of some size)
     floor = b0[2]  # patch: the highest a run-over rock's bottom may be
     if ti.static(plan.patch):
-        tread = w.ray[t, ACTIVE] != 0.0 and (w.ray[t, HALF_W] > 0.0 or w.ray[t, HALF_L] > 0.0)
-        floor = ti.min(b0[2], w.ray[t, B1 + 2]) + w.par[Par.PATCH_TOL]
+        tread = tirerow.near_bed(w, t) and tirerow.has_tread(w, t)
+        floor = ti.min(b0[2], tirerow.point(w, t, B1)[2]) + w.par[Par.PATCH_TOL]
         if tread:
             f_lo, f_hi = patch.footprint_box(w, t)
             lo = ti.Vector([ti.min(lo[0], f_lo[0]), ti.min(lo[1], f_lo[1]), lo[2]])

@@ -52,8 +52,9 @@ measurement of the spin of stones thrown by tires was found, so spin_spread is a
 import taichi as ti
 
 from ..config.streams import LAUNCH_SPIN
+from . import tirerow
 from .randomness import uniform01
-from .world import FWD, RESTING, SPIN, VEL, IPar, Par
+from .world import RESTING, IPar, Par
 
 __all__ = ["turn", "kick", "apply_impulse", "launch_spin", "tread_point", "rest", "through_contact", "slide_spin"]
 
@@ -141,11 +142,12 @@ def slide_spin(w: ti.template(), i, dt, dv, phase):
 @ti.func
 def tread_point(w: ti.template(), t, alpha):
     """Tire t's release point at angle alpha up the back: (its velocity v_t, its outward normal n)."""
-    s = w.ray[t, SPIN]
-    f = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1], 0.0])
+    s = tirerow.spin(w, t)
+    fw = tirerow.forward(w, t)
+    f = ti.Vector([fw[0], fw[1], 0.0])
     sg = 1.0 if s >= 0.0 else -1.0
     ca, sa = ti.cos(alpha), ti.sin(alpha)
-    v_t = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]]) - s * ca * f
+    v_t = tirerow.wheel_velocity(w, t) - s * ca * f
     v_t[2] += ti.abs(s) * sa
     n = -sg * sa * f
     n[2] = -ca

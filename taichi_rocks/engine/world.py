@@ -114,6 +114,8 @@ def scan_in_parallel(requested: Optional[bool] = None) -> bool:
     env = os.environ.get(PARALLEL_SCAN, "").strip()
     if env in ("0", "1"):
         return env == "1"
+    if ti.lang.impl.get_runtime().prog is None:  # Taichi not started (a memory estimate made before): the CPU's
+        return False
     return ti.lang.impl.current_cfg().arch not in (ti.x64, ti.arm64)
 
 

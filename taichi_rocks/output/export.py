@@ -49,6 +49,12 @@ class ExportFrame(Record):
     camera: tuple = entry("m", "(eye, target): the scene camera's points, world coordinates")
     cut: bool = entry("-", "a shot of the camera starts at this frame")
     state: Record = entry("", "the engine's whole state of the frame (Simulation.state(): engine/records.py)")
+    impacts: dict = entry("", "with impacts, the frame's hit events: events, world points and normals "
+                              "(app/export.py impact_frame)", optional=True)
+    effects: dict = entry("", "the optional effects' arrays by their export names (config/effects/: dust), "
+                              "entries of the dict", optional=True)
+
+    _holder = "effects"
 
 
 class ExportFrames:

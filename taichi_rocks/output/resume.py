@@ -83,7 +83,7 @@ class RenderCheckpoints:
 
     def save(self, k: int, sim, rig) -> Path:
         """Save the state after frame ``k``; keep the newest KEEP."""
-        data = sim.checkpoint()
+        data = sim.checkpoint().as_dict()
         data.update(frame=np.int64(k), camera_heading=np.float64(rig.heading if rig.heading is not None else np.nan),
                     camera_t=np.float64(rig.t if rig.t is not None else np.nan), fingerprint=np.array(self.print))
         final = self.dir / f"frame_{k:05d}.npz"

@@ -43,8 +43,9 @@ import numpy as np
 import taichi as ti
 
 from ...config.streams import LAUNCH
+from .. import tirerow
 from ..randomness import uniform01
-from ..world import FENDER, FLAP, FWD, HALF_L, SPIN, TIRE_R, VEL, IPar, Par
+from ..world import IPar, Par
 
 NAME = "tread"
 PARAMS = ("WETNESS", "GRAVITY", "SPREAD", "GROOVE", "GRIP", "GRIP_RELAX", "GRIP_SPREAD", "ADHESION", "TRANSFER",
@@ -171,17 +172,18 @@ def throw(w: ti.template(), t, r, mu, rock, step, fenders: ti.template()):
     """:func:`throw_velocity`, the velocity the tread gave before a fender or flap stopped it, and the release
     angle."""
     seed = w.ipar[IPar.SEED]
-    radius = w.ray[t, TIRE_R]
-    spin = w.ray[t, SPIN]
-    wheel_vel = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]])
-    forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
-    alpha = throw_angle(w, r, mu, spin, radius, w.ray[t, HALF_L], seed, rock, step)
+    radius = tirerow.radius(w, t)
+    spin = tirerow.spin(w, t)
+    wheel_vel = tirerow.wheel_velocity(w, t)
+    forward = tirerow.forward(w, t)
+    alpha = throw_angle(w, r, mu, spin, radius, tirerow.half_length(w, t), seed, rock, step)
     beta = w.par[Par.SPREAD] * (2.0 * uniform01(seed, rock, step, S_SPREAD) - 1.0)
     k = ti.min(1.0, w.par[Par.TRANSFER] * mu)
     free = tread_velocity(wheel_vel, forward, spin, alpha, beta, k)
     v = free
     if ti.static(fenders):
-        v = guarded(w, free, wheel_vel, forward, spin, alpha, radius, w.ray[t, FENDER], w.ray[t, FLAP])
+        fender, flap = tirerow.fender(w, t)
+        v = guarded(w, free, wheel_vel, forward, spin, alpha, radius, fender, flap)
     return v, free, alpha
 
 

@@ -15,8 +15,9 @@ the rock always leaves backwards (against the wheel's travel, also when reversin
 import taichi as ti
 
 from ...config.streams import LAUNCH
+from .. import tirerow
 from ..randomness import uniform01
-from ..world import FWD, SPIN, VEL, IPar, Par
+from ..world import IPar, Par
 
 NAME = "uniform"
 PARAMS = ("ANGLE_MIN", "ANGLE_MAX", "SPREAD")
@@ -53,11 +54,11 @@ def throw_at(w: ti.template(), wheel_vel, forward, spin, mu, alpha, seed, rock, 
 def launch(w: ti.template(), plan: ti.template(), t, i, step):
     """The launch models' interface (engine/launch/__init__.py): rock i thrown by tire t at ``step``: (its
     velocity, the same (nothing stops it), the release angle)."""
-    forward = ti.Vector([w.ray[t, FWD], w.ray[t, FWD + 1]])
-    wheel_vel = ti.Vector([w.ray[t, VEL], w.ray[t, VEL + 1], w.ray[t, VEL + 2]])
+    forward = tirerow.forward(w, t)
+    wheel_vel = tirerow.wheel_velocity(w, t)
     seed = w.ipar[IPar.SEED]
     alpha = release_angle(w, seed, w.rock_id[i], step)
-    v = throw_at(w, wheel_vel, forward, w.ray[t, SPIN], w.friction[i], alpha, seed, w.rock_id[i], step)
+    v = throw_at(w, wheel_vel, forward, tirerow.spin(w, t), w.friction[i], alpha, seed, w.rock_id[i], step)
     return v, v, alpha
 
 
