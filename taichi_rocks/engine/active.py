@@ -551,6 +551,7 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     d = stepdata.frame_row(w, k, LEAD)
     st = ti.cast(w.step_frame[k, TILES], ti.i32)
     h = ti.cast(w.step_frame[k, CLOCK][0], w.real)
+    fr = stepdata.step_frame(w, h, c, m, d, c)  # no tire mask: its corner (grid) is unused
     classify(w, plan, k, c, m, st, check_all)
     gather(w, c)
     if ti.static(plan.impacts):
@@ -560,9 +561,9 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
         if q < marked:
             close_tile(w, q)
         else:
-            rock_step(w, plan, q - marked, h, c, m, d, c, step, False)  # no tire mask: g is unused
+            rock_step(w, plan, q - marked, fr, step, False)
     if ti.static(plan.impacts):  # the step's time and poses from its batch row (engine/stepdata.py)
-        impacts_loop(w, plan, h, c, m, d, c, step, False, w.body_rows, 0)
+        impacts_loop(w, plan, fr, step, False, w.body_rows, 0)
 
 
 @ti.kernel

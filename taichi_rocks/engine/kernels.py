@@ -16,7 +16,7 @@ field (``reorder_rocks``) loop over the declaration (engine/rockfields.py, ``w.r
 
 import taichi as ti
 
-from . import hashgrid, tires, tumble
+from . import hashgrid, stepdata, tires, tumble
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from .impact_pass import hit_bodies
@@ -105,26 +105,27 @@ def recycle(w: ti.template(), plan: ti.template(), i, c, m, d, step):
 
 
 @ti.func
-def rock_tail(w: ti.template(), plan: ti.template(), i, ph0, c, m, d, g, step, hash_flying: ti.template()):
-    """Pass 1 for rock i after its flight and impacts (``ph0``: its phase at the step's start): recycling to the
-    leading edge, counting for the hash."""
+def rock_tail(w: ti.template(), plan: ti.template(), i, ph0, fr, step, hash_flying: ti.template()):
+    """Pass 1 for rock i after its flight and impacts (``ph0``: its phase at the step's start; ``fr``: the
+    step's frame, stepdata.frame_type): recycling to the leading edge, counting for the hash."""
     if ti.static(plan.recycle):
-        recycle(w, plan, i, c, m, d, step)
+        recycle(w, plan, i, fr.centre, fr.move, fr.lead, step)
     if ti.static(plan.impacts):
         if ph0 != RESTING and w.phase[i] == RESTING:  # landed or recycled: a resting rock has no thrower
             w.thrower[i] = -1
     if ti.static(plan.splash):
         if ti.static(hash_flying):
-            hashgrid.count_rock(w, i, plan.center, g)
+            hashgrid.count_rock(w, i, plan.center, fr.grid)
         else:
             if w.phase[i] != FLYING:
-                hashgrid.count_rock(w, i, plan.center, g)
+                hashgrid.count_rock(w, i, plan.center, fr.grid)
 
 
 @ti.func
-def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, hash_flying: ti.template()):
-    """Pass 1 for rock i: flight, recycling to the leading edge, counting for the hash; ``hash_flying``: count
-    flying rocks too (they are never launched, tires.try_launch; active stepping leaves them out). With
+def rock_step(w: ti.template(), plan: ti.template(), i, fr, step, hash_flying: ti.template()):
+    """Pass 1 for rock i in the step's frame ``fr`` (stepdata.frame_type: time step, the bed's centre, move and
+    leading direction, the tire mask's corner): flight, recycling to the leading edge, counting for the hash;
+    ``hash_flying``: count flying rocks too (they are never launched, tires.try_launch; active stepping leaves them out). With
     ``plan.impacts`` a rock that flew is listed instead (its index and its state before the flight step,
     ``w.fly_*``) and its recycling and counting wait for the impacts loop (:func:`impacts_loop`), so that they
     see where a body sent it."""
@@ -137,7 +138,7 @@ def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, has
             x0 = w.pos[i]
             v0 = w.vel[i]
     if ti.static(plan.flight):
-        fly(w, i, h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
+        fly(w, i, fr.h, plan.integrator, plan.gravity, plan.drag, plan.ground, plan.spin)
     listed = 0
     if ti.static(plan.impacts):
         # flying at the start (the same rocks at the end: nothing launches in this pass). Testing the phase after
@@ -150,12 +151,12 @@ def rock_step(w: ti.template(), plan: ti.template(), i, h, c, m, d, g, step, has
             w.fly_v0[k] = v0
             listed = 1
     if listed == 0:
-        rock_tail(w, plan, i, ph0, c, m, d, g, step, hash_flying)
+        rock_tail(w, plan, i, ph0, fr, step, hash_flying)
 
 
 @ti.func
-def impacts_loop(w: ti.template(), plan: ti.template(), h, c, m, d, g, step, hash_flying: ti.template(),
-                 rows: ti.template(), base: ti.template()):
+def impacts_loop(w: ti.template(), plan: ti.template(), fr, step, hash_flying: ti.template(), rows: ti.template(),
+                 base: ti.template()):
     """The listed rocks of the rock loop (:func:`rock_step`), a top-level loop of its own after it (a task of the
     same kernel, no launch): stones against the bodies they hit (engine/impact_pass.py, the poses in ``rows``
     from row ``base`` on), then their recycling and counting. Kept out of the rock loop's body, the swept test
@@ -163,8 +164,8 @@ def impacts_loop(w: ti.template(), plan: ti.template(), h, c, m, d, g, step, has
     it. Each listed rock flew at the step's start or is flying (``rock_tail``'s ``ph0`` is not RESTING)."""
     for k in range(w.fly_count[None]):
         i = w.fly_index[k]
-        hit_bodies(w, plan, i, w.fly_x0[k], w.fly_v0[k], h, rows, base, step)
-        rock_tail(w, plan, i, FLYING, c, m, d, g, step, hash_flying)
+        hit_bodies(w, plan, i, w.fly_x0[k], w.fly_v0[k], fr.h, rows, base, step)
+        rock_tail(w, plan, i, FLYING, fr, step, hash_flying)
 
 
 @ti.kernel
@@ -184,10 +185,11 @@ def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtyp
         hashgrid.mark_tire_tiles(w, g)
     if ti.static(plan.impacts):
         w.fly_count[None] = 0
+    fr = stepdata.step_frame(w, h, c, m, d, g)
     for i in range(w.ipar[IPar.N_ROCKS]):
-        rock_step(w, plan, i, h, c, m, d, g, step, True)
+        rock_step(w, plan, i, fr, step, True)
     if ti.static(plan.impacts):
-        impacts_loop(w, plan, h, c, m, d, g, step, True, frame, BODIES)
+        impacts_loop(w, plan, fr, step, True, frame, BODIES)
 
 
 @ti.kernel

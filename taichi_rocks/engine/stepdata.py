@@ -97,6 +97,12 @@ def take_bodies(w: ti.template(), k):
 
 
 @ti.func
+def step_frame(w: ti.template(), h, centre, move, lead, grid):
+    """The step's frame (world.frame_type, ``w.frame_type``) of its parts, each in the World's precision."""
+    return w.frame_type(h=h, centre=centre, move=move, lead=lead, grid=grid)
+
+
+@ti.func
 def frame_row(w: ti.template(), k, r: ti.template()):
     """Row ``r`` of step ``k``'s frame in the World's precision (a 2-vector)."""
     return ti.cast(w.step_frame[k, r], w.real)

@@ -52,6 +52,20 @@ BATCH_ROWS = 64
 CENTRE, MOVE, LEAD, GRID, TILES, CLOCK = range(6)
 FRAME_ROWS = 6
 
+_FRAME_TYPES = {}
+
+
+def frame_type(real):
+    """A step's frame as one struct in the World's precision ``real``, what the rock pass reads: ``h``, the time
+    step (s), and the 2-vectors (local frame, m) ``centre``, the bed's new centre, ``move``, its move this step,
+    ``lead``, the bed's direction of travel (a unit vector), and ``grid``, the tire mask's corner (scope
+    "tires")."""
+    key = str(real)
+    if key not in _FRAME_TYPES:
+        v = ti.types.vector(2, real)
+        _FRAME_TYPES[key] = ti.types.struct(h=real, centre=v, move=v, lead=v, grid=v)
+    return _FRAME_TYPES[key]
+
 
 def next_prime(n: int) -> int:
     """Smallest prime >= n (n small enough for trial division: table sizes are < 1e9)."""
@@ -261,6 +275,7 @@ class World:
         self.stored = store is not None  # active stepping's tile store (below)
         self.real = real
         self.vec3 = ti.types.vector(3, real)
+        self.frame_type = frame_type(real)  # a step's frame inside the kernels (engine/stepdata.py step_frame)
         self.hashed = hash_table > 0
         self.rocks = default_rock_fields(self.hashed, self.stored) if rocks is None else tuple(rocks)
         if self.hashed:
