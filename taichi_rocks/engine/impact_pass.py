@@ -354,47 +354,47 @@ def hit_bodies(w: ti.template(), plan: ti.template(), i, x0, v0, h, frame: ti.te
     pc, end = x0, x1  # the leg's path: body frame of hit_k from the second leg on
     u = v0 * 0.0  # the relative velocity in the body frame of hit_k
     left = h  # s of the step after the leg's start
-    live = 1
-    for leg in range(LEGS + 1):
-        if live != 0:
-            best_k, t_best = -1, r * 0.0 + 2.0
-            point, normal, part, face = x0, x0 * 0.0, -1, 0
-            for k in range(w.n_targets):
-                if (leg == 0 and w.target_vehicle[k] != thrower) or (leg > 0 and k == hit_k):
-                    p0, p1 = pc, end
-                    if leg == 0:
-                        b = base + 1 + POSE_ROWS * k
-                        p0 = _unrot(_row(w, frame, b + H0), x0 - _lift(w, _row(w, frame, b + C0)))
-                        p1 = _unrot(_row(w, frame, b + H1), x1 - _lift(w, _row(w, frame, b + C1)))
-                    if _overlap(ti.min(p0, p1), ti.max(p0, p1), w.target_box[k], r):
-                        hit, t, q, n, pa, fa = _first_contact(w, k, p0, p1, r)
-                        if hit != 0 and t < t_best:
-                            best_k, t_best, point, normal, part, face = k, t, q, n, pa, fa
-            if best_k < 0:
-                live = 0
-            else:
-                t = t_best
-                if leg == 0:  # the body's motion at the contact, the stone's velocity relative to it
-                    hit_k = best_k
-                    b = base + 1 + POSE_ROWS * hit_k
-                    ht = (_row(w, frame, b + H0) * (1.0 - t) + _row(w, frame, b + H1) * t).normalized()
-                    vc = _lift(w, _row(w, frame, b + V0) * (1.0 - t) + _row(w, frame, b + V1) * t)
-                    yaw = _row(w, frame, b + YAW)
-                    vs = surface_velocity(_unrot(ht, vc), yaw[0] * (1.0 - t) + yaw[1] * t, point)
-                    u = _unrot(ht, v0 + t * (v1 - v0)) - vs
-                if leg < LEGS:
-                    un = u.dot(normal)
-                    _record(w, i, hit_k, part, face, point, normal, u, un, r, t_rel + h - left * (1.0 - t), step,
-                            thrower)
-                    u_new, _ = bounce(u, u * 0.0, normal, e, mu)
-                    if ti.static(plan.spin):  # the contact's impulse turns the stone (world axes; engine/tumble.py)
-                        tumble.apply_impulse(w, plan, i, _rot(ht, -r * normal), _rot(ht, u_new - u))
-                    u = u_new
-                    left *= 1.0 - t
-                    pc = point + (r + slop) * normal
-                    end = pc + left * u
-                else:  # the last leg still meets the body: the stone stops there, at rest on it
-                    end = point + (r + slop) * normal
-                    u = u * 0.0
-                    live = 0
-                _write_back(w, i, frame, base + 1 + POSE_ROWS * hit_k, end, u)
+    leg = 0
+    while leg <= LEGS:  # until the stone meets nothing more (a for loop over the legs with an if inside
+        # stops the thread on Vulkan, Taichi 1.7.4 on lavapipe: nothing after it ran)
+        best_k, t_best = -1, r * 0.0 + 2.0
+        point, normal, part, face = x0, x0 * 0.0, -1, 0
+        for k in range(w.n_targets):
+            if (leg == 0 and w.target_vehicle[k] != thrower) or (leg > 0 and k == hit_k):
+                p0, p1 = pc, end
+                if leg == 0:
+                    b = base + 1 + POSE_ROWS * k
+                    p0 = _unrot(_row(w, frame, b + H0), x0 - _lift(w, _row(w, frame, b + C0)))
+                    p1 = _unrot(_row(w, frame, b + H1), x1 - _lift(w, _row(w, frame, b + C1)))
+                if _overlap(ti.min(p0, p1), ti.max(p0, p1), w.target_box[k], r):
+                    hit, t, q, n, pa, fa = _first_contact(w, k, p0, p1, r)
+                    if hit != 0 and t < t_best:
+                        best_k, t_best, point, normal, part, face = k, t, q, n, pa, fa
+        if best_k < 0:
+            leg = LEGS  # nothing hit: no more legs
+        else:
+            t = t_best
+            if leg == 0:  # the body's motion at the contact, the stone's velocity relative to it
+                hit_k = best_k
+                b = base + 1 + POSE_ROWS * hit_k
+                ht = (_row(w, frame, b + H0) * (1.0 - t) + _row(w, frame, b + H1) * t).normalized()
+                vc = _lift(w, _row(w, frame, b + V0) * (1.0 - t) + _row(w, frame, b + V1) * t)
+                yaw = _row(w, frame, b + YAW)
+                vs = surface_velocity(_unrot(ht, vc), yaw[0] * (1.0 - t) + yaw[1] * t, point)
+                u = _unrot(ht, v0 + t * (v1 - v0)) - vs
+            if leg < LEGS:
+                un = u.dot(normal)
+                _record(w, i, hit_k, part, face, point, normal, u, un, r, t_rel + h - left * (1.0 - t), step,
+                        thrower)
+                u_new, _ = bounce(u, u * 0.0, normal, e, mu)
+                if ti.static(plan.spin):  # the contact's impulse turns the stone (world axes; engine/tumble.py)
+                    tumble.apply_impulse(w, plan, i, _rot(ht, -r * normal), _rot(ht, u_new - u))
+                u = u_new
+                left *= 1.0 - t
+                pc = point + (r + slop) * normal
+                end = pc + left * u
+            else:  # the last leg still meets the body: the stone stops there, at rest on it
+                end = point + (r + slop) * normal
+                u = u * 0.0
+            _write_back(w, i, frame, base + 1 + POSE_ROWS * hit_k, end, u)
+        leg += 1
