@@ -1,11 +1,11 @@
 """Small direct drivers of the kernels for tests: a World from explicit rocks and rays."""
 
 
-from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
 
+from taichi_rocks.config.plan import Plan
 from taichi_rocks.engine import hashgrid, rocks, tires
 from taichi_rocks.engine.kernels import READS, Switches
 from taichi_rocks.engine.params import dilation_cells, pack
@@ -38,10 +38,10 @@ def np_segment_sphere(a, b, c, r):
 
 
 def tire_switches(center=True, swept=False, patch=False, ground="bounce", throw="uniform", fenders=False):
-    """The switches of the tire pass (kernels.READS["hash_and_tires"]) as a Plan would give them."""
-    plan = SimpleNamespace(center=center, swept=swept, patch=patch, ground=ground, throw=throw, fenders=fenders,
-                           spin=False, impacts=False)
-    return Switches(plan, READS["hash_and_tires"])
+    """The switches of the tire pass (kernels.READS["hash_and_tires"]) as a Plan would give them, the others off
+    (the Plan's defaults: no optional effect)."""
+    return Switches(Plan(center=center, swept=swept, patch=patch, ground=ground, throw=throw, fenders=fenders),
+                    READS["hash_and_tires"])
 
 
 def canonical(k: int, least: int = 64) -> int:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from . import models
 from .effects import effects_on
 
 
@@ -11,24 +12,29 @@ from .effects import effects_on
 class Plan:
     """Decided once from the scene. Only launched rocks ever leave the ground, so flight runs only with
     splashing tires; the hash table exists only if a tire queries it. The kernels read these switches at
-    compile time (each kernel the ones it needs: engine/kernels.py, Switches)."""
+    compile time (each kernel the ones it needs: engine/kernels.py, Switches).
 
-    splash: bool  # hash build + tire pass
-    flight: bool
-    recycle: bool
-    center: bool  # centre insert (else AABB)
-    scope_all: bool  # hash every rock (else only those near a tire's query region)
-    swept: bool  # a swept query box, no ray cells ("swept" and "patch" detection)
-    patch: bool  # the tread's swept footprint counts ("patch" detection)
-    throw: str  # launch model: "tread" | "uniform"
-    fenders: bool  # fender and mud-flap test (tread model)
-    substeps: int
-    reorder_every: int
-    integrator: str
-    gravity: bool
-    drag: str
-    ground: str
-    cell_size: float
+    Each field's default is its "off": no pass runs, no optional effect, the settings at the scene format's
+    defaults (config/models.py). ``Plan(**switches)`` is the plan of a probe or a test that runs one kernel
+    with the switches it chooses (engine/probes.py, tests/harness.py): a switch added here, or an effect's,
+    is off there without a word."""
+
+    splash: bool = False  # hash build + tire pass
+    flight: bool = False
+    recycle: bool = False
+    center: bool = models.Hash.model_fields["insert"].default == "center"  # centre insert (else AABB)
+    scope_all: bool = False  # hash every rock (else only those near a tire's query region)
+    swept: bool = False  # a swept query box, no ray cells ("swept" and "patch" detection)
+    patch: bool = False  # the tread's swept footprint counts ("patch" detection)
+    throw: str = models.Launch.model_fields["model"].default  # launch model: "tread" | "uniform"
+    fenders: bool = False  # fender and mud-flap test (tread model)
+    substeps: int = 1
+    reorder_every: int = 0
+    integrator: str = models.Sim.model_fields["integrator"].default
+    gravity: bool = False
+    drag: str = models.Effects.model_fields["drag"].default
+    ground: str = models.Effects.model_fields["ground"].default
+    cell_size: float = 0.0
     active: bool = False  # activity-proportional stepping: resting rocks in ground tiles (engine/active.py)
     impacts: bool = False  # flying rocks against the vehicles' bodies (engine/impact_pass.py); see impacts_on
     targets: tuple = ()  # with impacts: the vehicles (scene indices) whose bodies stones hit

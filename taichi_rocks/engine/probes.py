@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import contextlib
 import time
-from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
 import taichi as ti
 
+from ..config.plan import Plan
 from . import active, hashgrid, stepdata, tires
 from .kernels import READS, Switches, rock_pass
 from .world import FLYING, RAY_FIELDS, RESTING, SLIDING, IPar
@@ -61,10 +61,8 @@ def _pass_args(sim) -> tuple:
 
 def _switches(flight, recycle, count, center, integrator, gravity, drag, ground) -> Switches:
     """rock_pass's switches: which parts run (``count``: the hash count, the plan's ``splash``)."""
-    return Switches(SimpleNamespace(splash=count, flight=flight, recycle=recycle, center=center,
-                                    integrator=integrator, gravity=gravity, drag=drag, ground=ground, impacts=False,
-                                    spin=False),
-                    READS["rock_pass"])
+    return Switches(Plan(splash=count, flight=flight, recycle=recycle, center=center, integrator=integrator,
+                         gravity=gravity, drag=drag, ground=ground), READS["rock_pass"])  # the rest off (Plan)
 
 
 def rock_pass_call(sim, *, flight: bool = False, recycle: bool = False, count: bool = False, integrator=None,

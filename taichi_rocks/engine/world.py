@@ -12,7 +12,6 @@ import math
 import os
 import warnings
 from dataclasses import dataclass
-from types import SimpleNamespace
 from typing import Optional
 
 import numpy as np
@@ -20,6 +19,7 @@ import taichi as ti
 from taichi.lang.field import Field
 from taichi.lang.matrix import MatrixField
 
+from ..config.plan import Plan
 from .events import N_INT, N_REAL, EventBuffer
 from .transfer import entries, entry_index, most_entries
 from .trees import FieldTrees, Pool  # noqa: F401 - FieldTrees also imported from here
@@ -258,7 +258,7 @@ def _distinct_kinds(rocks) -> list:
 def default_rock_fields(hashed: bool, stored: bool) -> tuple:
     """The rock fields of a World built without an explicit list: those of its mode, "splash" ones if hashed,
     no "spin" or "impacts" ones."""
-    return present(SimpleNamespace(splash=hashed, spin=False, impacts=False), "active" if stored else "full")
+    return present(Plan(splash=hashed), "active" if stored else "full")
 
 
 @ti.data_oriented
