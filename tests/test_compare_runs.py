@@ -1,0 +1,61 @@
+"""tools/compare_runs.py, the frame-by-frame comparison of two runs (CPU against CUDA on a GPU machine): known
+answers on small synthetic runs, and its exit statuses from the command line."""
+
+import importlib.util
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cli_util import ROOT
+
+spec = importlib.util.spec_from_file_location("compare_runs", ROOT / "tools" / "compare_runs.py")
+compare_runs = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(compare_runs)
+
+
+def _run(frames=6, rocks=50, seed=0):
+    rng = np.random.default_rng(seed)
+    pos = np.cumsum(rng.normal(0, 0.1, (frames, rocks, 3)), axis=0) + 10.0
+    return {"positions": pos, "phase": np.zeros((frames, rocks), np.int8), "launches": np.arange(frames),
+            "time": np.arange(frames) / 60.0, "dt": np.float64(1 / 240)}
+
+
+def test_identical_runs_agree():
+    a = _run()
+    res = compare_runs.compare(a, {k: np.copy(v) for k, v in a.items()})
+    assert res["same"] and res["first"] is None
+    assert all(r["beyond_tol"] == r["over_1m"] == r["phase"] == 0 for r in res["frames"])
+
+
+def test_round_off_is_allowed_and_a_moved_rock_is_found():
+    a = _run()
+    b = {k: np.copy(v) for k, v in a.items()}
+    b["positions"] = b["positions"] + 1e-7  # far under one ulp a step of a 10 m coordinate over 20 steps
+    assert compare_runs.compare(a, b)["same"]
+    b["positions"][3:, 7] += [0.0, 2.0, 0.0]  # rock 7 elsewhere from frame 3 on
+    b["phase"][4, 9] = 1
+    res = compare_runs.compare(a, b)
+    assert not res["same"] and res["first"]["frame"] == 3 and [r[0] for r in res["first"]["rocks"]] == [7]
+    assert [r["over_1m"] for r in res["frames"]] == [0, 0, 0, 1, 1, 1]
+    assert [r["phase"] for r in res["frames"]] == [0, 0, 0, 0, 1, 0]
+    assert "first frame where they part: 3" in compare_runs.report(res, 1)
+
+
+def test_other_frames_are_refused():
+    a = _run()
+    with pytest.raises(ValueError):
+        compare_runs.compare(a, _run(frames=5))
+
+
+def test_the_command_says_whether_runs_agree(tmp_path):
+    a, b = _run(), _run()
+    b["positions"][2, 0] += 5.0
+    for name, run in (("a", a), ("b", b)):
+        np.savez(tmp_path / f"{name}.npz", **run)
+    tool = [sys.executable, str(ROOT / "tools" / "compare_runs.py")]
+    same = subprocess.run(tool + [str(tmp_path / "a.npz"), str(tmp_path / "a.npz")], capture_output=True, text=True)
+    assert same.returncode == 0 and "agree to round-off" in same.stdout
+    differ = subprocess.run(tool + [str(tmp_path / "a.npz"), str(tmp_path / "b.npz")], capture_output=True, text=True)
+    assert differ.returncode == 1 and "first frame where they part: 2" in differ.stdout
