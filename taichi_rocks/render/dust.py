@@ -1,25 +1,45 @@
-"""Dust ([effects] dust; config/effects/dust.py DRAWS) drawn as soft, translucent GGUI particles.
+"""Dust ([effects] dust; config/effects/dust.py DRAWS) drawn as soft, translucent puffs.
 
-GGUI's particles have no alpha, so translucency is approximated: each particle's colour is the dust colour
-blended by its opacity alpha towards what lies behind it, taken as the mean of the horizon's haze and the
-ground's colour (c = alpha c_dust + (1 - alpha) c_behind: a thin veil over a road seen from a vehicle), and its radius shrinks as it fades (r = size (0.4 + 0.6 alpha)); particles
-below ``MIN_ALPHA`` are not drawn. The buffers grow to the pool's capacity on first use.
+A particle of the dust model stands for a parcel of fines that turbulent diffusion spreads: it is drawn as a
+puff of radius ``R = size + sqrt(2 K age)`` (K the [dust] ``diffusion``, the random walk's spread; the age
+follows from the opacity, alpha = opacity exp(-age / fade)) whose opacity falls smoothly from its centre to
+its rim, a(s) = alpha_p (1 - s^2)^2 (s = distance / R), with alpha_p = ``PUFF`` alpha: the cloud's look comes from
+many overlapping puffs. Puffs are depth-tested against the resting rocks (the splat's depth buffer) as soft
+particles (Lorach 2007, "Soft Particles", NVIDIA): a puff is a ball of depths [z - R, z + R], and a pixel shows
+the fraction of it in front of the rock there, so a puff on the road is cut by it smoothly, not by a line;
+against the vehicles, by the boxes of their bodies: a puff behind a vehicle is hidden where the vehicle is drawn.
+
+Offscreen (``render``) the puffs are composited over the finished frame (:class:`SoftDust`): each covered pixel
+sums the optical depth -ln(1 - a) of the puffs over it, in fixed point (integer sums: the same frame whatever
+the order of the threads), twice (over the background, and over what GGUI draws, which has no depth), then
+takes c = c T + c_dust (1 - T), T = exp(-sum). The order of the puffs does not
+matter, since they all have one colour. In a shown window (``view``) GGUI draws the frame on the screen, so there
+is no finished frame to composite over: the dust is GGUI particles there (:class:`DustLayer`), each coloured
+towards what lies behind it by its opacity (GGUI's particles have no alpha) and smaller as it fades.
 """
+
+import math
 
 import numpy as np
 import taichi as ti
 
 from ..engine.trees import FieldTrees
 from .camera import to_gl
-from .looks import GROUND_A, GROUND_B, rgb
+from .kernels import empty_key
+from .looks import GROUND_A, GROUND_B, KEY, rgb
 
-__all__ = ["DustLayer", "draw_dust", "dust_looks"]
+__all__ = ["DustLayer", "SoftDust", "draw_dust", "dust_looks", "puffs", "soft_dust"]
 
-MIN_ALPHA = 0.03
+MIN_ALPHA = 0.03  # puffs fainter than this are not drawn
+PUFF = 0.15  # a puff's opacity at its centre, per unit of the particle's opacity
+MAX_PX = 48  # the largest radius a puff is drawn with, pixels (nearer puffs are drawn this large)
+TAU_ONE = 1 << 16  # fixed point of the summed optical depth
 
 
 def dust_looks(opacity, table, haze) -> tuple:
-    """(colours (K, 3) f32, radii (K,) f32) of particles of ``opacity`` (see the module docstring)."""
+    """The window's GGUI particles: (colours (K, 3) f32, radii (K,) f32) of particles of ``opacity``: the colour
+    blended by opacity towards what lies behind, taken as the mean of the haze and the ground's colour, the
+    radius r = size (0.4 + 0.6 alpha)."""
     a = np.asarray(opacity, np.float32)[:, None]
     behind = (np.asarray(haze, np.float32) + 0.5 * (np.asarray(GROUND_A, np.float32) + GROUND_B)) / 2.0
     col = a * np.asarray(rgb(table.color), np.float32) + (1.0 - a) * behind
@@ -27,8 +47,169 @@ def dust_looks(opacity, table, haze) -> tuple:
     return col.astype(np.float32), rad.astype(np.float32)
 
 
+def puff_radius(opacity, table) -> np.ndarray:
+    """Drawn radius (m) of particles of ``opacity``: size + sqrt(2 K age), age = fade ln(opacity0 / alpha)."""
+    a = np.clip(np.asarray(opacity, np.float64), 1e-6, None)
+    age = float(table.fade) * np.maximum(np.log(float(table.opacity) / a), 0.0)
+    return float(table.size) + np.sqrt(2.0 * float(table.diffusion) * age)
+
+
+def _hidden_by_boxes(eye, d, dist, boxes) -> np.ndarray:
+    """(K,) bool: does the segment eye -> eye + d dist (d unit rows) cross one of ``boxes`` (centre xy, heading,
+    half length, half width, bottom z, top z; local frame) before its end? A box holding the eye (the cabin one
+    rides in) hides nothing."""
+    hidden = np.zeros(len(d), bool)
+    for cx, cy, heading, hl, hw, z0, z1 in boxes:
+        c, s = math.cos(heading), math.sin(heading)
+        ex, ey = eye[0] - cx, eye[1] - cy
+        o = np.array([c * ex + s * ey, -s * ex + c * ey, eye[2]])  # the eye in the box's frame
+        lo, hi = np.array([-hl, -hw, z0]), np.array([hl, hw, z1])
+        if np.all(o >= lo) and np.all(o <= hi):
+            continue
+        u = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]], axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (lo - o) / u, (hi - o) / u
+        near = np.nanmax(np.where(np.isnan(t0), -np.inf, np.minimum(t0, t1)), axis=1)
+        far = np.nanmin(np.where(np.isnan(t0), np.inf, np.maximum(t0, t1)), axis=1)
+        hidden |= (near <= far) & (far > 0.0) & (near < dist)
+    return hidden
+
+
+def puffs(local, opacity, table, eye, fwd, right, up, lens, resolution, boxes=()) -> tuple:
+    """The puffs in view: (rows (k, 4) f32 of x, y (pixels, y up), radius (pixels), depth (m, along ``fwd``);
+    their centre opacity (k,) f32; their radius (k,) f32, m; hidden (k,) i32, 1 where a vehicle's box lies
+    between the eye and the puff).
+    ``local``: the particles' positions in the renderer's local frame; ``lens``: render/camera.py Lens."""
+    W, H = resolution
+    local = np.asarray(local, np.float64).reshape(-1, 3)
+    alpha = PUFF * np.asarray(opacity, np.float64).reshape(-1)
+    d = local - np.asarray(eye, np.float64)
+    z = d @ np.asarray(fwd, np.float64)
+    R = puff_radius(opacity, table)
+    zz = np.maximum(z, 1e-3)
+    pr = R * lens.px_per_rad / zz
+    x = (d @ np.asarray(right, np.float64) / (zz * lens.tan_x) + 1.0) * 0.5 * W
+    y = (d @ np.asarray(up, np.float64) / (zz * lens.tan_y) + 1.0) * 0.5 * H
+    pr_drawn = np.minimum(pr, MAX_PX)
+    keep = (alpha >= PUFF * MIN_ALPHA) & (z > R) & (pr_drawn >= 0.5) & (x > -pr_drawn) & (x < W + pr_drawn) & \
+        (y > -pr_drawn) & (y < H + pr_drawn)
+    idx = np.flatnonzero(keep)
+    dist = np.linalg.norm(d[idx], axis=1)
+    hidden = _hidden_by_boxes(np.asarray(eye, np.float64), d[idx] / np.maximum(dist, 1e-9)[:, None], dist, boxes)
+    rows = np.stack([x[idx], y[idx], pr_drawn[idx], z[idx]], axis=1).astype(np.float32)
+    return rows, alpha[idx].astype(np.float32), R[idx].astype(np.float32), hidden.astype(np.int32)
+
+
+def vehicle_boxes(sim, poses, origin, ground_z) -> list:
+    """Each vehicle's body as a box in the local frame: (centre x, y, heading, half length, half width, bottom z,
+    top z)."""
+    out = []
+    for spec, pose in zip(sim.scene.vehicles, poses):
+        p = np.asarray(pose.position, np.float64) - np.asarray(origin, np.float64)
+        out.append((p[0], p[1], float(pose.heading), spec.length / 2, spec.width / 2, ground_z - origin[2],
+                    ground_z - origin[2] + spec.height))
+    return out
+
+
+@ti.func
+def _is_key(raw: ti.template(), i, j):
+    """Did GGUI leave pixel (i, j) of its read-back at the clear colour (nothing of the 3D layer there)?"""
+    r = ti.cast(raw[i, j, 0] * 255.0 + 0.5, ti.i32)
+    g = ti.cast(raw[i, j, 1] * 255.0 + 0.5, ti.i32)
+    b = ti.cast(raw[i, j, 2] * 255.0 + 0.5, ti.i32)
+    return r == KEY[0] and g == KEY[1] and b == KEY[2]
+
+
+@ti.kernel
+def _splat(tau: ti.template(), rows: ti.types.ndarray(dtype=ti.math.vec4, ndim=1),
+           alpha: ti.types.ndarray(dtype=ti.f32, ndim=1), reach: ti.types.ndarray(dtype=ti.f32, ndim=1),
+           hidden: ti.types.ndarray(dtype=ti.i32, ndim=1), zbuf: ti.template(), use_z: ti.template()):
+    """Each puff's optical depth into the pixels it covers, twice: over the background (``tau[i, j][0]``: the
+    part of the puff in front of the resting rock there, soft) and over what GGUI draws (``[1]``: unless a
+    vehicle hides the puff). One flat loop over (puff, pixel of its square), no inner loop; integer sums (the
+    same result in any order). Runs between the rock pass and the ground pass, which clears the depths."""
+    W, H = tau.shape
+    S = 2 * MAX_PX + 1
+    for k, q in ti.ndrange(rows.shape[0], S * S):
+        p = rows[k]
+        ii = ti.cast(ti.floor(p[0]), ti.i32) + q % S - MAX_PX
+        jj = ti.cast(ti.floor(p[1]), ti.i32) + q // S - MAX_PX
+        if 0 <= ii < W and 0 <= jj < H:
+            dx, dy = ii + 0.5 - p[0], jj + 0.5 - p[1]
+            s2 = (dx * dx + dy * dy) / (p[2] * p[2])
+            if s2 < 1.0:
+                a = ti.min(alpha[k] * (1.0 - s2) * (1.0 - s2), 0.99)
+                front = 1.0
+                if ti.static(use_z):
+                    key = zbuf[ii, jj]
+                    if key != empty_key():
+                        near = ti.bit_cast(ti.cast(key >> 24, ti.i32), ti.f32)
+                        front = ti.min(ti.max((near - p[3] + reach[k]) / (2.0 * reach[k]), 0.0), 1.0)
+                if front > 0.0:
+                    ti.atomic_add(tau[ii, jj][0], ti.cast(-ti.log(1.0 - a * front) * TAU_ONE + 0.5, ti.i32))
+                if hidden[k] == 0:
+                    ti.atomic_add(tau[ii, jj][1], ti.cast(-ti.log(1.0 - a) * TAU_ONE + 0.5, ti.i32))
+
+
+@ti.kernel
+def _blend(tau: ti.template(), out: ti.types.ndarray(dtype=ti.u8, ndim=3), raw: ti.types.ndarray(dtype=ti.f32, ndim=3),
+           color: ti.math.vec3):
+    """c = c T + c_dust (1 - T), T = exp(-sum), on every pixel a puff covered (the background's sum where GGUI
+    left its clear colour, else the 3D layer's); the sums cleared."""
+    H = out.shape[0]
+    for i, j in tau:
+        t = tau[i, j][1]
+        if _is_key(raw, i, j):
+            t = tau[i, j][0]
+        if t > 0:
+            T = ti.exp(-ti.cast(t, ti.f32) / TAU_ONE)
+            for c in ti.static(range(3)):
+                v = ti.cast(out[H - 1 - j, i, c], ti.f32) * T + color[c] * 255.0 * (1.0 - T)
+                out[H - 1 - j, i, c] = ti.cast(ti.min(v + 0.5, 255.0), ti.u8)
+        tau[i, j] = ti.Vector([0, 0])
+
+
+class SoftDust:
+    """The offscreen frame's dust: the sums of one resolution (module docstring). :meth:`splat` after the rock
+    pass (it reads the rocks' depths), :meth:`blend` over the finished frame."""
+
+    def __init__(self, width: int, height: int):
+        self._trees = FieldTrees(owner=self)
+        self.tau = self._trees.image(width, height, (2, ti.i32))
+        self.tau.fill(0)
+        self.pending = False
+
+    def splat(self, buf, sim, settings, views, view, poses, origin) -> int:
+        """Sum ``sim``'s puffs into the pixels (``buf``: the background layer's buffers, its depths still in
+        place); return the puffs."""
+        d = sim.effect_arrays().get("dust")
+        if d is None or not len(d["opacity"]):
+            return 0
+        eye, _, fwd, right, up = view[:5]
+        boxes = vehicle_boxes(sim, poses, origin, views.ground_z)
+        rows, alpha, reach, hidden = puffs(to_gl(d["positions"], origin), d["opacity"], sim.scene.dust, eye, fwd,
+                                           right, up, views, settings.resolution, boxes)
+        if len(rows):
+            _splat(self.tau, rows, alpha, reach, hidden, buf.zbuf, buf.splat)
+            self.pending = True
+        return len(rows)
+
+    def blend(self, out, raw, sim) -> None:
+        """The summed puffs over the finished frame ``out`` ((H, W, 3) uint8; ``raw`` GGUI's read-back)."""
+        if self.pending:
+            _blend(self.tau, out, raw, ti.math.vec3(*rgb(sim.scene.dust.color)))
+            self.pending = False
+
+
+def soft_dust(layer, sim, settings):
+    """The offscreen renderer's dust layer (None without [effects] dust; made on first use)."""
+    if "dust" not in sim.plan.effects:
+        return None
+    return layer if layer is not None else SoftDust(*settings.resolution)
+
+
 class DustLayer:
-    """The GGUI buffers of one renderer's dust."""
+    """The GGUI buffers of one window's dust (module docstring)."""
 
     def __init__(self, capacity: int):
         self.capacity = int(capacity)
@@ -62,8 +243,8 @@ class DustLayer:
 
 
 def draw_dust(layer, scene, sim, origin, haze):
-    """The renderer's one call: draw ``sim``'s dust (nothing without [effects] dust) into the GGUI ``scene``
-    with ``layer`` (None: made on first use); return the layer for the next frame."""
+    """The window's one call: draw ``sim``'s dust (nothing without [effects] dust) into the GGUI ``scene`` with
+    ``layer`` (None: made on first use); return the layer for the next frame."""
     if "dust" not in sim.plan.effects:
         return layer
     if layer is None:

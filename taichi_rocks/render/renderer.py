@@ -55,7 +55,7 @@ from . import kernels as K
 from .buffers import POOL, lease_frame
 from .camera import GL_UP, NEAR, View
 from .culling import RockLayer
-from .dust import draw_dust
+from .dust import draw_dust, soft_dust
 from .looks import AMBIENT, KEY, SUN_COLOR
 from .settings import (DEFAULT_LOD_PIXELS, ROCK_MODES, SHOTS, WINDOW_EVERY, Settings, Views, camera_basis,
                        check_rocks)
@@ -135,7 +135,8 @@ class Renderer:
         self.hits = self.vehicles.hits  # the impacts' flashes and windscreen marks (render/hits.py)
         self.inside = None  # the vehicle whose cabin the camera looks out of this frame
         self._overlays = self.fields.overlays
-        self._dust = None  # the dust layer (render/dust.py), made on the first frame with dust
+        self._dust = None  # the dust's puffs over an offscreen frame (render/dust.py), made on the first with dust
+        self._dust_gl = None  # the dust's GGUI particles in a shown window
         self._overlays.flags = s.flags
         self._raw = None
         self._win = HiddenWindow(s.resolution) if target is None else target
@@ -220,6 +221,11 @@ class Renderer:
         t2 = time.perf_counter()
 
         poses = sim.vehicle_poses()
+        if not self._win.shown:  # the dust's puffs, summed while the rocks' depths are there (render/dust.py)
+            self._dust = soft_dust(self._dust, sim, self.settings)
+            if self._dust is not None:
+                self._dust.splat(self.fields.buf, sim, self.settings, self.views, (eye, target, fwd, right, up),
+                                 poses, origin)
         self.hits.update(sim)
         paint_sky_and_ground(self.fields.buf, camera_basis(eye, fwd, right, up),
                              self.views.frustum(self.settings.draw_distance), self.settings, self.views.ground_z,
@@ -242,6 +248,8 @@ class Renderer:
             self.redraws += 1
             drawn = self._draw_ggui(eye, target, sd, origin, poses)
         self._prev_drawn = drawn
+        if self._dust is not None:
+            self._dust.blend(self._out, self._raw, sim)
         self.frames_drawn += 1
         every = self.settings.window_every
         if every > 0 and self.frames_drawn % every == 0:
@@ -282,7 +290,8 @@ class Renderer:
         w, h = self.settings.resolution
         self.hits.draw(scene, poses, origin, eye, self.views.px_per_rad, h / w, self.inside, sd)
         self._overlays.draw(scene, self.sim, origin, self.views.ground_z)
-        self._dust = draw_dust(self._dust, scene, self.sim, origin, self.settings.horizon)  # render/dust.py
+        if win.shown:  # offscreen, the dust is composited over the finished frame (render_frame)
+            self._dust_gl = draw_dust(self._dust_gl, scene, self.sim, origin, self.settings.horizon)
         win.canvas.scene(scene)
         return win
 

@@ -1,11 +1,17 @@
-"""Dust's drawing (render/dust.py): the translucency's colour and radius laws against NumPy, nothing made
-without dust, and a frame of a run with dust that differs from the same frame without it only by the dust."""
+"""Dust's drawing (render/dust.py): the window's particles' colour and radius laws against NumPy; the offscreen
+puffs: their projection, radius law and vehicle occlusion against known answers, their compositing against a
+NumPy reference (soft depth test, the 3D layer's pixels, order independence); nothing made without dust, and a
+frame of a run with dust that differs from the same frame without it only by the dust."""
 
 import numpy as np
 
 from scenes_util import scene
 from taichi_rocks.config.effects.dust import Dust
 from taichi_rocks.engine.simulation import Simulation
+import taichi as ti
+
+from taichi_rocks.render import dust as D
+from taichi_rocks.render.camera import Lens
 from taichi_rocks.render.dust import MIN_ALPHA, draw_dust, dust_looks
 from taichi_rocks.render.looks import GROUND_A, GROUND_B
 from taichi_rocks.render.renderer import Renderer
@@ -50,3 +56,86 @@ def test_a_frame_with_dust_shows_it():
     changed = np.any(off != on, axis=2)
     assert changed.mean() > 0.01  # the dust covers some of the frame
     assert changed[: H // 4].mean() < changed[H // 4:].mean()  # low, behind the car: not the sky at the top
+
+
+LENS = Lens.of(60.0, W, H)
+FWD, RIGHT, UP = np.array([1.0, 0, 0]), np.array([0, -1.0, 0]), np.array([0, 0, 1.0])  # looking along +x
+
+
+def test_a_puff_projects_where_the_camera_sees_it_and_grows_with_its_age():
+    t = Dust(size=0.1, diffusion=0.5, fade=2.0, opacity=0.8)
+    eye = np.zeros(3)
+    ages = np.array([0.0, 1.0, 3.0])
+    alpha = 0.8 * np.exp(-ages / 2.0)
+    np.testing.assert_allclose(D.puff_radius(alpha, t), 0.1 + np.sqrt(2 * 0.5 * ages), rtol=1e-6)
+    local = np.array([[10.0, 0.0, 0.0], [20.0, -2.0, 1.0], [-5.0, 0.0, 0.0]])  # ahead, ahead right-up, behind
+    rows, a, reach, hidden = D.puffs(local, alpha, t, eye, FWD, RIGHT, UP, LENS, (W, H))
+    assert len(rows) == 2 and not hidden.any()  # the one behind the eye is not drawn
+    np.testing.assert_allclose(rows[0, :2], [W / 2, H / 2], atol=1e-4)
+    np.testing.assert_allclose(rows[0, 2:], [0.1 * LENS.px_per_rad / 10.0, 10.0], rtol=1e-5)
+    np.testing.assert_allclose(rows[1, :2], [W / 2 + 2 * LENS.px_per_rad / 20, H / 2 + LENS.px_per_rad / 20],
+                               rtol=1e-5)
+    np.testing.assert_allclose(a, D.PUFF * alpha[:2], rtol=1e-6)
+    np.testing.assert_allclose(reach, D.puff_radius(alpha[:2], t), rtol=1e-6)
+
+
+def test_a_vehicle_between_the_eye_and_a_puff_hides_it():
+    eye = np.array([0.0, 0.0, 1.0])
+    box = (5.0, 0.0, 0.3, 2.0, 1.0, 0.0, 1.5)  # centre x, y, heading, half length, half width, bottom, top
+    d = np.array([[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]])
+    hidden = D._hidden_by_boxes(eye, d, np.array([10.0, 2.0, 10.0]), [box])
+    assert hidden.tolist() == [True, False, False]  # behind the box; in front of it; beside it
+    inside = (0.0, 0.0, 0.0, 2.0, 1.0, 0.0, 1.5)  # the cabin the eye sits in hides nothing
+    assert not D._hidden_by_boxes(eye, d, np.array([10.0, 2.0, 10.0]), [inside]).any()
+
+
+def _numpy_dust(rows, alpha, reach, hidden, near, key, out, color):
+    """The compositing of render/dust.py in NumPy: optical depths summed per pixel (background: the soft
+    fraction in front of ``near``; the 3D layer (``key`` False): unless hidden), then c T + c_dust (1 - T)."""
+    tau = np.zeros((2, W, H))
+    ii, jj = np.meshgrid(np.arange(W), np.arange(H), indexing="ij")
+    for (x, y, pr, z), a0, r, hid in zip(rows, alpha, reach, hidden):
+        s2 = ((ii + 0.5 - x) ** 2 + (jj + 0.5 - y) ** 2) / pr ** 2
+        a = np.where(s2 < 1, np.minimum(a0 * (1 - s2) ** 2, 0.99), 0.0)
+        front = np.clip((near - z + r) / (2 * r), 0.0, 1.0)
+        tau[0] += -np.log(1 - a * front)
+        tau[1] += 0.0 if hid else -np.log(1 - a)
+    t = np.where(key, tau[0], tau[1]).T[::-1]  # (H, W), row 0 at the top
+    T = np.exp(-t)[..., None]
+    return out * T + np.asarray(color) * 255.0 * (1 - T)
+
+
+def test_compositing_matches_numpy_and_ignores_the_order_of_the_puffs():
+    from taichi_rocks.engine.trees import FieldTrees
+
+    rng = np.random.default_rng(3)
+    k = 40
+    rows = np.stack([rng.uniform(-5, W + 5, k), rng.uniform(-5, H + 5, k), rng.uniform(1, 30, k),
+                     rng.uniform(2, 20, k)], axis=1).astype(np.float32)
+    alpha, reach = rng.uniform(0, 0.4, k).astype(np.float32), rng.uniform(0.2, 2, k).astype(np.float32)
+    hidden = (rng.uniform(size=k) < 0.3).astype(np.int32)
+    near = rng.uniform(1, 25, (W, H)).astype(np.float32)  # a rock's depth at each pixel
+    near[: W // 3] = np.inf  # no rock: the sky
+    key = rng.uniform(size=(W, H)) < 0.8  # where GGUI drew nothing
+    raw = np.where(key[..., None], np.array([*D.KEY, 255]) / 255.0, 0.2).astype(np.float32)
+    out0 = rng.integers(0, 256, (H, W, 3)).astype(np.uint8)
+    color = (0.55, 0.48, 0.38)
+
+    class Buf:
+        splat = True
+    trees = FieldTrees(owner=Buf)
+    Buf.zbuf = trees.image(W, H, (1, ti.i64))
+    bits = near.astype(np.float32).view(np.int32).astype(np.int64) << 24
+    Buf.zbuf.from_numpy(np.where(np.isinf(near), np.int64(0x7FFFFFFF) << 32, bits))
+    layer = D.SoftDust(W, H)
+    images = []
+    for order in (np.arange(k), rng.permutation(k)):
+        out = out0.copy()
+        D._splat(layer.tau, rows[order], alpha[order], reach[order], hidden[order], Buf.zbuf, True)
+        D._blend(layer.tau, out, raw, ti.math.vec3(*color))
+        images.append(out)
+    assert np.array_equal(images[0], images[1])  # integer sums: the same frame in any order
+    want = _numpy_dust(rows, alpha, reach, hidden, near, key, out0.astype(np.float64), color)
+    assert np.abs(images[0].astype(np.float64) - want).max() <= 1.0  # one step of rounding
+    assert np.count_nonzero(images[0] != out0) > 0.1 * out0.size
+    assert not layer.tau.to_numpy().any()  # cleared for the next frame

@@ -53,7 +53,7 @@ FIELDS = (("dust_pos", "real", 3), ("dust_vel", "real", 3), ("dust_wake", "real"
 PARAMS = ("carry", "lift", "wake_time", "wind", "diffusion", "diameter", "density", "fade", "life", "opacity",
           "spread", "height")  # and on the host: rate, lift_speed (the emission), step, capacity
 HOOK = "after_step"
-DRAWS = "render/dust.py: translucent particles, the colour blended towards the sky by opacity, smaller as they fade"
+DRAWS = "render/dust.py: soft translucent puffs composited over the frame, growing as the fines spread"
 EXPORTS = ("dust",)  # frame["dust"] = {"positions": (K, 3) world m, "opacity": (K,)}: output/dust.py
 
 
@@ -79,7 +79,8 @@ class Dust(_Table):
     height: Float = _f(0.4, "m, height of the emission box", ge=0)
     step: Float = _f(1.0 / 60.0, "s, the dust's own time step: it moves once the simulation's steps since its last "
                                  "move add up to this (0: every step); its motion is exact for any step", ge=0, le=1)
-    size: Float = _f(0.04, "m, drawn radius of a fresh particle (drawing only)", gt=0)
+    size: Float = _f(0.04, "m, drawn radius of a fresh particle; it grows as sqrt(2 diffusion age) (drawing only)",
+                     gt=0)
     color: Color = _f((0.55, 0.48, 0.38), 'RGB in [0, 1], or "#rrggbb" (drawing only)')
 
 
