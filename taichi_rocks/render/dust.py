@@ -10,9 +10,9 @@ the fraction of it in front of the rock there, so a puff on the road is cut by i
 against the vehicles, by the boxes of their bodies: a puff behind a vehicle is hidden where the vehicle is drawn.
 
 Offscreen (``render``) the puffs are composited over the finished frame (:class:`SoftDust`): each covered pixel
-sums the optical depth -ln(1 - a) of the puffs over it, in fixed point (integer sums: the same frame whatever
+of an image at half the frame's resolution sums the optical depth -ln(1 - a) of the puffs over it, in fixed point (integer sums: the same frame whatever
 the order of the threads), twice (over the background, and over what GGUI draws, which has no depth), then
-takes c = c T + c_dust (1 - T), T = exp(-sum). The order of the puffs does not
+takes c = c T + c_dust (1 - T), T = exp(-sum) interpolated bilinearly to the frame's pixels. The order of the puffs does not
 matter, since they all have one colour. In a shown window (``view``) GGUI draws the frame on the screen, so there
 is no finished frame to composite over: the dust is GGUI particles there (:class:`DustLayer`), each coloured
 towards what lies behind it by its opacity (GGUI's particles have no alpha) and smaller as it fades.
@@ -120,28 +120,41 @@ def _is_key(raw: ti.template(), i, j):
     return r == KEY[0] and g == KEY[1] and b == KEY[2]
 
 
+SQUARES = (4, 8, 16, 32, MAX_PX)  # the half sides of the squares puffs are drawn in, by their radius (pixels)
+
+
+def _by_square(rows: np.ndarray) -> list:
+    """The puffs' indices grouped by the smallest square of :data:`SQUARES` that holds each one's disc (its radius
+    plus the pixel its centre falls in), with that square's half side."""
+    need = np.ceil(rows[:, 2]).astype(np.int64) + 1
+    side = np.searchsorted(np.asarray(SQUARES), np.minimum(need, MAX_PX))
+    return [(half, np.flatnonzero(side == s)) for s, half in enumerate(SQUARES) if np.any(side == s)]
+
+
 @ti.kernel
 def _splat(tau: ti.template(), rows: ti.types.ndarray(dtype=ti.math.vec4, ndim=1),
            alpha: ti.types.ndarray(dtype=ti.f32, ndim=1), reach: ti.types.ndarray(dtype=ti.f32, ndim=1),
-           hidden: ti.types.ndarray(dtype=ti.i32, ndim=1), zbuf: ti.template(), use_z: ti.template()):
+           hidden: ti.types.ndarray(dtype=ti.i32, ndim=1), zbuf: ti.template(), use_z: ti.template(),
+           half: ti.template()):
     """Each puff's optical depth into the pixels it covers, twice: over the background (``tau[i, j][0]``: the
     part of the puff in front of the resting rock there, soft) and over what GGUI draws (``[1]``: unless a
-    vehicle hides the puff). One flat loop over (puff, pixel of its square), no inner loop; integer sums (the
-    same result in any order). Runs between the rock pass and the ground pass, which clears the depths."""
+    vehicle hides the puff). One flat loop over (puff, pixel of its square of half side ``half``), no inner
+    loop; integer sums (the same result in any order). Runs between the rock pass and the ground pass, which
+    clears the depths."""
     W, H = tau.shape
-    S = 2 * MAX_PX + 1
+    S = 2 * half + 1
     for k, q in ti.ndrange(rows.shape[0], S * S):
         p = rows[k]
-        ii = ti.cast(ti.floor(p[0]), ti.i32) + q % S - MAX_PX
-        jj = ti.cast(ti.floor(p[1]), ti.i32) + q // S - MAX_PX
+        ii = ti.cast(ti.floor(p[0]), ti.i32) + q % S - half
+        jj = ti.cast(ti.floor(p[1]), ti.i32) + q // S - half
         if 0 <= ii < W and 0 <= jj < H:
             dx, dy = ii + 0.5 - p[0], jj + 0.5 - p[1]
             s2 = (dx * dx + dy * dy) / (p[2] * p[2])
             if s2 < 1.0:
                 a = ti.min(alpha[k] * (1.0 - s2) * (1.0 - s2), 0.99)
                 front = 1.0
-                if ti.static(use_z):
-                    key = zbuf[ii, jj]
+                if ti.static(use_z):  # the rock at the middle of the 2 x 2 full-resolution pixels of (ii, jj)
+                    key = zbuf[ti.min(2 * ii + 1, zbuf.shape[0] - 1), ti.min(2 * jj + 1, zbuf.shape[1] - 1)]
                     if key != empty_key():
                         near = ti.bit_cast(ti.cast(key >> 24, ti.i32), ti.f32)
                         front = ti.min(ti.max((near - p[3] + reach[k]) / (2.0 * reach[k]), 0.0), 1.0)
@@ -151,31 +164,51 @@ def _splat(tau: ti.template(), rows: ti.types.ndarray(dtype=ti.math.vec4, ndim=1
                     ti.atomic_add(tau[ii, jj][1], ti.cast(-ti.log(1.0 - a) * TAU_ONE + 0.5, ti.i32))
 
 
+@ti.func
+def _transmittance(tau, u, v, c: ti.template()):
+    """exp(-sum) of sums ``c`` (0: over the background, 1: over the 3D layer) at the half-resolution point (u, v)
+    (pixel centres at k + 0.5), bilinear between the four nearest sums (clamped at the edges)."""
+    W, H = tau.shape
+    x, y = u - 0.5, v - 0.5
+    i0, j0 = ti.cast(ti.floor(x), ti.i32), ti.cast(ti.floor(y), ti.i32)
+    fx, fy = x - i0, y - j0
+    T = 0.0
+    for di, dj in ti.static(ti.ndrange(2, 2)):
+        i = ti.min(ti.max(i0 + di, 0), W - 1)
+        j = ti.min(ti.max(j0 + dj, 0), H - 1)
+        w = (fx if di else 1.0 - fx) * (fy if dj else 1.0 - fy)
+        T += w * ti.exp(-ti.cast(tau[i, j][c], ti.f32) / TAU_ONE)
+    return T
+
+
 @ti.kernel
 def _blend(tau: ti.template(), out: ti.types.ndarray(dtype=ti.u8, ndim=3), raw: ti.types.ndarray(dtype=ti.f32, ndim=3),
            color: ti.math.vec3):
-    """c = c T + c_dust (1 - T), T = exp(-sum), on every pixel a puff covered (the background's sum where GGUI
-    left its clear colour, else the 3D layer's); the sums cleared."""
-    H = out.shape[0]
-    for i, j in tau:
-        t = tau[i, j][1]
+    """c = c T + c_dust (1 - T) over the frame, T = exp(-sum) of the half-resolution sums, bilinear (the
+    background's sums where GGUI left its clear colour, else the 3D layer's); then the sums cleared."""
+    H, W = out.shape[0], out.shape[1]
+    for i, j in ti.ndrange(W, H):
+        u, v = (i + 0.5) * 0.5, (j + 0.5) * 0.5
+        T = _transmittance(tau, u, v, 1)
         if _is_key(raw, i, j):
-            t = tau[i, j][0]
-        if t > 0:
-            T = ti.exp(-ti.cast(t, ti.f32) / TAU_ONE)
+            T = _transmittance(tau, u, v, 0)
+        if T < 0.999:
             for c in ti.static(range(3)):
-                v = ti.cast(out[H - 1 - j, i, c], ti.f32) * T + color[c] * 255.0 * (1.0 - T)
-                out[H - 1 - j, i, c] = ti.cast(ti.min(v + 0.5, 255.0), ti.u8)
+                x = ti.cast(out[H - 1 - j, i, c], ti.f32) * T + color[c] * 255.0 * (1.0 - T)
+                out[H - 1 - j, i, c] = ti.cast(ti.min(x + 0.5, 255.0), ti.u8)
+    for i, j in tau:
         tau[i, j] = ti.Vector([0, 0])
 
 
 class SoftDust:
-    """The offscreen frame's dust: the sums of one resolution (module docstring). :meth:`splat` after the rock
-    pass (it reads the rocks' depths), :meth:`blend` over the finished frame."""
+    """The offscreen frame's dust (module docstring): the sums at half the frame's resolution (dust is soft:
+    a quarter of the pixels to sum, blended back bilinearly; after Jansen & Bavoil, "High-Speed, Off-Screen
+    Particles", GPU Gems 3, 2007). :meth:`splat` after the rock pass (it reads the rocks' depths),
+    :meth:`blend` over the finished frame."""
 
     def __init__(self, width: int, height: int):
         self._trees = FieldTrees(owner=self)
-        self.tau = self._trees.image(width, height, (2, ti.i32))
+        self.tau = self._trees.image((width + 1) // 2, (height + 1) // 2, (2, ti.i32))
         self.tau.fill(0)
         self.pending = False
 
@@ -189,8 +222,9 @@ class SoftDust:
         boxes = vehicle_boxes(sim, poses, origin, views.ground_z)
         rows, alpha, reach, hidden = puffs(to_gl(d["positions"], origin), d["opacity"], sim.scene.dust, eye, fwd,
                                            right, up, views, settings.resolution, boxes)
-        if len(rows):
-            _splat(self.tau, rows, alpha, reach, hidden, buf.zbuf, buf.splat)
+        rows = rows * np.array([0.5, 0.5, 0.5, 1.0], np.float32)  # half resolution: x, y, radius in its pixels
+        for half, idx in _by_square(rows):  # small squares for the many far puffs: the work follows their area
+            _splat(self.tau, rows[idx], alpha[idx], reach[idx], hidden[idx], buf.zbuf, buf.splat, half)
             self.pending = True
         return len(rows)
 

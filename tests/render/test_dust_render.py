@@ -90,19 +90,30 @@ def test_a_vehicle_between_the_eye_and_a_puff_hides_it():
 
 
 def _numpy_dust(rows, alpha, reach, hidden, near, key, out, color):
-    """The compositing of render/dust.py in NumPy: optical depths summed per pixel (background: the soft
-    fraction in front of ``near``; the 3D layer (``key`` False): unless hidden), then c T + c_dust (1 - T)."""
-    tau = np.zeros((2, W, H))
-    ii, jj = np.meshgrid(np.arange(W), np.arange(H), indexing="ij")
-    for (x, y, pr, z), a0, r, hid in zip(rows, alpha, reach, hidden):
+    """The compositing of render/dust.py in NumPy: optical depths summed per pixel of a half-resolution image
+    (background: the soft fraction in front of ``near`` at the middle of the pixel's 2 x 2; the 3D layer (``key``
+    False): unless hidden), T = exp(-sum) interpolated bilinearly to each pixel, then c T + c_dust (1 - T)."""
+    W2, H2 = (W + 1) // 2, (H + 1) // 2
+    tau = np.zeros((2, W2, H2))
+    ii, jj = np.meshgrid(np.arange(W2), np.arange(H2), indexing="ij")
+    z = near[np.minimum(2 * ii + 1, W - 1), np.minimum(2 * jj + 1, H - 1)]
+    for (x, y, pr, depth), a0, r, hid in zip(rows * [0.5, 0.5, 0.5, 1.0], alpha, reach, hidden):
         s2 = ((ii + 0.5 - x) ** 2 + (jj + 0.5 - y) ** 2) / pr ** 2
         a = np.where(s2 < 1, np.minimum(a0 * (1 - s2) ** 2, 0.99), 0.0)
-        front = np.clip((near - z + r) / (2 * r), 0.0, 1.0)
+        front = np.clip((z - depth + r) / (2 * r), 0.0, 1.0)
         tau[0] += -np.log(1 - a * front)
         tau[1] += 0.0 if hid else -np.log(1 - a)
-    t = np.where(key, tau[0], tau[1]).T[::-1]  # (H, W), row 0 at the top
-    T = np.exp(-t)[..., None]
-    return out * T + np.asarray(color) * 255.0 * (1 - T)
+    trans = np.exp(-np.round(tau * D.TAU_ONE) / D.TAU_ONE)
+    X, Y = np.meshgrid((np.arange(W) + 0.5) * 0.5 - 0.5, (np.arange(H) + 0.5) * 0.5 - 0.5, indexing="ij")
+    i0, j0 = np.floor(X).astype(int), np.floor(Y).astype(int)
+    fx, fy = X - i0, Y - j0
+    T = np.zeros((2, W, H))
+    for di in (0, 1):
+        for dj in (0, 1):
+            w = (fx if di else 1 - fx) * (fy if dj else 1 - fy)
+            T += w * trans[:, np.clip(i0 + di, 0, W2 - 1), np.clip(j0 + dj, 0, H2 - 1)]
+    t = np.where(key, T[0], T[1]).T[::-1][..., None]  # (H, W, 1), row 0 at the top
+    return np.where(t < 0.999, out * t + np.asarray(color) * 255.0 * (1 - t), out)
 
 
 def test_compositing_matches_numpy_and_ignores_the_order_of_the_puffs():
@@ -128,10 +139,13 @@ def test_compositing_matches_numpy_and_ignores_the_order_of_the_puffs():
     bits = near.astype(np.float32).view(np.int32).astype(np.int64) << 24
     Buf.zbuf.from_numpy(np.where(np.isinf(near), np.int64(0x7FFFFFFF) << 32, bits))
     layer = D.SoftDust(W, H)
+    half_rows = rows * np.array([0.5, 0.5, 0.5, 1.0], np.float32)  # what SoftDust.splat hands the kernel
     images = []
     for order in (np.arange(k), rng.permutation(k)):
         out = out0.copy()
-        D._splat(layer.tau, rows[order], alpha[order], reach[order], hidden[order], Buf.zbuf, True)
+        for half, idx in D._by_square(half_rows[order]):
+            sel = order[idx]
+            D._splat(layer.tau, half_rows[sel], alpha[sel], reach[sel], hidden[sel], Buf.zbuf, True, half)
         D._blend(layer.tau, out, raw, ti.math.vec3(*color))
         images.append(out)
     assert np.array_equal(images[0], images[1])  # integer sums: the same frame in any order
