@@ -190,11 +190,12 @@ def _err(msg: str) -> None:
 
 
 def _check_arch(scene, arch: str) -> None:
-    """Refuse, before anything is written or compiled, a scene that ``arch`` cannot run (f64 on Vulkan)."""
-    from .config.arches import precision_problem
+    """Refuse, before anything is written or compiled, a scene that ``arch`` cannot run (f64 or aabb insertion
+    on Vulkan: config/arches.py)."""
+    from .config.arches import arch_problem
     from .config.scene import SceneError
 
-    problem = precision_problem(scene, arch)
+    problem = arch_problem(scene, arch)
     if problem:
         raise SceneError([problem])
 

@@ -341,6 +341,24 @@ def test_f64_on_vulkan_is_refused_by_every_command(taichi_cpu, tmp_path, capsys,
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f64.toml"]
 
 
+@pytest.mark.parametrize("command", ["simulate", "render"])
+def test_aabb_insertion_on_vulkan_is_refused(taichi_cpu, tmp_path, capsys, command):
+    """Vulkan loses some of aabb insertion's atomics (config/arches.py): the scene is refused up front, one line
+    naming the file and sim.hash.insert; centre insertion and the CPU are not refused."""
+    from taichi_rocks.config.arches import arch_problem
+    from taichi_rocks.config.scene import load_scene
+
+    scene = tmp_path / "aabb.toml"
+    scene.write_text(F64_SCENE.format(sim='[sim.hash]\ninsert = "aabb"'))
+    out = ["--out", tmp_path / "out" / ("x.npz" if command == "simulate" else "")]
+    status, err = _main(capsys, command, scene, "--arch", "vulkan", *out)
+    assert status == 2 and len(err) == 1 and err[0].startswith(f'{scene}: sim.hash.insert: "aabb"'), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["aabb.toml"]
+    assert arch_problem(load_scene(scene), "cpu") is None
+    scene.write_text(F64_SCENE.format(sim='[sim.hash]\ninsert = "center"'))
+    assert arch_problem(load_scene(scene), "vulkan") is None
+
+
 @pytest.fixture
 def no_study(monkeypatch):
     """A study that starts fails the test at once (the refusals below come before any)."""
