@@ -59,7 +59,7 @@ from . import changes, hashgrid, stepdata, tirerow, tires
 from .bed import outside_bed
 from .kernels import impacts_loop, rock_step
 from .patch import footprint_box
-from .world import A0, A1, B0, B1, CENTRE, CLOCK, LEAD, MOVE, RAY_FIELDS, RESTING, \
+from .world import A0, A1, B0, CENTRE, CLOCK, LEAD, MOVE, RAY_FIELDS, RESTING, \
     TILES, IPar, Par
 
 __all__ = ["StoreSizing", "store_sizing", "active_step", "active_finish", "settle"]
@@ -192,12 +192,7 @@ def classify_slot(w: ti.template(), sl, c, mid, d, shift_tiles, radius, eps, che
 def tire_box(w: ti.template(), plan: ti.template(), t, reach):
     """XY box (lo, hi) of everything tire t can hit this step: its rays, the swept parallelogram's fourth
     corner, the tread's footprint; grown by ``reach``."""
-    lo = tirerow.xy(w, t, A0)
-    hi = lo
-    for k in ti.static((B0, A1, B1)):
-        q = tirerow.xy(w, t, k)
-        lo = ti.min(lo, q)
-        hi = ti.max(hi, q)
+    lo, hi = tirerow.rays_box(w, t)
     q = tirerow.xy(w, t, A1) + tirerow.xy(w, t, B0) - tirerow.xy(w, t, A0)
     lo = ti.min(lo, q)
     hi = ti.max(hi, q)

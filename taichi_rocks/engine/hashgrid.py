@@ -20,7 +20,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 import taichi as ti
 
 from . import tirerow
-from .world import A0, A1, B0, B1, FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
+from .world import FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
 
 
 @ti.func
@@ -78,12 +78,7 @@ def mark_tire_tiles(w: ti.template(), grid_origin):
     ti.loop_config(serialize=True)
     for t in range(w.n_tires):
         if tirerow.near_bed(w, t):
-            lo = tirerow.xy(w, t, A0)
-            hi = lo
-            for k in ti.static((B0, A1, B1)):
-                q = tirerow.xy(w, t, k)
-                lo = ti.min(lo, q)
-                hi = ti.max(hi, q)
+            lo, hi = tirerow.rays_box(w, t)
             # one more tile on each side: the per-rock lookup rounds differently (it multiplies)
             t_lo = ti.cast(ti.floor((lo - margin - grid_origin) / w.tile_size), ti.i32) - 1
             t_hi = ti.cast(ti.floor((hi + margin - grid_origin) / w.tile_size), ti.i32) + 1

@@ -3,7 +3,7 @@ A0 ... HULL), read through these accessors instead of packed offsets. Each is a 
 
 import taichi as ti
 
-from .world import ACTIVE, FENDER, FLAP, FWD, HALF_L, HALF_W, SPIN, TIRE_R, VEL
+from .world import A0, A1, ACTIVE, B0, B1, FENDER, FLAP, FWD, HALF_L, HALF_W, SPIN, TIRE_R, VEL
 
 
 @ti.func
@@ -17,6 +17,18 @@ def point(w: ti.template(), t, col: ti.template()):
 def xy(w: ti.template(), t, col: ti.template()):
     """The 2-vector at column ``col``: a point's XY (A0, B0, A1, B1), the heading FWD, a hull vertex."""
     return ti.Vector([w.ray[t, col], w.ray[t, col + 1]])
+
+
+@ti.func
+def rays_box(w: ti.template(), t):
+    """The XY box (lo, hi) of the ends of tire t's ray at the previous step and now (A0, B0, A1, B1)."""
+    lo = xy(w, t, A0)
+    hi = lo
+    for k in ti.static((B0, A1, B1)):
+        q = xy(w, t, k)
+        lo = ti.min(lo, q)
+        hi = ti.max(hi, q)
+    return lo, hi
 
 
 @ti.func

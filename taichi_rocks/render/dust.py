@@ -25,8 +25,8 @@ import taichi as ti
 
 from ..engine.trees import FieldTrees
 from .camera import to_gl
-from .kernels import empty_key
-from .looks import GROUND_A, GROUND_B, KEY, rgb
+from .kernels import empty_key, is_key, key_depth, raw_rgb
+from .looks import GROUND_A, GROUND_B, rgb
 
 __all__ = ["DustLayer", "SoftDust", "draw_dust", "dust_looks", "puffs", "soft_dust"]
 
@@ -111,15 +111,6 @@ def vehicle_boxes(sim, poses, origin, ground_z) -> list:
     return out
 
 
-@ti.func
-def _is_key(raw: ti.template(), i, j):
-    """Did GGUI leave pixel (i, j) of its read-back at the clear colour (nothing of the 3D layer there)?"""
-    r = ti.cast(raw[i, j, 0] * 255.0 + 0.5, ti.i32)
-    g = ti.cast(raw[i, j, 1] * 255.0 + 0.5, ti.i32)
-    b = ti.cast(raw[i, j, 2] * 255.0 + 0.5, ti.i32)
-    return r == KEY[0] and g == KEY[1] and b == KEY[2]
-
-
 SQUARES = (4, 8, 16, 32, MAX_PX)  # the half sides of the squares puffs are drawn in, by their radius (pixels)
 
 
@@ -156,7 +147,7 @@ def _splat(tau: ti.template(), rows: ti.types.ndarray(dtype=ti.math.vec4, ndim=1
                 if ti.static(use_z):  # the rock at the middle of the 2 x 2 full-resolution pixels of (ii, jj)
                     key = zbuf[ti.min(2 * ii + 1, zbuf.shape[0] - 1), ti.min(2 * jj + 1, zbuf.shape[1] - 1)]
                     if key != empty_key():
-                        near = ti.bit_cast(ti.cast(key >> 24, ti.i32), ti.f32)
+                        near = key_depth(key)
                         front = ti.min(ti.max((near - p[3] + reach[k]) / (2.0 * reach[k]), 0.0), 1.0)
                 if front > 0.0:
                     ti.atomic_add(tau[ii, jj][0], ti.cast(-ti.log(1.0 - a * front) * TAU_ONE + 0.5, ti.i32))
@@ -189,9 +180,12 @@ def _blend(tau: ti.template(), out: ti.types.ndarray(dtype=ti.u8, ndim=3), raw: 
     H, W = out.shape[0], out.shape[1]
     for i, j in ti.ndrange(W, H):
         u, v = (i + 0.5) * 0.5, (j + 0.5) * 0.5
-        T = _transmittance(tau, u, v, 1)
-        if _is_key(raw, i, j):
+        r, g, b = raw_rgb(raw, i, j)
+        T = 0.0
+        if is_key(r, g, b):
             T = _transmittance(tau, u, v, 0)
+        else:
+            T = _transmittance(tau, u, v, 1)
         if T < 0.999:
             for c in ti.static(range(3)):
                 x = ti.cast(out[H - 1 - j, i, c], ti.f32) * T + color[c] * 255.0 * (1.0 - T)

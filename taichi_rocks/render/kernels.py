@@ -124,6 +124,25 @@ def key_rgb(key):
 
 
 @ti.func
+def key_depth(key):
+    """The depth packed in a depth-buffer value (:func:`depth_key`; the empty key's is not a depth)."""
+    return ti.bit_cast(ti.cast(key >> 24, ti.i32), ti.f32)
+
+
+@ti.func
+def raw_rgb(raw: ti.template(), x, y):
+    """Pixel (x, y) of GGUI's read-back (floats in [0, 1]) as three 8-bit integers, rounded."""
+    return (ti.cast(raw[x, y, 0] * 255.0 + 0.5, ti.i32), ti.cast(raw[x, y, 1] * 255.0 + 0.5, ti.i32),
+            ti.cast(raw[x, y, 2] * 255.0 + 0.5, ti.i32))
+
+
+@ti.func
+def is_key(r, g, b):
+    """Is this read-back colour GGUI's clear colour :data:`KEY` (nothing of the 3D layer drawn there)?"""
+    return r == KEY[0] and g == KEY[1] and b == KEY[2]
+
+
+@ti.func
 def depth_key(depth, rgb):
     """A depth-buffer value: the depth's f32 bits (positive, so they order as the depths do) over an rgb8."""
     return (ti.cast(ti.bit_cast(ti.max(depth, 1e-4), ti.i32), ti.i64) << 24) | ti.cast(rgb, ti.i64)
@@ -160,10 +179,8 @@ def to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dty
             x = bx * 32 + ex
             yy = by * 32 + ey  # row of the read-back (0 = bottom)
             if x < W and yy < H:
-                r = ti.cast(raw[x, yy, 0] * 255.0 + 0.5, ti.i32)
-                g = ti.cast(raw[x, yy, 1] * 255.0 + 0.5, ti.i32)
-                b = ti.cast(raw[x, yy, 2] * 255.0 + 0.5, ti.i32)
-                if r == KEY[0] and g == KEY[1] and b == KEY[2]:
+                r, g, b = raw_rgb(raw, x, yy)
+                if is_key(r, g, b):
                     px = buf.sky[x, yy]
                     out[H - 1 - yy, x, 0] = px[0]
                     out[H - 1 - yy, x, 1] = px[1]

@@ -13,6 +13,7 @@ import taichi as ti
 from taichi_rocks.render import dust as D
 from taichi_rocks.render.camera import Lens
 from taichi_rocks.render.dust import MIN_ALPHA, draw_dust, dust_looks
+from taichi_rocks.render.looks import KEY
 from taichi_rocks.render.looks import GROUND_A, GROUND_B
 from taichi_rocks.render.renderer import Renderer
 
@@ -128,7 +129,7 @@ def test_compositing_matches_numpy_and_ignores_the_order_of_the_puffs():
     near = rng.uniform(1, 25, (W, H)).astype(np.float32)  # a rock's depth at each pixel
     near[: W // 3] = np.inf  # no rock: the sky
     key = rng.uniform(size=(W, H)) < 0.8  # where GGUI drew nothing
-    raw = np.where(key[..., None], np.array([*D.KEY, 255]) / 255.0, 0.2).astype(np.float32)
+    raw = np.where(key[..., None], np.array([*KEY, 255]) / 255.0, 0.2).astype(np.float32)
     out0 = rng.integers(0, 256, (H, W, 3)).astype(np.uint8)
     color = (0.55, 0.48, 0.38)
 
