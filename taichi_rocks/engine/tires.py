@@ -34,6 +34,7 @@ from . import hashgrid, patch, tirerow, tumble
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
+from .loops import top_loop
 from .world import A0, A1, B0, B1, FLYING, LAUNCHED, MAX_OCC, SLIDING, SPAN_A, \
     SPAN_B, SPAN_C, IPar, Par
 
@@ -283,6 +284,7 @@ def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32):
     """The tire pass alone (``plan``: the switches of kernels.hash_and_tires), after the hash's scan (its
     ``MAX_OCC``) and scatter."""
     reset_counts(w)
+    top_loop(plan)
     for q in range(n_queries(w, plan)):
         box_query(w, plan, q)
     launch_all(w, plan, step, True)
@@ -294,6 +296,7 @@ def scatter_and_launch(w: ti.template(), plan: ti.template(), step, launch: ti.t
     scatter's loop: one parallel task less."""
     reset_counts(w)
     n = hashgrid.scatter_items(w)
+    top_loop(plan)
     for q in range(n + n_queries(w, plan)):
         if q < n:
             hashgrid.scatter_item(w, q, plan.center)
@@ -321,9 +324,11 @@ def launch_all(w: ti.template(), plan: ti.template(), step, launch: ti.template(
     n_items = n_queries(w, plan) * w.tire_counts[SPAN_A] * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
     if ti.static(places_one_per_item()):
         n_items *= w.tire_counts[MAX_OCC]
+    top_loop(plan)
     for q in range(n_items):
         each_item_rock(w, plan, q, step, claim_rock)
     w.launches[None] += w.tire_counts[LAUNCHED]
     if ti.static(launch):
+        top_loop(plan)
         for q in range(n_items):
             each_item_rock(w, plan, q, step, launch_claimed)
