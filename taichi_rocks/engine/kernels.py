@@ -72,6 +72,7 @@ READS = {
     "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts",
                       "serial"),
     "note_listed": ("serial",),
+    "load_batch": ("serial",),
 }
 
 

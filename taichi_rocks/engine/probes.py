@@ -253,4 +253,4 @@ def launch_costs(sim, reps: int = 2000) -> dict:
 def task_labels() -> dict:
     """Kernel name -> the variants of what each of its offloaded tasks does, in order, one tuple per variant of
     distinct length (active stepping's step kernels: active.task_labels; the batch upload)."""
-    return {**active.task_labels(), **{k: [v] for k, v in stepdata.TASKS.items()}}
+    return {**active.task_labels(), **{k: [stepdata.SERIAL_TASKS[k], v] for k, v in stepdata.TASKS.items()}}
