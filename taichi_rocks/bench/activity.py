@@ -250,6 +250,7 @@ def run_profile(p: dict, cfg: dict, arch: str) -> dict:
     out["tasks"] = task_rows(records, m)
     out["in_air"] = int(np.count_nonzero(sim.rock_arrays()["phase"]))
     out["active_count"] = sim.active_count
+    out["loops"] = sim.loops  # the step's variant that ran (engine/variant.py)
     sim = None  # the World goes back to the pool (a del here reads as an undefined name in the lambda above)
     gc.collect()
     return out

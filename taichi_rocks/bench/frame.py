@@ -7,9 +7,15 @@ for comparison ``state()`` (every rock, O(N)) on every 10th frame, for:
 
 * ``[sim] accuracy = "game"`` (one step per frame, dt = 1/60 s) and the default dt = 2 ms (8-9 steps a frame);
 * Taichi's CPU thread pool of 1 thread, of every core, and the engine's choice (engine/runtime.py
-  ``auto_threads``), each in a process of its own (the pool is sized once per process);
-* the step's tasks (Taichi's kernel profiler: kind, launches and median time per task, per step), with the
-  game preset, in a process of its own (the profiler slows every launch);
+  ``auto_threads``), each in a process of its own (the pool is sized once per process); on every core, the
+  step's parallel variant forced beside the engine's choice of variant (engine/variant.py: serial loops on a
+  few cores with a game's active list);
+* the step's tasks (Taichi's kernel profiler: kind, launches, median time and share of the device time per
+  task, per step), with the game preset, in both variants of the step, in a process of its own (the profiler
+  slows every launch);
+* the variants' crossover: the step right after rocks are loaded (every rock in the active list) at several
+  bed sizes, serial against parallel on every core, in one process, alternating (engine/variant.py
+  ``CROSSOVER`` is the count where the parallel one starts to win);
 * what the game preset costs in accuracy beside the other presets: the flight error of a 2 s flight against its
   closed form (gravity, quadratic drag; bench/flight.py), the recall of the tire contacts at 60 m/s in the lanes
   scene (bench/detection.py), the launch-time bound v_launch dt (modelled, v_launch <= 30 m/s) and the frame's
@@ -63,8 +69,10 @@ def _scene(overrides: dict, path=SCENE):
     return scene_with(sc, overrides) if overrides else sc
 
 
-def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float = 60.0, path=SCENE) -> dict:
-    """The game loop in this process: ``warm`` frames, then ``frames`` timed ones."""
+def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float = 60.0, path=SCENE,
+                 loops: str = "auto") -> dict:
+    """The game loop in this process: ``warm`` frames, then ``frames`` timed ones; ``loops``: the step's variant
+    ("auto": the engine's choice, engine/variant.py)."""
     def timed(fn):
         ti.sync()
         t0 = time.perf_counter()
@@ -73,6 +81,7 @@ def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float 
         return out, 1e3 * (time.perf_counter() - t0)
 
     sim = Simulation(_scene(overrides, path), arch=arch)
+    sim.loops = loops
     sim.changes()
     for f in range(warm):
         sim.advance_to(f / fps)
@@ -93,26 +102,78 @@ def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float 
     out = {k: _stats(v) for k, v in parts.items()}
     out["state"] = _stats(state_ms)
     out.update(rows_median=float(np.median(rows)), rows_max=int(max(rows)), impact_events=hits, dt=sim.dt,
+               loops_asked=loops, loops=sim.loops, active=sim.active_count,
                steps_per_frame=(1.0 / fps) / sim.dt, rocks=sim.n_rocks, frames=frames, warm=warm,
                detection=sim.scene.sim.detection, integrator=sim.scene.sim.integrator)
     return out
 
 
 def measure_tasks(overrides: dict, arch: str, steps: int, warm: int, path=SCENE) -> dict:
-    """The step's tasks with Taichi's kernel profiler (this process must have started it)."""
+    """The step's tasks with Taichi's kernel profiler (this process must have started it), in each variant of the
+    step (engine/loops.py), the same simulation taking turns: {"parallel": ..., "serial": ...}."""
     sim = Simulation(_scene(overrides, path), arch=arch)
     sim.step(warm)
-    ti.sync()
-    clear_kernel_tasks()
-    sim.step(steps)
-    ti.sync()
-    records = kernel_tasks()
-    rows = task_rows(records, steps)
-    serial = [r for r in rows if r["kind"] == "serial"]
-    return {"steps": steps, "tasks": rows, "tasks_per_step": len(records) / steps,
-            "launches_per_step": sum(1 for r in records if r.task == 0) / steps,
-            "device_ms_per_step": sum(r.ms for r in records) / steps,
-            "largest_serial_us": 1e3 * max((r["median_ms"] for r in serial), default=0.0)}
+    out = {}
+    for loops in ("parallel", "serial"):
+        sim.loops = loops
+        sim.step(2)  # compiled before the profiler counts
+        ti.sync()
+        clear_kernel_tasks()
+        sim.step(steps)
+        ti.sync()
+        records = kernel_tasks()
+        rows = task_rows(records, steps)
+        device = sum(r.ms for r in records) / steps
+        for r in rows:
+            r["share"] = r["ms_per_step"] / device if device > 0 else 0.0
+        serial = [r for r in rows if r["kind"] == "serial"]
+        out[loops] = {"steps": steps, "tasks": rows, "tasks_per_step": len(records) / steps,
+                      "parallel_tasks_per_step": sum(1 for r in records if r.kind != "serial") / steps,
+                      "launches_per_step": sum(1 for r in records if r.task == 0) / steps,
+                      "device_ms_per_step": device, "active": sim.active_count,
+                      "largest_serial_us": 1e3 * max((r["median_ms"] for r in serial), default=0.0)}
+    return out
+
+
+def measure_variants(arch: str, sizes, rounds: int) -> dict:
+    """The step right after every rock was loaded into the active list (a Simulation's first step, a restore), at
+    each bed size of ``sizes`` (rocks at the default scene's density), in the serial and the parallel variant
+    taking turns, ``rounds`` each: ms per step (median). Past the crossover the parallel variant wins."""
+    base = _scene(dict(CASES[0][1]))
+    rows = []
+    for n in sizes:
+        r0 = base.bed.radius * float(np.sqrt(n / base.bed.rocks))
+        sim = Simulation(scene_with(base, {"bed.rocks": int(n), "bed.radius": r0}), arch=arch)
+        sim.step(30)
+        times = {"serial": [], "parallel": []}
+        for r in range(rounds + 1):
+            for loops in ("serial", "parallel"):
+                sim.loops = loops
+                sim.set_rocks(np.zeros(0, np.int64))  # every rock back into the active list
+                ti.sync()
+                t0 = time.perf_counter()
+                sim.step(1)
+                ti.sync()
+                if r:  # the first round compiles
+                    times[loops].append(1e3 * (time.perf_counter() - t0))
+        rows.append({"rocks": n, **{f"{k}_ms": float(np.median(v)) for k, v in times.items()}})
+        del sim
+    return {"rows": rows, "crossover": crossover_of(rows), "threads": threads_in_use()}
+
+
+def crossover_of(rows: list):
+    """The rock count where the parallel variant starts to win (linear between the measured sizes), None when it
+    never does in the range, 0 when it always does."""
+    prev = None
+    for r in rows:
+        gain = r["serial_ms"] - r["parallel_ms"]
+        if gain > 0:
+            if prev is None:
+                return 0
+            g0, n0 = prev
+            return int(n0 + (r["rocks"] - n0) * (-g0) / (gain - g0))
+        prev = (gain, r["rocks"])
+    return None
 
 
 def worker(job: dict) -> dict:
@@ -120,8 +181,11 @@ def worker(job: dict) -> dict:
     arch = init_taichi(job["arch"], profiler=job["kind"] == "tasks")
     if job["kind"] == "tasks":
         out = measure_tasks(job["overrides"], arch, job["steps"], job["warm"], job["scene"])
+    elif job["kind"] == "variants":
+        out = measure_variants(arch, job["sizes"], job["rounds"])
     else:
-        out = measure_loop(job["overrides"], arch, job["frames"], job["warm"], path=job["scene"])
+        out = measure_loop(job["overrides"], arch, job["frames"], job["warm"], path=job["scene"],
+                           loops=job.get("loops", "auto"))
     out["threads"] = threads_in_use()
     out["arch"] = arch
     return out
@@ -185,23 +249,32 @@ def run_frame_study(out_dir="renders/bench", quick: bool = False, arch: str = "c
     scene = Path(__file__).resolve().parents[2] / "scenes" / "minimal.toml" if tiny else SCENE
     cores = os.cpu_count() or 1
     threads = [] if tiny or arch != "cpu" else sorted({1, cores})
-    loops = [(name, ov, t) for name, ov in CASES for t in threads + [None]]
-    prog = Progress(len(loops) + 2, progress)
+    # each case: 1 thread, every core and the engine's thread count, each with the engine's choice of the step's
+    # variant; and on every core the parallel variant forced (the A/B of the variants, engine/variant.py)
+    forced = [(cores, "parallel")] if arch == "cpu" and cores > 1 else []
+    loops = [(name, ov, t, v) for name, ov in CASES for t, v in [(t, "auto") for t in threads + [None]] + forced]
+    prog = Progress(len(loops) + 3, progress)
     res = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine(arch), "load_average_start": loadavg(),
            "scene": scene.name, "fps": 60.0, "auto_threads": auto_threads(), "loops": [], "errors": []}
     with new_folders(out):
-        for name, ov, t in loops:
-            job = {"kind": "loop", "arch": arch, "overrides": ov, "frames": frames, "warm": warm, "scene": str(scene)}
+        for name, ov, t, v in loops:
+            job = {"kind": "loop", "arch": arch, "overrides": ov, "frames": frames, "warm": warm, "scene": str(scene),
+                   "loops": v}
             r = _run_job(job, t)
             res["loops"].append({"case": name, "threads_asked": t if t is not None else "auto", **r})
             if "error" in r:
-                res["errors"].append(f"{name}, {t} threads: {r['error']}")
-            prog(f"frame: {name}, {t or 'auto'} threads")
+                res["errors"].append(f"{name}, {t} threads, {v} loops: {r['error']}")
+            prog(f"frame: {name}, {t or 'auto'} threads, {v} loops")
         steps = 20 if tiny else 120
         job = {"kind": "tasks", "arch": arch, "overrides": dict(CASES[0][1]), "steps": steps, "warm": 30,
                "scene": str(scene)}
         res["tasks"] = _run_job(job, None)
         prog("frame: tasks")
+        sizes = (2_000, 6_000) if tiny else (20_000, 60_000, 200_000) if quick else \
+            (10_000, 30_000, 60_000, 100_000, 200_000, 500_000)
+        job = {"kind": "variants", "arch": arch, "sizes": list(sizes), "rounds": 1 if tiny else 3 if quick else 5}
+        res["variants"] = _run_job(job, cores) if arch == "cpu" else {"error": "the CPU's choice: not measured"}
+        prog("frame: variants")
         res["accuracy"] = [] if tiny else accuracy_rows(arch, quick)
         prog("frame: accuracy")
         res["load_average_end"] = loadavg()
@@ -218,14 +291,15 @@ def _f(x, nd=3) -> str:
 
 def frame_table(res: dict) -> list:
     """The frame per case and thread count (README and docs/performance.md, tools/readme_tables.py)."""
-    L = ["| case | threads | steps / frame | `advance_to` | `impacts()` | `changes()` (rows) | frame median | "
-         "frame p95 | `state()` |", "|---|---|---|---|---|---|---|---|---|"]
+    L = ["| case | threads | loops | steps / frame | `advance_to` | `impacts()` | `changes()` (rows) | frame median | "
+         "frame p95 | `state()` |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in res["loops"]:
         if "error" in r:
-            L.append(f"| {r['case']} | {r['threads_asked']} | {r['error']} |||||||")
+            L.append(f"| {r['case']} | {r['threads_asked']} | {r.get('loops_asked', '')} | {r['error']} |||||||")
             continue
         t = f"{r['threads']}" + (" (auto)" if r["threads_asked"] == "auto" else "")
-        L.append(f"| {r['case']} | {t} | {r['steps_per_frame']:.3g} | {_f(r['advance_to']['median_ms'])} ms | "
+        v = r.get("loops", "parallel") + (" (auto)" if r.get("loops_asked") == "auto" else "")
+        L.append(f"| {r['case']} | {t} | {v} | {r['steps_per_frame']:.3g} | {_f(r['advance_to']['median_ms'])} ms | "
                  f"{_f(r['impacts']['median_ms'])} ms | {_f(r['changes']['median_ms'])} ms "
                  f"({r['rows_median']:,.0f}) | **{_f(r['frame']['median_ms'])} ms** | {_f(r['frame']['p95_ms'])} ms "
                  f"| {_f(r['state']['median_ms'])} ms |")
@@ -233,13 +307,40 @@ def frame_table(res: dict) -> list:
 
 
 def task_table(res: dict) -> list:
+    """The step's tasks in each variant: kernel, task, what it does, its kind, launches per step, median time and
+    share of the step's device time."""
     t = res.get("tasks", {})
-    if "tasks" not in t:
+    if "error" in t or not t:
         return [f"(task table: {t.get('error', 'not measured')})"]
-    L = ["| kernel | task | what | kind | per step | median (µs) |", "|---|---|---|---|---|---|"]
-    for r in t["tasks"]:
-        L.append(f"| {r['kernel']} | {r['task']} | {r['what']} | {r['kind']} | {r['per_step']:.3g} | "
-                 f"{1e3 * r['median_ms']:.3g} |")
+    # per variant; results written before the variants existed hold the parallel one's alone
+    variants = {k: v for k, v in t.items() if isinstance(v, dict) and "tasks" in v} if "tasks" not in t else \
+        {"parallel": t}
+    L = ["| variant | kernel | task | what | kind | per step | median (µs) | share |", "|---|---|---|---|---|---|---|---|"]
+    for name, v in variants.items():
+        for r in v["tasks"]:
+            share = f"{100 * r['share']:.0f} %" if "share" in r else ""
+            L.append(f"| {name} | {r['kernel']} | {r['task']} | {r['what']} | {r['kind']} | {r['per_step']:.3g} | "
+                     f"{1e3 * r['median_ms']:.3g} | {share} |")
+        L.append(f"| {name} | | | device time per step: **{1e3 * v['device_ms_per_step']:.0f} µs**, "
+                 f"{v['tasks_per_step']:.3g} tasks ({v.get('parallel_tasks_per_step', 0):.3g} parallel), "
+                 f"{v.get('active', 0):,} rocks active | | | | |")
+    return L
+
+
+def variant_table(res: dict) -> list:
+    """The step after loading every rock, per bed size, serial against parallel on every core, and the crossover
+    (engine/variant.py CROSSOVER)."""
+    v = res.get("variants")
+    if not v or "error" in v:
+        return [f"(variants: {(v or {}).get('error', 'not measured')})"]
+    L = ["| rocks in the step's loops | serial loops | parallel loops | faster |", "|---|---|---|---|"]
+    for r in v["rows"]:
+        best = "serial" if r["serial_ms"] <= r["parallel_ms"] else "parallel"
+        L.append(f"| {r['rocks']:,} | {_f(r['serial_ms'])} ms | {_f(r['parallel_ms'])} ms | {best} |")
+    c = v.get("crossover")
+    L += ["", "Crossover: " + ("the parallel variant never won in this range" if c is None else
+                               "the parallel variant won at every size" if c == 0 else f"about {c:,} rocks") +
+          f" ({v.get('threads', '?')} threads)."]
     return L
 
 
@@ -263,7 +364,8 @@ def report_lines(res: dict) -> list:
          "Per frame: `advance_to(f / 60)`, `impacts()`, `changes()`; medians (and the frame's 95th percentile) "
          "over the timed frames. `state()` (every rock) for comparison.", ""]
     L += frame_table(res)
-    L += ["", "## The step's tasks, game preset (kernel profiler)", ""] + task_table(res)
+    L += ["", "## The step's tasks, game preset (kernel profiler), in both variants", ""] + task_table(res)
+    L += ["", "## The variants' crossover: the step with every rock active", ""] + variant_table(res)
     L += ["", "## What each preset costs in accuracy", ""] + accuracy_table(res)
     if res["errors"]:
         L += ["", "Errors: " + "; ".join(res["errors"])]

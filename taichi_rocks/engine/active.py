@@ -58,6 +58,7 @@ import taichi as ti
 from . import changes, hashgrid, stepdata, tirerow, tires
 from .bed import outside_bed
 from .kernels import impacts_loop, rock_step
+from .loops import top_loop
 from .patch import footprint_box
 from .world import A0, A1, B0, CENTRE, CLOCK, LEAD, MOVE, RAY_FIELDS, RESTING, \
     TILES, IPar, Par
@@ -81,18 +82,24 @@ TASKS = {"active_step": ("frame rows, rim plan, counters (serial)", "set-up: ban
                            "compaction: holes and movers", "(serial: bounds)", "compaction: copy",
                            "(serial: list length)")}
 IMPACT_TASKS = ("(serial: bounds)", "impacts: flying rocks against the vehicles")
+# The serial variant of the step (engine/loops.py): each kernel is one serial task, its loops one after another
+SERIAL_TASKS = {"active_step": ("serial variant: frame rows, rim plan, set-up, classify, gather, rock pass, "
+                                "impacts",),
+                "active_finish": ("serial variant: hash scan, scatter, tire pass, launch, settle, compaction",)}
 
 
 def task_labels(max_levels: int = 6) -> dict:
-    """Kernel name -> the variants of its tasks' labels (one tuple each, of distinct lengths): with and without
-    impacts, and the serial scan or the parallel one of 1 .. ``max_levels`` levels (engine/hashgrid.py)."""
+    """Kernel name -> the variants of its tasks' labels (one tuple each, of distinct lengths): the serial
+    variant of the step (one task per kernel), and the parallel one with and without impacts, with the serial
+    scan or the parallel one of 1 .. ``max_levels`` levels (engine/hashgrid.py)."""
     finish = [TASKS["active_finish"]]
     for levels in range(1, max_levels + 1):
         up = [x for k in range(levels) for x in (f"hash scan: up-sweep, level {k}", "(serial: bounds)")]
         down = [x for k in reversed(range(levels)) for x in (f"hash scan: down-sweep, level {k}", "(serial: bounds)")]
         up[-1], down[-1] = "(serial: top level's scan, bounds)", "(serial: total, bounds)"
         finish.append(("counters (serial)", *up, *down, *TASKS["active_finish"][1:]))
-    return {"active_step": [TASKS["active_step"], TASKS["active_step"] + IMPACT_TASKS], "active_finish": finish}
+    return {"active_step": [SERIAL_TASKS["active_step"], TASKS["active_step"], TASKS["active_step"] + IMPACT_TASKS],
+            "active_finish": [SERIAL_TASKS["active_finish"], *finish]}
 
 
 # World.a_counts: the active rocks still listed after settling, the holes below their count and the listed
@@ -338,6 +345,7 @@ def classify(w: ti.template(), plan: ti.template(), k, c, d, shift_tiles, check_
     n_tires = 0
     if ti.static(plan.splash):
         n_tires = w.n_tires
+    top_loop(plan)
     for q in range(4 * lines + n_tires):
         if q < 4 * lines:
             band_width(w, q, c, d, lines, k0)
@@ -350,6 +358,7 @@ def classify(w: ti.template(), plan: ti.template(), k, c, d, shift_tiles, check_
     n_tire = n_tires * span_x * span_y
     radius = w.par[Par.BED_RADIUS]
     eps = rounding_margin(w, c)
+    top_loop(plan)
     for q in range(every + n_band + n_tire):
         if q < every + n_band:
             sl = q
@@ -406,12 +415,13 @@ def to_store(w: ti.template(), i, j):
 
 
 @ti.func
-def gather(w: ti.template(), c):
+def gather(w: ti.template(), plan: ti.template(), c):
     """Step 2, one flat loop over (marked tile, rock): a gone tile's rocks all move to the active list, a rim or
     tire tile's those that leave (see classify on inner loops); each rock that moves gets id -1 in its tile."""
     cap = w.store_capacity
     radius = w.par[Par.BED_RADIUS]
     ground = w.par[Par.GROUND_Z]
+    top_loop(plan)
     for k, j in ti.ndrange(w.a_counts[MARKED], cap):
         t = w.ts_list[k]
         if j < w.ts_count[t]:
@@ -460,6 +470,7 @@ def settle_rocks(w: ti.template(), shift_tiles, clear_hash: ti.template(), plan:
     total = n
     if ti.static(clear_hash):
         total = ti.max(n, hashgrid.table_n(w) + 1)
+    top_loop(plan)
     for i in range(total):
         if i < n:
             if ti.static(clear_hash):
@@ -494,19 +505,21 @@ def active_copy(w: ti.template(), src, dst):
 
 
 @ti.func
-def compact(w: ti.template()):
+def compact(w: ti.template(), plan: ti.template()):
     """Step 6, after settle_rocks counted the survivors: the active rocks still listed (id >= 0) end up in
     0 .. count - 1: those above the new count fill the holes below it (atomic lists of both, paired by their
     order in the lists)."""
     cnt = ti.static(w.a_counts)
     n = w.ipar[IPar.N_ROCKS]
     keep = cnt[SURVIVORS]
+    top_loop(plan)
     for i in range(n):
         alive = w.rock_id[i] >= 0
         if i < keep and not alive:
             w.a_hole[ti.atomic_add(cnt[HOLES], 1)] = i
         elif i >= keep and alive:
             w.a_mover[ti.atomic_add(cnt[MOVERS], 1)] = i
+    top_loop(plan)
     for k in range(cnt[HOLES]):
         active_copy(w, w.a_mover[k], w.a_hole[k])
     w.ipar[IPar.N_ROCKS] = keep
@@ -526,10 +539,10 @@ def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
     w.a_counts[MARKED] = 0
     reset_counts(w)
     if ti.static(plan.splash):
-        hashgrid.scan_counts(w)
+        hashgrid.scan_counts(w, plan)
         tires.scatter_and_launch(w, plan, step, False)  # settle_rocks launches the claimed rocks
     settle_rocks(w, shift_tiles, plan.splash, plan, step)
-    compact(w)
+    compact(w, plan)
 
 
 @ti.kernel
@@ -548,10 +561,11 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
     h = ti.cast(w.step_frame[k, CLOCK][0], w.real)
     fr = stepdata.step_frame(w, h, c, m, d, c)  # no tire mask: its corner (grid) is unused
     classify(w, plan, k, c, m, st, check_all)
-    gather(w, c)
+    gather(w, plan, c)
     if ti.static(plan.impacts):
         w.fly_count[None] = 0
     marked = w.a_counts[MARKED]
+    top_loop(plan)
     for q in range(marked + w.ipar[IPar.N_ROCKS]):
         if q < marked:
             close_tile(w, q)
@@ -572,4 +586,4 @@ def settle(w: ti.template(), tiles: vec2):
     """Steps 5 and 6 alone, after coasting."""
     reset_counts(w)
     settle_rocks(w, ti.cast(tiles, ti.i32), False, None, 0)
-    compact(w)
+    compact(w, None)

@@ -30,6 +30,7 @@ device can take them as they are (docs: "Reading what changed").
 
 import taichi as ti
 
+from .loops import top_loop
 from .params import IPar
 
 vec2 = ti.types.vector(2, ti.f64)
@@ -86,8 +87,10 @@ def note(w: ti.template(), i):
 
 
 @ti.kernel
-def note_listed(w: ti.template()):
-    """:func:`note` for every rock of the rock arrays (full stepping, after a step or a coast)."""
+def note_listed(w: ti.template(), plan: ti.template()):
+    """:func:`note` for every rock of the rock arrays (full stepping, after a step or a coast), in the step's
+    variant (``plan``: Switches of ``serial``, engine/loops.py)."""
+    top_loop(plan)
     for i in range(w.ipar[IPar.N_ROCKS]):
         note(w, i)
 
@@ -146,9 +149,11 @@ def _packed_row(w: ti.template(), out: ti.template(), j, rid):
 def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2)) -> ti.i32:
     """Rows (id, phase, position in the local frame, orientation x, y, z, w with tumbling) of every listed id
     into ``out`` (float64), the flags and the count cleared; returns the count. If ``out`` has fewer rows than
-    the count, nothing is written or cleared (the caller grows it and calls again)."""
+    the count, nothing is written or cleared (the caller grows it and calls again). One serial task: a game's
+    read is a few thousand rows, less work than a parallel task's start-up on the CPU (engine/loops.py)."""
     k = w.drawn_count[None]
     fits = k <= out.shape[0]
+    ti.loop_config(serialize=True)
     for j in range(k):
         if fits:
             rid = w.drawn_list[j]

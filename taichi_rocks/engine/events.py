@@ -10,8 +10,9 @@ counter; past the capacity the counter still counts, so an overflow is counted a
 
 :meth:`EventBuffer.drain` returns the events since the previous drain (sorted by step, rock and vehicle, so
 that a run gives the same array whatever the order threads appended in) and empties the buffer. Times: on the
-device relative to the buffer's reference time ``t_ref`` (the simulation time at the last drain, float64 on the
-host), so float32 keeps them to ~1e-7 of the time between drains.
+device relative to the buffer's reference time ``t_ref`` (float64 on the host: the simulation time at the last
+drain that took events, or at an empty one once it lagged more than ``REF_SPAN``), so float32 keeps them to
+~1e-7 of the time between drains.
 """
 
 import numpy as np
@@ -19,6 +20,7 @@ import taichi as ti
 
 from ..config.impacts import DAMAGE_CLASSES
 from ..motion.bodies import LABELS
+from .launcher import Launcher
 from .runtime import on_cpu
 from .trees import FieldTrees
 
@@ -60,6 +62,7 @@ def _columns():
 
 
 COLUMNS, N_INT, N_REAL = _columns()
+REF_SPAN = 1.0  # s: the reference time moves at an empty drain only when it lags more than this (float32: 1e-7 s)
 
 
 @ti.data_oriented
@@ -97,12 +100,17 @@ class EventBuffer:
         CPU one launch writes them into host arrays kept for it (Taichi writes NumPy arrays in place there); on a
         device the count is read first and exactly that many rows come back."""
         if on_cpu():
-            if getattr(self, "_host", None) is None:
-                self._host = (np.empty((self.capacity, N_INT), np.int32),
-                              np.empty((self.capacity, N_REAL), self.np_real))
-            appended = int(_take_all(self, *self._host))
+            host = self.__dict__.get("_host")  # (a data-oriented object: each attribute read costs a microsecond)
+            if host is None:
+                host = self._host = (Launcher(_take_all), np.empty((self.capacity, N_INT), np.int32),
+                                     np.empty((self.capacity, N_REAL), self.np_real))
+            appended = int(host[0](self, host[1], host[2]))
+            if appended == 0:  # most drains of a game's frames: nothing to convert or sort, the reference stays
+                if t_now is not None and abs(float(t_now) - self.t_ref) > REF_SPAN:
+                    self.t_ref = float(t_now)
+                return np.empty(0, EVENT_DTYPE)
             n = min(appended, self.capacity)
-            ints, reals = self._host[0][:n], self._host[1][:n]
+            ints, reals = host[1][:n], host[2][:n]
         else:
             appended = int(self.count[None])
             n = min(appended, self.capacity)
@@ -111,14 +119,23 @@ class EventBuffer:
             if appended:
                 _gather(self, n, ints, reals)
         self.dropped += appended - n
+        if n == 0:  # most drains of a game's frames: nothing to convert or sort, and the reference time stays
+            self._move_ref(t_now, False)
+            return np.empty(0, EVENT_DTYPE)
         out = np.empty(n, EVENT_DTYPE)
         for name, is_int, col, width, vector in COLUMNS:
             src = ints if is_int else reals
             out[name] = src[:, col:col + width] if vector else src[:, col]
         out["time"] += self.t_ref
-        if t_now is not None:
-            self.t_ref = float(t_now)
+        self._move_ref(t_now, True)
         return out[np.lexsort((out["vehicle"], out["rock"], out["step"]))]
+
+    def _move_ref(self, t_now: float | None, drained: bool) -> None:
+        """The reference time moves to ``t_now`` at a drain that took events, or once it lags ``REF_SPAN``
+        behind: an empty drain (most of a game's frames) leaves it, so the step kernels need not be told of a
+        new one every frame, and the device's times stay within REF_SPAN + the time between drains of it."""
+        if t_now is not None and (drained or abs(float(t_now) - self.t_ref) > REF_SPAN):
+            self.t_ref = float(t_now)
 
     def reset(self, t_now: float = 0.0) -> None:
         """Forget every event and the overflow count (a restart, a restore)."""
@@ -141,6 +158,7 @@ def _take_all(buf: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndar
     """Every event kept (at most the capacity) into ``ints`` and ``reals`` (capacity rows each), the count
     cleared; returns the count appended since the last drain (kept or not)."""
     appended = buf.count[None]
+    ti.loop_config(serialize=True)  # a frame's few events: less work than a parallel task's start-up
     for k in range(ti.min(appended, buf.capacity)):
         for c in ti.static(range(N_INT)):
             ints[k, c] = buf.ints[k, c]

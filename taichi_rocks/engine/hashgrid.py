@@ -20,6 +20,7 @@ Ray cells:        3D DDA (Amanatides & Woo 1987), with two safety rules: the num
 import taichi as ti
 
 from . import tirerow
+from .loops import top_loop
 from .world import FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
 
 
@@ -112,20 +113,17 @@ def count_rock(w: ti.template(), i, center: ti.template(), grid_origin):
 
 
 @ti.func
-def clear_all(w: ti.template()):
-    if ti.static(w.stored):
-        for s in range(table_n(w) + 1):
-            w.cell_start[s] = 0
-    else:
-        for s in w.cell_start:
-            w.cell_start[s] = 0
+def clear_all(w: ti.template(), plan: ti.template()):
+    top_loop(plan)
+    for s in range(table_n(w) + 1):
+        w.cell_start[s] = 0
     if ti.static(w.masked):
         w.n_listed[None] = 0
 
 
 @ti.kernel
 def clear_counts(w: ti.template()):
-    clear_all(w)
+    clear_all(w, None)
 
 
 @ti.kernel
@@ -139,7 +137,7 @@ def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
 
 
 @ti.func
-def scan_counts(w: ti.template()):
+def scan_counts(w: ti.template(), plan: ti.template()):
     """Inclusive prefix sum of the counts of the table's slots in use, in place; cell_start[n] = total; the
     fullest slot's count to ``tire_counts[MAX_OCC]`` (the tire pass's places per slot, engine/tires.py).
 
@@ -149,7 +147,7 @@ def scan_counts(w: ti.template()):
     The sums are integers: both ways give the same bits.
     """
     if ti.static(w.scan_levels > 0):
-        block_scan(w)
+        block_scan(w, plan)
     else:
         n = table_n(w)
         most = w.cell_start[0]
@@ -174,9 +172,11 @@ def level_count(n, k: ti.template()):
 
 
 @ti.func
-def scan_blocks(src: ti.template(), dst: ti.template(), m, counts: ti.template(), slots: ti.template()):
+def scan_blocks(src: ti.template(), dst: ti.template(), m, counts: ti.template(), slots: ti.template(),
+                plan: ti.template()):
     """Up-sweep of one level: each block of 32 entries of ``src`` (m in use) scanned in place by one thread, its
     total to ``dst``; on the slots' level (``slots``), the largest count to ``counts[MAX_OCC]``."""
+    top_loop(plan)
     for b in range((m + SCAN_BLOCK - 1) // SCAN_BLOCK):
         total = 0
         top = 0
@@ -193,7 +193,7 @@ def scan_blocks(src: ti.template(), dst: ti.template(), m, counts: ti.template()
 
 
 @ti.func
-def block_scan(w: ti.template()):
+def block_scan(w: ti.template(), plan: ti.template()):
     """The parallel inclusive scan (Blelloch's two sweeps over blocks, 1990, with blocks of 32 and one thread
     per block): up-sweep, each level's blocks scanned in place and their totals one level up
     (``scan_sums<k>``, world.scan_level_sizes); the last level (at most 32 sums) by one thread; down-sweep,
@@ -203,13 +203,14 @@ def block_scan(w: ti.template()):
     w.tire_counts[MAX_OCC] = 0
     for k in ti.static(range(w.scan_levels)):
         scan_blocks(ti.static(scan_level(w, k)), ti.static(scan_level(w, k + 1)), level_count(n, k),
-                    w.tire_counts, ti.static(k == 0))
+                    w.tire_counts, ti.static(k == 0), plan)
     last = ti.static(scan_level(w, w.scan_levels))
     ti.loop_config(serialize=True)
     for i in range(1, level_count(n, w.scan_levels)):
         last[i] += last[i - 1]
     for k in ti.static(list(reversed(range(w.scan_levels)))):
         src, sums = ti.static(scan_level(w, k), scan_level(w, k + 1))
+        top_loop(plan)
         for i in range(SCAN_BLOCK, level_count(n, k)):
             src[i] += sums[i // SCAN_BLOCK - 1]
     w.cell_start[n] = w.cell_start[n - 1]
@@ -218,7 +219,7 @@ def block_scan(w: ti.template()):
 @ti.kernel
 def inclusive_scan(w: ti.template()) -> ti.i32:
     """The scan alone; returns the number of (rock, cell) entries."""
-    scan_counts(w)
+    scan_counts(w, None)
     return w.cell_start[table_n(w)]
 
 

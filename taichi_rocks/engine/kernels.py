@@ -20,6 +20,7 @@ from . import hashgrid, stepdata, tires, tumble
 from .bed import outside_bed, recycle_to_leading_edge
 from .flight import fly
 from .impact_pass import hit_bodies
+from .loops import top_loop
 from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par, tmp_name
 
 vec2 = ti.types.vector(2, ti.f64)
@@ -36,8 +37,8 @@ class Switches:
 
     __slots__ = ("_items", "_hash")
 
-    def __init__(self, plan, names):
-        self._items = tuple((n, getattr(plan, n)) for n in names)
+    def __init__(self, plan, names, serial: bool = False):
+        self._items = tuple((n, bool(serial) if n == "serial" else getattr(plan, n)) for n in names)
         self._hash = hash(self._items)
 
     def __getattr__(self, name):
@@ -57,22 +58,28 @@ class Switches:
         return "Switches(" + ", ".join(f"{n}={v!r}" for n, v in self._items) + ")"
 
 
-# The Plan's switches each kernel reads.
+# The Plan's switches each kernel reads; "serial" is not the Plan's: the step's variant (engine/loops.py), which
+# the stepper chooses (engine/variant.py).
 READS = {
     "rock_pass": ("splash", "flight", "recycle", "center", "integrator", "gravity", "drag", "ground", "spin",
-                  "impacts"),
+                  "impacts", "serial"),
     "coast_pass": ("flight", "recycle", "integrator", "gravity", "drag", "ground", "spin", "impacts"),
-    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts"),  # also tire_pass
+    "hash_and_tires": ("center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts",
+                       "serial"),  # also tire_pass
     "health": ("recycle", "ground"),
     "active_step": ("splash", "flight", "recycle", "center", "swept", "patch", "integrator", "gravity", "drag",
-                    "ground", "spin", "impacts"),
-    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts"),
+                    "ground", "spin", "impacts", "serial"),
+    "active_finish": ("splash", "center", "swept", "patch", "ground", "throw", "fenders", "spin", "impacts",
+                      "serial"),
+    "note_listed": ("serial",),
+    "load_batch": ("serial",),
 }
 
 
-def switches(plan) -> dict:
-    """Kernel name -> the :class:`Switches` of ``plan`` it reads."""
-    return {k: Switches(plan, names) for k, names in READS.items()}
+def switches(plan, serial: bool = False) -> dict:
+    """Kernel name -> the :class:`Switches` of ``plan`` it reads, in the step's parallel or ``serial`` variant
+    (engine/loops.py)."""
+    return {k: Switches(plan, names, serial) for k, names in READS.items()}
 
 
 # Rows of rock_pass's ``frame`` (2-vectors, float64, local frame): the bed centre, how far it moved this
@@ -162,6 +169,7 @@ def impacts_loop(w: ti.template(), plan: ti.template(), fr, step, hash_flying: t
     from row ``base`` on), then their recycling and counting. Kept out of the rock loop's body, the swept test
     compiles once, the rock loop stays as lean as without impacts, and only the few rocks in flight pay for
     it. Each listed rock flew at the step's start or is flying (``rock_tail``'s ``ph0`` is not RESTING)."""
+    top_loop(plan)
     for k in range(w.fly_count[None]):
         i = w.fly_index[k]
         hit_bodies(w, plan, i, w.fly_x0[k], w.fly_v0[k], fr.h, rows, base, step)
@@ -186,6 +194,7 @@ def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtyp
     if ti.static(plan.impacts):
         w.fly_count[None] = 0
     fr = stepdata.step_frame(w, h, c, m, d, g)
+    top_loop(plan)
     for i in range(w.ipar[IPar.N_ROCKS]):
         rock_step(w, plan, i, fr, step, True)
     if ti.static(plan.impacts):
@@ -225,9 +234,9 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
     """Passes after the rock pass, in one launch: scan, scatter, the tire pass (its ray cells, claims and
     launches; the rocks launched stay on the device, ``tire_counts[LAUNCHED]``), and clearing the counts for
     the next step's rock pass."""
-    hashgrid.scan_counts(w)
+    hashgrid.scan_counts(w, plan)
     tires.scatter_and_launch(w, plan, step, True)
-    hashgrid.clear_all(w)
+    hashgrid.clear_all(w, plan)
 
 
 @ti.kernel

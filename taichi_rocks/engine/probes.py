@@ -34,6 +34,7 @@ import taichi as ti
 from ..config.plan import Plan
 from . import active, hashgrid, stepdata, tires
 from .kernels import READS, Switches, rock_pass
+from .launcher import Launcher
 from .world import FLYING, RAY_FIELDS, RESTING, SLIDING, IPar
 
 
@@ -221,16 +222,19 @@ def launch_costs(sim, reps: int = 2000) -> dict:
     """Microseconds of Python per launch of kernels that do nothing on the device, median of 5 rounds of
     ``reps`` launches: "empty" (no arguments), "step" (the World, a kernel's switches and three integers: a
     step's launch of active stepping, engine/active.py), "step, same arguments" (the same integers every
-    launch: Taichi 1.7.4 caches nothing between launches), "arrays" (the arguments the step's first launch
+    launch: Taichi 1.7.4 caches nothing between launches), "step, the engine's launcher" (the step's launch as
+    the engine makes it, engine/launcher.py: Taichi's launch with its Python side done once), "arrays" (the arguments the step's first launch
     took before its inputs were on the device: a (T, RAY_FIELDS) float64 array of rays, 5 rows of 2-vectors,
     a float and two integers)."""
-    w, plan = sim.world, sim._switches["active_step"]
+    w, plan = sim.world, sim._stepper.switches["active_step"]
+    fast = Launcher(stepdata.launch_ints)
     rays = np.zeros((max(w.n_tires, 1), RAY_FIELDS))
     frame = np.zeros((5, 2))
     counter = iter(range(1 << 40))
     cases = {"empty": lambda: stepdata.launch_empty(),
              "step": lambda: stepdata.launch_ints(w, plan, next(counter) & 63, next(counter), 0),
              "step, same arguments": lambda: stepdata.launch_ints(w, plan, 0, 1, 0),
+             "step, the engine's launcher": lambda: fast(w, plan, next(counter) & 63, next(counter), 0),
              "arrays": lambda: stepdata.launch_arrays(w, plan, rays, frame, 0.002, next(counter), 0)}
     out = {k: [] for k in cases}
     for f in cases.values():
@@ -249,4 +253,4 @@ def launch_costs(sim, reps: int = 2000) -> dict:
 def task_labels() -> dict:
     """Kernel name -> the variants of what each of its offloaded tasks does, in order, one tuple per variant of
     distinct length (active stepping's step kernels: active.task_labels; the batch upload)."""
-    return {**active.task_labels(), **{k: [v] for k, v in stepdata.TASKS.items()}}
+    return {**active.task_labels(), **{k: [stepdata.SERIAL_TASKS[k], v] for k, v in stepdata.TASKS.items()}}

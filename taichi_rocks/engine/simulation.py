@@ -34,7 +34,8 @@ from .effects import Effects
 from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
-from .kernels import count_flying, shift_origin, switches
+from .kernels import count_flying, shift_origin
+from .launcher import Launcher
 from .layout import check_fits, world_layout
 from .rockfields import ID
 from .runtime import init_taichi, on_cpu
@@ -123,13 +124,12 @@ class Simulation:
         self.track_changes = bool(track_changes)  # keep the mirror changes() reads (engine/changes.py)
         self.plan = plan = Plan.from_scene(scene, self.tumble, self.track_changes)
         self.cell_size = plan.cell_size
-        self._switches = switches(plan)  # what each kernel reads from the plan (engine/kernels.py)
         start = initial_rocks(scene)
         self.world = self._allocate(start.radius)
         self._host = HostState()
         self._host_side = HostSide(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD, plan.targets)
         self._host_side.start(self._host)
-        self._stepper = stepper_for(plan)(self.world, plan, self._switches, self._sizing, self._host,
+        self._stepper = stepper_for(plan)(self.world, plan, self._sizing, self._host,
                                           scene.sim.hash.table_size == "auto", timer)
         self._timer = timer  # the timing hook (engine/timing.py): PassTimer() times every pass of a step
         self._par, ipar = scene_params(scene, plan, self._sizing, ground_z=scene.world.ground_z - self.origin[2])
@@ -141,6 +141,7 @@ class Simulation:
         rocks.write(self.world, rocks.initial_arrays(self.world, self.n_rocks, given), self.n_rocks)
         self._put_rays()
         self._changes_buf = np.empty((4096, 9 if plan.spin else 5))  # changes()' rows on the CPU, grown as needed
+        self._gather = Launcher(changes.gather_packed)  # changes()' read at the cost of its launch (CPU)
         self._impacts = None  # with impacts: the events' host side (engine/impact_pass.py ImpactLog)
         if plan.impacts:
             write_bodies(self.world, body_table(scene, plan, self._par[Par.GROUND_Z]),
@@ -215,6 +216,17 @@ class Simulation:
     @timer.setter
     def timer(self, timer) -> None:
         self._timer = self._stepper.timer = timer
+
+    @property
+    def loops(self) -> str:
+        """How the step's loops run: "serial" or "parallel" now (engine/variant.py; the engine chooses from the
+        backend, the CPU threads and the rocks in the step's loops). Set "serial", "parallel" or "auto" (the
+        engine's choice, the default; ``TAICHI_ROCKS_LOOPS`` sets it for a process)."""
+        return "serial" if self._stepper.variant.serial else "parallel"
+
+    @loops.setter
+    def loops(self, mode: str) -> None:
+        self._stepper.set_loops(mode)
 
     @property
     def active_count(self) -> int:
@@ -460,15 +472,15 @@ class Simulation:
                 changes.gather(w, k, ints, reals)
             return self._rows(ints[:, 0], ints[:, 1], reals[:, :3], reals[:, 3:], velocities)
         buf = self._changes_buf  # the CPU: one launch writing into this array in place
-        k = int(changes.gather_packed(w, buf))
+        k = int(self._gather(w, buf))
         if k > len(buf):
             buf = self._changes_buf = np.empty((max(k, 2 * len(buf)), buf.shape[1]))
-            changes.gather_packed(w, buf)
+            self._gather(w, buf)
         return self._rows(buf[:k, 0], buf[:k, 1], buf[:k, 2:5], buf[:k, 5:9], velocities)
 
     def _rows(self, ids, phase, local, orient, velocities: bool = False) -> Changes:
         ids = ids.astype(np.int32)
-        return Changes(ids=ids, positions=local.astype(np.float64) + self.origin, phase=phase.astype(np.int8),
+        return Changes(ids=ids, positions=np.add(local, self.origin, dtype=np.float64), phase=phase.astype(np.int8),
                        orientations=orient.astype(self.world.np_real()) if self.plan.spin else None,
                        velocities=self._stepper.velocities_of(ids) if velocities else None)
 

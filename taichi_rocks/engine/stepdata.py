@@ -28,6 +28,7 @@ step's start time in float64, the operation the host does for full stepping (eng
 import numpy as np
 import taichi as ti
 
+from .loops import top_loop
 from .world import BATCH_ROWS, CLOCK, FRAME_ROWS, RAY_FIELDS, IPar
 
 vec2 = ti.types.vector(2, ti.f64)
@@ -55,15 +56,17 @@ def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays, start=N
 
 # What each offloaded task of load_batch does (the kernel profiler names tasks by index; see active.TASKS)
 TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames, tire rays, pose rows")}
+SERIAL_TASKS = {"load_batch": ("serial variant: batch upload: frames, tire rays, pose rows",)}  # engine/loops.py
 
 
 @ti.kernel
-def load_batch(w: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=3),
+def load_batch(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=3),
                frame: ti.types.ndarray(dtype=vec2, ndim=2), bodies: ti.types.ndarray(dtype=vec2, ndim=2)):
     """A batch's rows into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per batch): one
     parallel loop over the batch's steps, each copying its rows (a loop per field would be a task per field
     to compile with every World, for a few kilobytes). ``rays`` and ``bodies`` may be one-row dummies
-    (:func:`batch_arrays`): only the rows they have are copied."""
+    (:func:`batch_arrays`): only the rows they have are copied. ``plan``: the step's variant (engine/loops.py)."""
+    top_loop(plan)
     for k in range(frame.shape[0]):
         for r in range(FRAME_ROWS):
             w.step_frame[k, r] = frame[k, r]

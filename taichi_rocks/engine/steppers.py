@@ -22,29 +22,53 @@ import numpy as np
 
 from . import active, changes, hashgrid, rocks, stepdata, tilestore, tires
 from .impact_pass import time_row
-from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin
+from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin, switches
+from .launcher import Launcher
 from .rockfields import ID
-from .runtime import current_arch, on_cpu
+from .runtime import current_arch, on_cpu, threads_in_use
+from .variant import VariantChoice, loops_from_env
 from .world import LAUNCHED, IPar, next_prime
 
 __all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for"]
 
 
 class Stepper:
-    """The interface (and what both modes share). ``world``: the fields; ``plan``: the Plan; ``switches``: what
-    each kernel reads of it (engine/kernels.py ``switches``); ``sizing``: the HashSizing; ``host``: the
+    """The interface (and what both modes share). ``world``: the fields; ``plan``: the Plan; ``sizing``: the
+    HashSizing; ``host``: the
     simulation's HostState (engine/host.py; the frame the tiles are keyed by); ``table_auto``: the hash table
     is sized "auto"; ``timer``: the timing hook (engine/timing.py), kept current by the Simulation."""
 
     mode = ""
 
-    def __init__(self, world, plan, switches: dict, sizing, host, table_auto: bool, timer):
-        self.world, self.plan, self.switches, self.sizing, self.host = world, plan, switches, sizing, host
+    def __init__(self, world, plan, sizing, host, table_auto: bool, timer):
+        self.world, self.plan, self.sizing, self.host = world, plan, sizing, host
         self.n_rocks = int(world.n)
         self.table_auto = bool(table_auto)
         self.timer = timer
         p = plan
         self.moves = bool(self.n_rocks and (p.flight or p.recycle or p.splash))  # a step runs kernels
+        # the step's variants (engine/loops.py): what each kernel reads of the plan, serial or parallel loops,
+        # chosen from the backend, the CPU pool and the work (engine/variant.py)
+        self._variants = {False: switches(plan, False), True: switches(plan, True)}
+        self.variant = VariantChoice(on_cpu(), threads_in_use() if on_cpu() else 0, loops_from_env())
+        # the kernels a step launches, each at the cost of its launch alone on the CPU (engine/launcher.py)
+        self._launch = {k.__name__: Launcher(k) for k in (rock_pass, hash_and_tires, changes.note_listed,
+                                                           active.active_step, active.active_finish,
+                                                           stepdata.load_batch)}
+
+    @property
+    def switches(self) -> dict:
+        """Kernel name -> the Switches its launch takes now (engine/kernels.py), in the current variant."""
+        return self._variants[self.variant.serial]
+
+    def set_loops(self, mode: str) -> None:
+        """The step's variant from now on: "auto" (the engine's choice), "serial" or "parallel"."""
+        self.variant = VariantChoice(self.variant.on_cpu, self.variant.threads, mode)
+        self.variant.update(self.work())
+
+    def work(self) -> int:
+        """The rocks a step's loops visit now (a read of the device with active stepping)."""
+        return self.active_count
 
     # -------------------------------------------------------------------------------------------- rocks
     def start(self) -> None:
@@ -122,7 +146,7 @@ class Stepper:
         steps and coasts (active stepping notes inside its settling loop instead)."""
         if self.world.drawn and not self.world.stored:
             with self.timer("note changes"):
-                changes.note_listed(self.world)
+                self._launch["note_listed"](self.world, self.switches["note_listed"])
 
     def sync_drawn(self) -> None:
         """Every rock was just loaded into the rock arrays: the mirror of changes() from them, every rock listed."""
@@ -161,6 +185,7 @@ class FullStepper(Stepper):
 
     def start(self) -> None:
         """With splashing tires: sort the rocks in memory by slot once (scope "all"), and clear the counts."""
+        self.variant.update(self.n_rocks)  # every rock, every step
         if not self.plan.splash:
             return
         w, p = self.world, self.plan
@@ -182,7 +207,7 @@ class FullStepper(Stepper):
             with self.timer("rock pass"):
                 frame = np.array([s.centre, s.move, s.lead, self.grid_origin(s.centre)])  # kernels.CENTRE..GRID
                 frame = self.with_bodies(frame, s)
-                rock_pass(self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
+                self._launch["rock_pass"](self.world, self.switches["rock_pass"], s.rays, frame, s.dt, s.step)
         if self.plan.splash:
             self._hash_and_tires(s.step)
         if self.moves:
@@ -206,7 +231,7 @@ class FullStepper(Stepper):
                 hashgrid.clear_counts(w)
             return
         with timer("hash + tires"):
-            hash_and_tires(w, self.switches["hash_and_tires"], step)
+            self._launch["hash_and_tires"](w, self.switches["hash_and_tires"], step)
 
 
 class ActiveStepper(Stepper):
@@ -238,14 +263,16 @@ class ActiveStepper(Stepper):
         stepping's step of every rock, so the same bits, and no kernel of its own to compile with every World."""
         self.world.ipar[IPar.N_ROCKS] = self.n_rocks
         self.check_all = True
-        self._fit_table()
+        self._fit(self.n_rocks)
 
-    def _fit_table(self) -> None:
-        """With an "auto" table: the hash's slots in use follow the active list (a prime about 1.5 times its
-        length, at least 1024, at most the table allocated); a different table size changes which rocks share
-        a slot, never which ones a tire finds."""
+    def _fit(self, active: int) -> None:
+        """The coming steps fitted to the active list's length ``active``: the step's variant (engine/variant.py)
+        and, with an "auto" table, the hash's slots in use (a prime about 1.5 times its length, at least 1024, at
+        most the table allocated; a different table size changes which rocks share a slot, never which ones a
+        tire finds)."""
+        self.variant.update(active)
         if self.plan.splash and self.table_auto:
-            want = next_prime(max(1024, int(1.5 * self.active_count)))
+            want = next_prime(max(1024, int(1.5 * active)))
             self.world.ipar[IPar.TABLE] = min(want, self.world.table_size)
 
     def rock_arrays(self) -> dict:
@@ -264,10 +291,10 @@ class ActiveStepper(Stepper):
             self._t_ref = self.world.events.t_ref
             stepdata.put_t_ref(self.world, self._t_ref)
         with self.timer("active step"):
-            active.active_step(self.world, self.switches["active_step"], row, s.step, int(self.check_all))
-            active.active_finish(self.world, self.switches["active_finish"], row, s.step)
+            self._launch["active_step"](self.world, self.switches["active_step"], row, s.step, int(self.check_all))
+            self._launch["active_finish"](self.world, self.switches["active_finish"], row, s.step)
         if self.check_all or s.step % 32 == 0:  # and after the first step: the loaded rocks have settled
-            self._fit_table()
+            self._fit(self.active_count)
         self.check_all = False
         return self.plan.splash
 
@@ -289,7 +316,7 @@ class ActiveStepper(Stepper):
             centre, move, lead, shift, dt, rays, start, bodies = rows
             data, frame, poses = stepdata.batch_arrays(centre, move, lead, centre - self.sizing.grid_half, shift,
                                                        dt, self.world.store_tile, rays, start, bodies)
-            stepdata.load_batch(self.world, data, frame, poses)
+            self._launch["load_batch"](self.world, self.switches["load_batch"], data, frame, poses)
         self._on_device = f
         return 0 if f is None else s.row
 

@@ -34,6 +34,7 @@ from . import hashgrid, patch, tirerow, tumble
 from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
+from .loops import top_loop
 from .world import A0, A1, B0, B1, FLYING, LAUNCHED, MAX_OCC, SLIDING, SPAN_A, \
     SPAN_B, SPAN_C, IPar, Par
 
@@ -269,6 +270,24 @@ def each_item_rock(w: ti.template(), plan: ti.template(), q, step, visit: ti.tem
 
 
 @ti.func
+def each_query_rock(w: ti.template(), plan: ti.template(), step, visit: ti.template()):
+    """The serial variant's walk (engine/loops.py) of what :func:`each_item_rock` visits: for each query, the
+    rocks of every cell of its own box, cell after cell (nested loops, no flat index to decode; the parallel
+    variant's items cover the largest box, whose cells outside a query's box are empty items). The same
+    (query, rock) pairs, in another order: a claim is an atomic maximum and a launch depends only on the tire,
+    the rock and the step, so the order changes nothing."""
+    ti.loop_config(serialize=True)
+    for query in range(n_queries(w, plan)):
+        lo, hi = w.tire_cells[query, 0], w.tire_cells[query, 1]
+        for a in range(lo[0], hi[0] + 1):
+            for b in range(lo[1], hi[1] + 1):
+                for c in range(lo[2], hi[2] + 1):
+                    start, end = slot_range(w, ti.Vector([a, b, c]))
+                    for e in range(start, end):
+                        visit(w, plan, query, w.entries[e], step)
+
+
+@ti.func
 def launch_if_claimed(w: ti.template(), plan: ti.template(), i, step):
     """Rock side of the launches, in a loop over the rocks (active stepping's settle loop): rock i is launched
     by the tire holding its claim, if any, and its claim cleared."""
@@ -283,6 +302,7 @@ def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32):
     """The tire pass alone (``plan``: the switches of kernels.hash_and_tires), after the hash's scan (its
     ``MAX_OCC``) and scatter."""
     reset_counts(w)
+    top_loop(plan)
     for q in range(n_queries(w, plan)):
         box_query(w, plan, q)
     launch_all(w, plan, step, True)
@@ -294,6 +314,7 @@ def scatter_and_launch(w: ti.template(), plan: ti.template(), step, launch: ti.t
     scatter's loop: one parallel task less."""
     reset_counts(w)
     n = hashgrid.scatter_items(w)
+    top_loop(plan)
     for q in range(n + n_queries(w, plan)):
         if q < n:
             hashgrid.scatter_item(w, q, plan.center)
@@ -321,9 +342,15 @@ def launch_all(w: ti.template(), plan: ti.template(), step, launch: ti.template(
     n_items = n_queries(w, plan) * w.tire_counts[SPAN_A] * w.tire_counts[SPAN_B] * w.tire_counts[SPAN_C]
     if ti.static(places_one_per_item()):
         n_items *= w.tire_counts[MAX_OCC]
-    for q in range(n_items):
-        each_item_rock(w, plan, q, step, claim_rock)
+    if ti.static(getattr(plan, "serial", False)):  # the serial variant walks each query's own box of cells
+        each_query_rock(w, plan, step, claim_rock)
+    else:
+        for q in range(n_items):
+            each_item_rock(w, plan, q, step, claim_rock)
     w.launches[None] += w.tire_counts[LAUNCHED]
     if ti.static(launch):
-        for q in range(n_items):
-            each_item_rock(w, plan, q, step, launch_claimed)
+        if ti.static(getattr(plan, "serial", False)):
+            each_query_rock(w, plan, step, launch_claimed)
+        else:
+            for q in range(n_items):
+                each_item_rock(w, plan, q, step, launch_claimed)

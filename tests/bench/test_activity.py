@@ -68,19 +68,23 @@ init_taichi("cpu", profiler=True)
 for scene, scan in (("minimal", "0"), ("convoy", "1")):
     os.environ[PARALLEL_SCAN] = scan
     sim = Simulation.from_scene(os.path.join(sys.argv[1], scene + ".toml"))
-    sim.step(2)
-    ti.sync()
-    ti.profiler.clear_kernel_profiler_info()
-    sim.step(3)
-    rows = task_rows(timing.kernel_tasks(), 3)
-    print(scene, sim.world.scan_levels, ";".join(r["kernel"] + ":" + r["what"] for r in rows))
+    for loops in ("parallel", "serial"):
+        sim.loops = loops
+        sim.step(2)
+        ti.sync()
+        ti.profiler.clear_kernel_profiler_info()
+        sim.step(3)
+        rows = task_rows(timing.kernel_tasks(), 3)
+        print(scene if loops == "parallel" else "serial", sim.world.scan_levels,
+              ";".join(r["kernel"] + ":" + r["what"] for r in rows))
 """
 
 
 def test_every_task_of_a_step_has_its_label(tmp_path):
-    """The benchmark's task table names every task of the step's kernels (engine/active.py task_labels): with
-    and without impacts, with the CPU's serial scan and with the parallel one of the GPU backends (run here on
-    the CPU: TAICHI_ROCKS_PARALLEL_SCAN=1), Taichi's kernel profiler on, in a process of its own."""
+    """The benchmark's task table names every task of the step's kernels (engine/active.py task_labels): in the
+    parallel variant with and without impacts, with the CPU's serial scan and with the parallel one of the GPU
+    backends (run here on the CPU: TAICHI_ROCKS_PARALLEL_SCAN=1), and in the serial variant (one serial task per
+    kernel), Taichi's kernel profiler on, in a process of its own."""
     import subprocess
     import sys
 
@@ -92,6 +96,12 @@ def test_every_task_of_a_step_has_its_label(tmp_path):
     lines = dict(line.split(" ", 1) for line in out.stdout.splitlines() if line.startswith(("minimal ", "convoy ")))
     levels = {k: int(v.split(" ", 1)[0]) for k, v in lines.items()}
     assert levels == {"minimal": 0, "convoy": 2}
+    serial = [line.split(" ", 2)[2] for line in out.stdout.splitlines() if line.startswith("serial ")]
+    assert len(serial) == 2
+    for text in serial:
+        rows = [r for r in text.split(";") if r.startswith(("active_step:", "active_finish:"))]
+        assert [r.split(":", 1)[0] for r in rows] == ["active_step", "active_finish"], rows  # one task each
+        assert all(r.split(":", 1)[1].startswith("serial variant: ") for r in rows), rows
     for scene, text in lines.items():
         rows = text.split(" ", 1)[1].split(";")
         step = [r for r in rows if r.startswith(("active_step:", "active_finish:"))]

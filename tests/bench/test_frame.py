@@ -3,6 +3,7 @@ frame.md whose figures hold together (each frame is the sum of its calls, the ro
 lists the step's kernels), refuses to overwrite, and the game preset is one step per 60 Hz frame."""
 
 import json
+import os
 
 import pytest
 
@@ -21,16 +22,38 @@ def test_tiny_frame_study(tmp_path):
     res = run_frame_study(tmp_path, tiny=True, progress=False)
     assert res["errors"] == []
     saved = json.loads((tmp_path / "frame.json").read_text())
-    assert [r["case"] for r in saved["loops"]] == ["game", "dt = 2 ms"]
+    # each case with the engine's choice of the step's variant, and (more than one core) the parallel one forced
+    forced = ["parallel"] if (os.cpu_count() or 1) > 1 else []
+    assert [(r["case"], r["loops_asked"]) for r in saved["loops"]] == [
+        (c, v) for c in ("game", "dt = 2 ms") for v in ["auto"] + forced]
     for r in saved["loops"]:
+        assert r["loops"] in ("serial", "parallel") and (r["loops_asked"] == "auto" or r["loops"] == r["loops_asked"])
         assert r["frames"] == 20 and r["threads"] >= 1 and r["rows_median"] >= 0
         for part in ("advance_to", "impacts", "changes", "state"):
             assert 0 < r[part]["median_ms"] <= r[part]["max_ms"]
         assert r["frame"]["median_ms"] <= r["frame"]["p95_ms"] <= r["frame"]["max_ms"]
         assert r["frame"]["max_ms"] <= r["advance_to"]["max_ms"] + r["impacts"]["max_ms"] + r["changes"]["max_ms"] + 1e-9
-    kernels = {t["kernel"] for t in saved["tasks"]["tasks"]}
-    assert {"active_step", "active_finish"} <= kernels and saved["tasks"]["tasks_per_step"] > 0
+    for loops in ("parallel", "serial"):  # the task table of each variant, every task's share of the device time
+        t = saved["tasks"][loops]
+        kernels = [x["kernel"] for x in t["tasks"]]
+        assert {"active_step", "active_finish"} <= set(kernels) and t["tasks_per_step"] > 0
+        assert sum(x["share"] for x in t["tasks"]) == pytest.approx(1.0)
+        assert (t["parallel_tasks_per_step"] > 0) == (loops == "parallel")
+        if loops == "serial":
+            assert kernels.count("active_step") == kernels.count("active_finish") == 1  # one serial task each
+    v = saved["variants"]  # the crossover study: both variants timed at each size
+    assert [r["rocks"] for r in v["rows"]] == [2_000, 6_000]
+    assert all(r["serial_ms"] > 0 and r["parallel_ms"] > 0 for r in v["rows"])
     md = (tmp_path / "frame.md").read_text()
-    assert frame_table(saved)[0] in md and "## The step's tasks" in md
+    assert frame_table(saved)[0] in md and "## The step's tasks" in md and "## The variants' crossover" in md
     with pytest.raises(FileExistsError, match="--overwrite"):
         run_frame_study(tmp_path, tiny=True, progress=False)
+
+
+def test_the_crossover_between_the_measured_sizes():
+    from taichi_rocks.bench.frame import crossover_of
+
+    rows = lambda *g: [{"rocks": n, "serial_ms": 1.0 + x, "parallel_ms": 1.0} for n, x in g]
+    assert crossover_of(rows((10, -0.5), (20, -0.1), (30, 0.3))) == 22  # gain -0.1 at 20, +0.3 at 30: a quarter on
+    assert crossover_of(rows((10, -0.5), (20, -0.1))) is None  # the parallel variant never wins
+    assert crossover_of(rows((10, 0.2), (20, 0.4))) == 0  # it always does

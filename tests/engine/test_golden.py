@@ -68,21 +68,23 @@ def test_state_after_steps_equals_the_golden_digest(taichi_cpu, golden, path):
 
 
 def test_the_shipped_compile_gives_the_same_digests():
-    """Both compile modes and both ways of the hash's prefix sum, one answer: the digests of every shipped scene
-    compiled as the package ships (Taichi's IR optimisation on), with the parallel scan that GPUs run
-    (engine/hashgrid.py block_scan), in a process of its own, against the committed ones (the test above: the
-    suite's quick compile and the CPU's serial scan)."""
+    """Both compile modes, both ways of the hash's prefix sum and both variants of the step, one answer: the
+    digests of every shipped scene compiled as the package ships (Taichi's IR optimisation on), with the parallel
+    scan that GPUs run (engine/hashgrid.py block_scan) and the step's parallel loops (engine/loops.py), in a
+    process of its own, against the committed ones (the test above: the suite's quick compile, the CPU's serial
+    scan and the serial loops the engine picks for these scenes on two threads)."""
     import os
     import subprocess
 
     from taichi_rocks.engine.runtime import QUICK_COMPILE
+    from taichi_rocks.engine.variant import LOOPS
     from taichi_rocks.engine.world import PARALLEL_SCAN
 
-    env = dict(os.environ, PYTHONPATH=str(ROOT), **{QUICK_COMPILE: "0", PARALLEL_SCAN: "1"})
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **{QUICK_COMPILE: "0", PARALLEL_SCAN: "1", LOOPS: "parallel"})
     out = subprocess.run([sys.executable, str(Path(__file__)), "--check"], env=env, capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stdout + out.stderr
-    assert out.stdout.split() == ["advanced_optimization=True", "parallel_scan=True"] + [
+    assert out.stdout.split() == ["advanced_optimization=True", "parallel_scan=True", "loops=parallel"] + [
         f"{p.stem}:same" for p in SCENES], out.stdout
 
 
@@ -99,11 +101,13 @@ def check() -> int:
     import taichi as ti
 
     from taichi_rocks.engine.runtime import init_taichi
+    from taichi_rocks.engine.variant import loops_from_env
     from taichi_rocks.engine.world import scan_in_parallel
 
     init_taichi("cpu")
     print(f"advanced_optimization={ti.lang.impl.current_cfg().advanced_optimization}")
     print(f"parallel_scan={scan_in_parallel()}")
+    print(f"loops={loops_from_env()}")
     want = json.loads(GOLDEN.read_text())["scenes"]
     bad = 0
     for p in SCENES:
