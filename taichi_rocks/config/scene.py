@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Union
 
@@ -32,8 +33,9 @@ __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "sc
            "SunAngles", "Render", "PRESETS"]
 
 
-class SceneError(Exception):
-    """A scene that cannot be used; ``problems`` holds one ``FILE: key.path: message`` line per problem."""
+class SceneError(ValueError):
+    """A scene that cannot be used; ``problems`` holds one ``FILE: key.path: message`` line per problem. A
+    ValueError: what the Python API raises for a bad argument, here the scene (each line names its key)."""
 
     def __init__(self, problems: list[str]):
         self.problems = list(problems)
@@ -157,8 +159,16 @@ def scene_with(scene: Scene, overrides: dict) -> Scene:
         A new, validated Scene.
 
     Raises:
+        TypeError: ``overrides`` is not a dict, or a key of it is not a string.
         SceneError: a bad key path or value (one line per problem).
     """
+    if not isinstance(overrides, Mapping):
+        raise TypeError(f"overrides must be a dict of dotted keys and values, like {{\"sim.dt\": 0.01}}, got "
+                        f"{type(overrides).__name__}")
+    for key in overrides:
+        if not isinstance(key, str):
+            raise TypeError(f"overrides: each key must be a dotted key path (a string) like \"sim.dt\", got {key!r}")
+    overrides = {key: _plain(value) for key, value in overrides.items()}
     data = scene_to_dict(scene)
     preset = overrides.get("sim.accuracy")
     if isinstance(preset, str) and preset in PRESETS:
@@ -182,6 +192,18 @@ def scene_with(scene: Scene, overrides: dict) -> Scene:
             else:
                 node = node[step] if isinstance(step, int) else node.setdefault(step, {})
     return parse_scene(data, scene.source, scene.name)
+
+
+def _plain(value):
+    """``value`` with NumPy's numbers and arrays as the Python numbers and lists a TOML file gives (a scene's
+    integer key takes ``np.int64(100)`` as it takes 100; no NumPy import here: they are known by ``tolist``)."""
+    if type(value).__module__ == "numpy" and callable(getattr(value, "tolist", None)):
+        value = value.tolist()
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
 
 
 def scene_json_schema() -> dict:
