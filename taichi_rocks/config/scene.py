@@ -27,7 +27,7 @@ from .summary import summarise
 from .tomltext import read_toml
 from .values import _is_list, _show, dumped
 
-__all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
+__all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict", "shipped_scene",
            "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
            "Sim", "WaypointPath", "CirclePath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings", "Shot",
            "SunAngles", "Render", "PRESETS"]
@@ -130,6 +130,30 @@ def load_scene(path: Union[str, os.PathLike]) -> Scene:
     source = str(path)
     data = read_toml(path, "scene", SceneError)
     return parse_scene(data, source, Path(path).stem)
+
+
+SCENES = Path(__file__).resolve().parents[2] / "scenes"  # the shipped scenes, beside the package in its repository
+
+
+def shipped_scene(name: str) -> Path:
+    """The file of a scene that ships with taichi_rocks (its repository's scenes/ folder), wherever the caller
+    runs: ``load_scene(shipped_scene("convoy"))`` reads scenes/convoy.toml from any folder.
+
+    Args:
+        name: the scene's name, the file's stem ("convoy", "minimal", ...).
+
+    Returns:
+        The scene file's absolute path.
+
+    Raises:
+        ValueError: no shipped scene of that name (the message lists them).
+    """
+    path = SCENES / f"{name}.toml"
+    if not isinstance(name, str) or "/" in name or not path.is_file():
+        known = sorted(p.stem for p in SCENES.glob("*.toml"))
+        raise ValueError(f"name: no shipped scene {name!r} in {SCENES}" +
+                         (f"; the shipped scenes: {', '.join(known)}" if known else ""))
+    return path
 
 
 # ---------------------------------------------------------------------------------------------- derived
