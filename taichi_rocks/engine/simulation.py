@@ -81,7 +81,7 @@ class Simulation:
         SceneError: (a ValueError; one line per problem, naming the key) the scene does not fit this machine's
             memory, resting rocks would lie inside a body that stones hit, or ``arch`` cannot run it (``sim.precision
             = "f64"`` or ``sim.hash.insert = "aabb"`` on Vulkan: config/arches.py, as the command line refuses them).
-        ValueError: ``arch`` is not a backend's name, or an environment variable of engine/runtime.py is bad.
+        ValueError: ``arch`` is not a backend's name, or an environment variable of config/environment.py is bad.
 
     Attributes:
         scene: the Scene (with ``seed`` applied).

@@ -216,12 +216,13 @@ class Dust:
             return None
         if len(there) < len(keys):
             return f"checkpoint: no {next(k for k in keys if k not in data)}"
+        age = np.asarray(data["dust_age"])
         for name, _, width in decl.FIELDS:
             a = np.asarray(data[name])
             shape = (self.capacity,) + ((width,) if width > 1 else ())
             if a.shape != shape or a.dtype.kind != "f":
                 return f"checkpoint: {name} must be {shape} numbers (one row per slot of [dust] capacity)"
-            if not np.isfinite(a).all():
+            if not np.isfinite(a if name == "dust_age" else a[age >= 0]).all():  # a free slot's are never read
                 return f"checkpoint: {name} must be finite"
         carried = np.asarray(data["dust_carried"])
         if carried.shape != self.carried.shape or not ((carried >= 0) & (carried < 1)).all():
