@@ -9,7 +9,6 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
-import os
 import warnings
 from dataclasses import dataclass
 from typing import Optional
@@ -19,6 +18,7 @@ import taichi as ti
 from taichi.lang.field import Field
 from taichi.lang.matrix import MatrixField
 
+from ..config.environment import PARALLEL_SCAN, parallel_scan_wanted  # noqa: F401 - PARALLEL_SCAN re-exported
 from ..config.plan import Plan
 from .events import N_INT, N_REAL, EventBuffer
 from .transfer import entries, entry_index, most_entries
@@ -116,18 +116,15 @@ def scan_level_sizes(table: int) -> tuple:
     return tuple(sizes)
 
 
-PARALLEL_SCAN = "TAICHI_ROCKS_PARALLEL_SCAN"  # "1" or "0": the scan's way on any backend (tests, profiling)
-
-
 def scan_in_parallel(requested: Optional[bool] = None) -> bool:
     """Does a World's hash build scan its counts in parallel (engine/hashgrid.py block_scan)? As ``requested``,
-    else as ``TAICHI_ROCKS_PARALLEL_SCAN`` says ("1" or "0"), else off the CPU only: one GPU thread pays some
-    15 ns per slot for a serial scan, a CPU core about 1 ns."""
+    else as ``TAICHI_ROCKS_PARALLEL_SCAN`` says ("1" or "0"; another value: ValueError, config/environment.py),
+    else off the CPU only: one GPU thread pays some 15 ns per slot for a serial scan, a CPU core about 1 ns."""
     if requested is not None:
         return bool(requested)
-    env = os.environ.get(PARALLEL_SCAN, "").strip()
-    if env in ("0", "1"):
-        return env == "1"
+    env = parallel_scan_wanted()
+    if env is not None:
+        return env
     if ti.lang.impl.get_runtime().prog is None:  # Taichi not started (a memory estimate made before): the CPU's
         return False
     return ti.lang.impl.current_cfg().arch not in (ti.x64, ti.arm64)
