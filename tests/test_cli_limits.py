@@ -70,7 +70,8 @@ def _taichi_commands(tmp_path) -> dict:
             "sweep": (ROOT / "sweeps" / "example.toml", "--out", tmp_path / "w")}
 
 
-BAD_VARIABLES = [("TAICHI_ROCKS_THREADS", "-1"), ("TAICHI_ROCKS_THREADS", "abc"), ("TAICHI_ROCKS_PARALLEL_SCAN", "yes")]
+BAD_VARIABLES = [("TAICHI_ROCKS_THREADS", "-1"), ("TAICHI_ROCKS_THREADS", "abc"), ("TAICHI_ROCKS_PARALLEL_SCAN", "yes"),
+                 ("TAICHI_ROCKS_LOOPS", "fast")]
 
 
 @pytest.mark.parametrize("command, variable, value", [
