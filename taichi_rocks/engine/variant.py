@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from ..config.environment import LOOP_CHOICES as CHOICES, LOOPS, loops_wanted
 
+__all__ = ["LOOPS", "CHOICES", "CROSSOVER", "crossover", "loops_from_env", "VariantChoice"]
+
 CROSSOVER = 60_000  # rocks in a step's loops past which 2 threads beat one (bench --only frame: variants)
 
 
