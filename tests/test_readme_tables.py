@@ -84,18 +84,31 @@ def test_a_frame_run_fills_the_frame_blocks_and_its_absence_empties_them():
     launch, bench = tables.load()
     stats = {"median_ms": 0.25, "p95_ms": 0.5, "max_ms": 1.0}
     loop = {"case": "game", "threads_asked": "auto", "threads": 2, "steps_per_frame": 1.0, "rows_median": 2786.0,
+            "loops_asked": "auto", "loops": "serial",
             **{k: stats for k in ("advance_to", "impacts", "changes", "state")},
             "frame": {"median_ms": 0.8, "p95_ms": 1.25, "max_ms": 2.0}}
     frame_run = {"started": "2026-12-04 20:00:00", "load_average_start": [0.1, 0.1, 0.1],
                  "machine": {"cpu_model": "X", "usable_cores": 2, "taichi": "1.7.4", "taichi_arch": "cpu"},
-                 "loops": [loop], "tasks": {"tasks": [{"kernel": "active_step", "task": 0, "what": "rays in",
-                                                       "kind": "serial", "per_step": 1.0, "median_ms": 0.002}]},
+                 "loops": [loop], "tasks": {"serial": {"tasks": [{"kernel": "active_step", "task": 0, "what": "rays in",
+                                                                  "kind": "serial", "per_step": 1.0, "median_ms": 0.002,
+                                                                  "share": 0.25}],
+                                                       "device_ms_per_step": 0.008, "tasks_per_step": 1.0,
+                                                       "parallel_tasks_per_step": 0.0, "active": 1500}},
+                 "variants": {"rows": [{"rocks": 20_000, "serial_ms": 1.5, "parallel_ms": 2.5},
+                                       {"rocks": 200_000, "serial_ms": 9.0, "parallel_ms": 6.0}],
+                              "crossover": 98_000, "threads": 2,
+                              "task_costs": {"rows": [{"items": 1000, "parallel_us": 70.0, "serial_us": 14.0,
+                                                       "four_parallel_us": 150.0}], "empty_us": 12.5, "threads": 2}},
                  "accuracy": [{"preset": "game", "dt": 1 / 60, "steps_per_60hz_frame": 1.0, "integrator": "heun",
                                "detection": "patch", "precision": "f32", "flight_error_m": 1e-3,
                                "recall_at_60": 1.0, "launch_time_bound_m": 0.5}]}
     got = tables.blocks(launch, dict(bench, frame_run=frame_run))
-    assert "| game | 2 (auto) | 1 | 0.25 ms | 0.25 ms | 0.25 ms (2,786) | **0.8 ms** | 1.25 ms | 0.25 ms |" in got["frame"]
-    assert "| active_step | 0 | rays in | serial | 1 | 2 |" in got["frame-details"]
+    assert ("| game | 2 (auto) | serial (auto) | 1 | 0.25 ms | 0.25 ms | 0.25 ms (2,786) | **0.8 ms** | 1.25 ms | "
+            "0.25 ms |") in got["frame"]
+    assert "| serial | active_step | 0 | rays in | serial | 1 | 2 | 25 % |" in got["frame-details"]
+    assert "| 200,000 | 9 ms | 6 ms | parallel |" in got["frame-details"]  # the variants' crossover
+    assert "Crossover: about 98,000 rocks (2 threads)." in got["frame-details"]
+    assert "| 1,000 items | 70 µs | 14 µs | 150 µs |" in got["frame-details"]  # what a task costs
     assert "| game | 0.01667 | 1 | heun, patch, f32 | 0.001 | 1 | 0.5 |" in got["frame-details"]
     without = {k: v for k, v in bench.items() if k != "frame_run"}
     assert tables.blocks(launch, without)["frame"] == "" == tables.blocks(launch, without)["frame-details"]

@@ -359,11 +359,16 @@ def frame_details(launch: dict, bench: dict) -> list:
     res = bench.get("frame_run")
     if not res:
         return []
-    from taichi_rocks.bench.frame import accuracy_table, task_table
+    from taichi_rocks.bench.frame import accuracy_table, task_cost_table, task_table, variant_table
 
-    return (["*The step's tasks with the game preset (Taichi's kernel profiler, per step):*", ""] + task_table(res)
-            + ["", "*What each preset costs in accuracy (the frame study's own measurements):*", ""]
-            + accuracy_table(res))
+    out = ["*The step's tasks with the game preset, in each variant of the step (Taichi's kernel profiler, per "
+           "step):*", ""] + task_table(res)
+    if res.get("variants"):  # runs made before the variants existed have neither table
+        out += ["", "*The variants' crossover: the step right after loading, every rock in its loops, serial "
+                    "against parallel:*", ""] + variant_table(res)
+        out += ["", "*What a task costs from Python (a loop adding 1 to a field):*", ""] + task_cost_table(res)
+    return out + ["", "*What each preset costs in accuracy (the frame study's own measurements):*", ""] + \
+        accuracy_table(res)
 
 
 BLOCKS = {"headline-speed": headline_speed, "frame": frame, "frame-details": frame_details, "launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,

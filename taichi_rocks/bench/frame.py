@@ -46,6 +46,7 @@ from ..output.atomic import new_folders, write_atomically
 from .activity import task_rows
 from .config import PRESET_SPEED, SAMPLE_EVERY, V_LAUNCH_MAX, make_config
 from .detection import detection_runs
+from .taskcosts import measure_task_costs
 from .flight import exact_gravity, exact_quadratic_vertical, fly
 from .machine import Progress, loadavg, machine
 from .measure import Built, stats
@@ -183,6 +184,7 @@ def worker(job: dict) -> dict:
         out = measure_tasks(job["overrides"], arch, job["steps"], job["warm"], job["scene"])
     elif job["kind"] == "variants":
         out = measure_variants(arch, job["sizes"], job["rounds"])
+        out["task_costs"] = measure_task_costs(calls=20 if job["rounds"] <= 1 else 200)
     else:
         out = measure_loop(job["overrides"], arch, job["frames"], job["warm"], path=job["scene"],
                            loops=job.get("loops", "auto"))
@@ -321,10 +323,24 @@ def task_table(res: dict) -> list:
             share = f"{100 * r['share']:.0f} %" if "share" in r else ""
             L.append(f"| {name} | {r['kernel']} | {r['task']} | {r['what']} | {r['kind']} | {r['per_step']:.3g} | "
                      f"{1e3 * r['median_ms']:.3g} | {share} |")
-        L.append(f"| {name} | | | device time per step: **{1e3 * v['device_ms_per_step']:.0f} µs**, "
-                 f"{v['tasks_per_step']:.3g} tasks ({v.get('parallel_tasks_per_step', 0):.3g} parallel), "
-                 f"{v.get('active', 0):,} rocks active | | | | |")
+        if "device_ms_per_step" in v:  # (runs made before the variants have no totals)
+            L.append(f"| {name} | | | device time per step: **{1e3 * v['device_ms_per_step']:.0f} µs**, "
+                     f"{v['tasks_per_step']:.3g} tasks ({v.get('parallel_tasks_per_step', 0):.3g} parallel), "
+                     f"{v.get('active', 0):,} rocks active | | | | |")
     return L
+
+
+def task_cost_table(res: dict) -> list:
+    """What a task costs from Python (measure_task_costs): the fixed cost a parallel task pays before any work."""
+    t = (res.get("variants") or {}).get("task_costs")
+    if not t:
+        return ["(task costs: not measured)"]
+    L = ["| loop adding 1 to a field of | parallel (`for i in f`) | serial (`ti.loop_config(serialize=True)`) | "
+         "4 parallel loops in one kernel |", "|---|---|---|---|"]
+    for r in t["rows"]:
+        L.append(f"| {r['items']:,} items | {r['parallel_us']:.0f} µs | {r['serial_us']:.0f} µs | "
+                 f"{r['four_parallel_us']:.0f} µs |")
+    return L + ["", f"An empty kernel: {t['empty_us']:.1f} µs from Python ({t['threads']} threads)."]
 
 
 def variant_table(res: dict) -> list:
@@ -366,6 +382,7 @@ def report_lines(res: dict) -> list:
     L += frame_table(res)
     L += ["", "## The step's tasks, game preset (kernel profiler), in both variants", ""] + task_table(res)
     L += ["", "## The variants' crossover: the step with every rock active", ""] + variant_table(res)
+    L += ["", "## What a task costs from Python", ""] + task_cost_table(res)
     L += ["", "## What each preset costs in accuracy", ""] + accuracy_table(res)
     if res["errors"]:
         L += ["", "Errors: " + "; ".join(res["errors"])]

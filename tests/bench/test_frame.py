@@ -44,8 +44,11 @@ def test_tiny_frame_study(tmp_path):
     v = saved["variants"]  # the crossover study: both variants timed at each size
     assert [r["rocks"] for r in v["rows"]] == [2_000, 6_000]
     assert all(r["serial_ms"] > 0 and r["parallel_ms"] > 0 for r in v["rows"])
+    costs = v["task_costs"]  # what a task costs from Python: three sizes, three kinds of loop, an empty kernel
+    assert [r["items"] for r in costs["rows"]] == [1_000, 10_000, 100_000] and costs["empty_us"] > 0
+    assert all(r[k] > 0 for r in costs["rows"] for k in ("parallel_us", "serial_us", "four_parallel_us"))
     md = (tmp_path / "frame.md").read_text()
-    assert frame_table(saved)[0] in md and "## The step's tasks" in md and "## The variants' crossover" in md
+    assert frame_table(saved)[0] in md and "## The step's tasks" in md and "## The variants' crossover" in md and "## What a task costs" in md
     with pytest.raises(FileExistsError, match="--overwrite"):
         run_frame_study(tmp_path, tiny=True, progress=False)
 
