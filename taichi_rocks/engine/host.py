@@ -46,6 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import patch
+from ..motion.live import clock_tolerance
 from ..motion.vehicles import RearTires, TablePoses, tire_fields
 from .impact_pass import batch_pose_rows, pose_rows
 from .world import ACTIVE, BATCH_ROWS, HALF_W, HULL, RAY_FIELDS
@@ -203,8 +204,8 @@ class HostSide:
         """Steps 1 to 4 of the module docstring for ``st``; the rays are the splashing tires' (or a dummy row)."""
         st.step_count += 1
         st.time += dt
-        if self.lookahead and dt == self.dt:  # from the lookahead's batch: the same bits
-            b, k = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead)
+        if self.lookahead and dt == self.dt and self.ahead.pays(st.time, st.tires_prev, dt):
+            b, k = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead)  # the same bits as step by step
             if b.frames is None:
                 b.frames = self.frames(st, b)
             return self._serve(st, b, k, dt)
@@ -415,13 +416,27 @@ class Lookahead:
         """Forget the batch (restore(), anything that changes the clock or the tires other than a step)."""
         self._batch = None
 
+    def _continues(self, time: float, tires_prev: RearTires, dt: float) -> bool:
+        """Whether the batch in hand serves the step ending at ``time``."""
+        b = self._batch
+        return not (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != time
+                    or b.prev is not tires_prev)
+
+    def pays(self, time: float, tires_prev: RearTires, dt: float) -> bool:
+        """Whether the step ending at ``time`` is better served by a batch than alone: a batch in hand continues,
+        or a new one would hold at least two steps (the poses are final up to the fleet's horizon: the end of
+        the advance under way with live vehicles; a batch of one step costs about twice the step alone)."""
+        if self._continues(time, tires_prev, dt):
+            return True
+        end = self.fleet.horizon()
+        return end == math.inf or time + dt <= end + clock_tolerance(end)
+
     def take(self, time: float, tires_prev: RearTires, dt: float, limit: int) -> tuple:
         """The step being taken: the clock already advanced by ``dt`` to ``time``, ``tires_prev`` the tires of
         the step before; a new batch holds at most ``limit`` steps (and BATCH_ROWS). Returns (batch, its row):
         the row's tires are ``batch.tires_at(row)``, which the next take() expects as ``tires_prev``."""
         b = self._batch
-        if (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != time
-                or b.prev is not tires_prev):
+        if not self._continues(time, tires_prev, dt):
             if b is not None:  # a batch used up: the next twice as long; left early: as long as was used
                 self._size = 2 * len(b.times) if b.next >= len(b.times) else b.next + 1
             b = self._batch = self._compute(time, tires_prev, dt, max(1, min(self._size, int(limit), BATCH_ROWS)))
@@ -432,7 +447,11 @@ class Lookahead:
 
     def _compute(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
         times = [time]
+        end = self.fleet.horizon()  # live vehicles: no pose is known past the end of the advance under way
+        end += clock_tolerance(end) if end < math.inf else 0.0
         for _ in range(steps - 1):
+            if times[-1] + dt > end:
+                break
             times.append(times[-1] + dt)
         table = self.fleet.pose_table(times)
         cur = self.fleet.rear_tires_table(table)

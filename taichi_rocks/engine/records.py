@@ -78,6 +78,9 @@ class Checkpoint(Record):
     scene: np.ndarray = entry("", "the scene's name")
     seed: np.int64 = entry("", "the scene's random seed")
     rocks: np.int64 = entry("", "the number of rocks N")
+    drives: np.ndarray = entry("", "(K, 8) float64, with live vehicles: their keyframes from the last one at or "
+                                   "before this time on: vehicle index, t (s), x, y (m), heading (rad), speed "
+                                   "(m/s), yaw_rate (rad/s), wheel_spin (rad/s; NaN: rolling)", optional=True)
 
     _holder, _extra_first = "rock_fields", True
 

@@ -26,8 +26,9 @@ import taichi as ti
 
 from ..config.plan import Plan
 from ..config.scene import load_scene, scene_with
+from ..motion.live import drive_pose
 from ..motion.vehicles import Fleet
-from . import changes, rocks
+from . import changes, drives, rocks
 from .records import Changes, Checkpoint, State
 from .rocks import state_arrays
 from .effects import Effects
@@ -240,6 +241,44 @@ class Simulation:
         """
         return self._host.poses
 
+    def drive(self, name: str, position, heading: float, speed=None, yaw_rate=None, wheel_spin=None, *,
+              at=None) -> None:
+        """Set where live vehicle ``name`` (``path = { kind = "live" }``) will be at the end of the next
+        ``advance_to`` / ``step`` (or at time ``at``). Between that and the pose it has now, the pose is
+        interpolated (cubic Hermite: the tires sweep continuously over the sub-steps); a move farther than its
+        speeds allow is a jump (a teleport: no launches along it). A later call before the advance replaces
+        this one. The manual: docs/drives.md; the interpolation: motion/live.py.
+
+        Args:
+            name: a live vehicle of the scene.
+            position: (x, y), world coordinates, m (as ``state()`` reports them).
+            heading: rad, counter-clockwise from +x.
+            speed: m/s along the heading (negative: reversing); None: derived from the motion.
+            yaw_rate: rad/s; None: derived from the motion.
+            wheel_spin: the rear wheels' spin, rad/s (faster than speed / tire radius: a burnout, which throws
+                harder); None: rolling, speed / tire_radius (1 + slip).
+            at: the time the pose is for, s (after ``time``); None: the end of the next advance.
+
+        Raises:
+            ValueError: naming the vehicle and the value: an unknown name, a scripted vehicle, a NaN or infinite
+                value, a position that is not (x, y), ``at`` already passed. The simulation is unchanged.
+        """
+        i = drives.live_index(self.fleet, name)
+        self.fleet.paths[i].pending = drive_pose(name, position, heading, speed, yaw_rate, wheel_spin, at, self.time)
+
+    def drive_track(self, name: str) -> np.ndarray:
+        """The poses live vehicle ``name`` was given so far (its keyframes: motion/live.py), as a recorded drive's
+        rows (config/drivefile.py ``drive_text`` writes them; docs/drives.md).
+
+        Returns:
+            (K, 7) float64: t (s), x, y (world m), heading (rad), speed (m/s), yaw_rate (rad/s), wheel_spin
+            (rad/s; NaN: rolling).
+
+        Raises:
+            ValueError: an unknown name or a scripted vehicle.
+        """
+        return self.fleet.paths[drives.live_index(self.fleet, name)].rows()
+
     def tile_shift(self) -> np.ndarray:
         """The floating origin's shift in tiles of active stepping's store (whole numbers, float64; zeros with
         full stepping): what drawing the tiles needs (engine/drawing.py).
@@ -270,6 +309,11 @@ class Simulation:
             n: the number of steps (>= 0).
         """
         n = int(n)
+        if self.fleet.live and n > 0:  # the live vehicles' drive() poses are for the end of these steps
+            end = self.time
+            for _ in range(n):
+                end += self.dt
+            self.fleet.bind(self.time, end)
         while n > 0:
             if self._can_coast():
                 self._coast(n)
@@ -285,6 +329,8 @@ class Simulation:
             t: the time to reach, s; a time at or before ``time`` takes no step.
         """
         tol = 1e-9 * max(1.0, abs(t))
+        if self.fleet.live and t - self.time > tol:  # the live vehicles' drive() poses are for time t
+            self.fleet.bind(self.time, t)
         while self.time + self.dt <= t + tol:
             if self._can_coast():
                 k, clock = 0, self.time
@@ -487,7 +533,8 @@ class Simulation:
         return Checkpoint(rock_fields=rocks.checkpoint_fields(self.world, self.rock_arrays(), self.n_rocks),
                           **self._host.saved(), launches=np.int64(self.launches_total),
                           recycles=np.int64(self.recycles_total), scene=np.array(self.scene.name),
-                          seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
+                          seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks),
+                          drives=drives.saved(self.fleet, self.time))
 
     def restore(self, data: dict) -> None:
         """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint
@@ -514,6 +561,7 @@ class Simulation:
                     "rock_spin": np.zeros((self.n_rocks, 3))}
         self._stepper.load(rocks.from_checkpoint(w, data))  # after the origin: the tiles are keyed by its shift
         self._stepper.sync_drawn()
+        drives.load(self.fleet, data, h.time)  # the live vehicles' keyframes, before their poses are asked
         self._host_side.resume(h)
         if self.plan.splash:
             self._put_rays()
