@@ -236,15 +236,18 @@ class LivePath(Path):
     # ------------------------------------------------------------------------------------------ driving
     def bind(self, t0: float, t1: float) -> None:
         """An advance from clock t0 to t1 starts: the pending drive() pose becomes the keyframe at its time (the
-        advance's end unless it named one); the keyframes after t0 (a future left by a restore) go first, and a
-        keyframe is put at t0 where the vehicle went straight on since the last one. Poses up to t1 are final
-        from here on (``horizon``)."""
+        advance's end unless it named one); the keyframes after t0 (a pose set for later with ``at``, a future
+        left by a restore) go first, and a keyframe is put at t0 where the vehicle got to if none is there. Poses
+        up to t1 are final from here on (``horizon``). Where a pose set for later is cut away so, the segment up
+        to t0 is the Hermite cubic to the pose reached, no longer the curve the vehicle took towards the pose cut
+        away: a replay of the keyframes differs there (docs/drives.md)."""
         p, self.pending = self.pending, None
         if p is not None:
             tol = clock_tolerance(t0)
+            x, y, h, v, w, _, _, spin = self.pose_values(t0)  # where it is: straight on, or on its way to a pose
             self._truncate(t0 + tol)
-            if self._times[-1] < t0 - tol:  # undriven frames since the last keyframe: start from where it went
-                self._append(_straight_row(self._rows[-1], t0))
+            if self._times[-1] < t0 - tol:  # no keyframe here: one where it got (straight on: _straight_row's)
+                self._append((t0, x, y, h, v, w, spin))
             self._append(self._keyframe(p, t1 if p.at is None else p.at))
         self.horizon = t1
 
