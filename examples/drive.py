@@ -2,7 +2,7 @@
 road into the open and back (a swerve 12 m to the left and back at 20 m/s), with ``changes()`` and ``impacts()``
 read as a game reads them.
 
-    python examples/drive.py [--frames N] [--record FILE]
+    python examples/drive.py [--frames N] [--record FILE] [--rocks N]
 
 Each frame the game works out where its car is (here a function of time: the game's own physics, in a real
 game) and tells the simulation with ``Simulation.drive``, which takes it as the pose at the end of the next
@@ -47,11 +47,13 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=480, help="frames at 60 Hz (default: 8 s)")
     ap.add_argument("--record", type=Path, metavar="FILE", help="write the drive to FILE (docs/drives.md)")
+    ap.add_argument("--rocks", type=int, help="rocks in the bed (default: the scene's 200,000)")
     args = ap.parse_args()
 
     scene = load_scene(ROOT / "scenes" / "convoy.toml")
     scene = scene_with(scene, {"sim.accuracy": "game",  # one step a 60 Hz frame
-                               "vehicle[0].path": {"kind": "live", "start": [0.0, 0.0], "speed": SPEED}})
+                               "vehicle[0].path": {"kind": "live", "start": [0.0, 0.0], "speed": SPEED},
+                               **({"bed.rocks": args.rocks} if args.rocks else {})})
     sim = Simulation(scene)
     positions = np.zeros((sim.n_rocks, 3))  # the game's mirror of the bed
     positions[...] = sim.changes().positions  # the first call: every rock

@@ -84,8 +84,8 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    c = sub.add_parser("check", help="validate scene files and summarise what will run")
-    c.add_argument("scenes", nargs="+", metavar="SCENE")
+    c = sub.add_parser("check", help="validate scene files (and recorded drives) and summarise what will run")
+    c.add_argument("scenes", nargs="+", metavar="SCENE", help="a scene file, or a recorded drive (docs/drives.md)")
 
     sub.add_parser("schema", help="print the JSON Schema of scene files")
 
@@ -207,11 +207,22 @@ def _check_arch(scene, arch: str) -> None:
 
 
 def cmd_check(args) -> int:
+    from .config.drivefile import DriveFileError, is_drive_file, read_drive
     from .config.scene import SceneError, load_scene, summarise
     from .engine.layout import check_machine, estimate_memory
 
     status = EXIT_OK
     for i, path in enumerate(args.scenes):
+        if is_drive_file(path):  # a recorded drive (docs/drives.md)
+            try:
+                rows = read_drive(path)
+            except DriveFileError as e:
+                _err(str(e))
+                status = EXIT_USAGE
+                continue
+            print(("\n" if i else "") + f"drive {path}: {len(rows)} poses from t = {rows[0][0]:g} s to "
+                  f"{rows[-1][0]:g} s")
+            continue
         try:
             scene = load_scene(path)
             check_machine(scene)

@@ -74,7 +74,7 @@ SECTIONS = (
      VEHICLE + 'path = { kind = "live", start = [0.0, 0.0], heading = 0.0, speed = 20.0 }\n'),
     ("vehicle.path: recorded", models.RecordedPath, "`path` of a `[[vehicle]]`, `kind = \"recorded\"` (a drive "
                                                     "recorded by `view --record-drive`: docs/drives.md)",
-     VEHICLE + 'path = { kind = "recorded", file = "../examples/swerve.drive" }   # beside scenes/: in examples/\n'),
+     VEHICLE + 'path = { kind = "recorded", file = "../examples/swerve.drive" }   # in examples/, seen from scenes/\n'),
     ("[camera]", models.CameraSettings, "`[camera]` (the camera of `render`, `view` and `export`)",
      '[camera]\nview = "chase"\nlook_ahead = 6.0\nfov = 50.0\n'),
     ("[[camera.shot]]", models.Shot, "`[[camera.shot]]`, one table per cut, in increasing `at`",

@@ -270,6 +270,9 @@ class Simulation:
         """The poses live vehicle ``name`` was given so far (its keyframes: motion/live.py), as a recorded drive's
         rows (config/drivefile.py ``drive_text`` writes them; docs/drives.md).
 
+        Args:
+            name: a live vehicle of the scene.
+
         Returns:
             (K, 7) float64: t (s), x, y (world m), heading (rad), speed (m/s), yaw_rate (rad/s), wheel_spin
             (rad/s; NaN: rolling).
