@@ -289,7 +289,7 @@ class ActiveStepper(Stepper):
             centre, move, lead, shift, dt, rays, start, bodies = rows
             data, frame, poses = stepdata.batch_arrays(centre, move, lead, centre - self.sizing.grid_half, shift,
                                                        dt, self.world.store_tile, rays, start, bodies)
-            stepdata.load_batch(self.world, data, frame, poses)
+            stepdata.load_batch(self.world, stepdata.packed(self.world, data, frame, poses))
         self._on_device = f
         return 0 if f is None else s.row
 

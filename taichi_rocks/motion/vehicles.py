@@ -78,7 +78,7 @@ class PoseTable:
     yaw_rate: np.ndarray
     vx: np.ndarray
     vy: np.ndarray
-    wheel_spin: np.ndarray
+    wheel_spin: np.ndarray | None = None  # None: every wheel rolls
 
 
 class TablePoses(Sequence):
@@ -100,7 +100,7 @@ class TablePoses(Sequence):
             self._built[i] = VehiclePose(
                 self._fleet.specs[i].name, np.array([t.x[k, i], t.y[k, i], z]), float(t.heading[k, i]),
                 float(t.speed[k, i]), float(t.yaw_rate[k, i]), np.array([t.vx[k, i], t.vy[k, i], 0.0]),
-                np.array([t.rx[k, i], t.ry[k, i], z]), float(t.wheel_spin[k, i]))
+                np.array([t.rx[k, i], t.ry[k, i], z]), math.nan if t.wheel_spin is None else float(t.wheel_spin[k, i]))
         return self._built[i]
 
 
@@ -209,8 +209,8 @@ class Fleet:
         vel = np.stack([table.vx[:, vi] + yaw * -r1, table.vy[:, vi] + yaw * r0], axis=-1)
         fwd = np.stack([c, s], axis=-1)
         spin = (vel[..., None, :] @ fwd[..., :, None])[..., 0, 0] * slip  # as vel @ fwd, tire by tire
-        given = table.wheel_spin[:, vi]
-        if not np.isnan(given).all():  # a live vehicle's wheels spinning as the game says
+        given = None if table.wheel_spin is None else table.wheel_spin[:, vi]
+        if given is not None and not np.isnan(given).all():  # a live vehicle's wheels spinning as the game says
             spin = np.where(np.isnan(given), spin, given * np.array(radius, dtype=np.float64))
         centre = np.stack([table.rx[:, vi] + r0, table.ry[:, vi] + r1, np.tile(cz, (k, 1))], axis=-1)
         bottom = centre.copy()
