@@ -209,6 +209,10 @@ class HostSide:
             if b.frames is None:
                 b.frames = self.frames(st, b)
             return self._serve(st, b, k, dt)
+        return self.alone(st, dt)
+
+    def alone(self, st: HostState, dt: float) -> StepInput:
+        """The step just counted on the clock, computed by itself (no batch)."""
         poses = self.fleet.poses(st.time)
         move = self._follow(st, poses[self.follow])
         moved = self._keep_origin_near(st)
@@ -395,10 +399,10 @@ class _Batch:
         self.next = 0
         self.prev = prev  # the tires the next step's rays start from
         self.frames = None
-        self._tire_arrays = tire_fields(tires)
+        self.tire_arrays = tire_fields(tires)
 
     def tires_at(self, k: int) -> RearTires:
-        return RearTires(*(a[k] for a in self._tire_arrays))
+        return RearTires(*(a[k] for a in self.tire_arrays))
 
 
 class Lookahead:
@@ -406,8 +410,9 @@ class Lookahead:
     docstring). ``follow``: the vehicle the bed follows; ``rays``: compute ray rows (splashing tires);
     ``reach_m``: farther from the bed centre, a tire is parked."""
 
-    def __init__(self, fleet, follow: int, rays: bool, reach_m: float):
+    def __init__(self, fleet, follow: int, rays: bool, reach_m: float, planned: bool = False):
         self.fleet, self.follow, self.rays, self.reach_m = fleet, follow, rays, reach_m
+        self.planned = planned  # batches past the fleet's horizon (engine/livesteps.py: the scripted part only)
         self.batches = 0  # batches computed so far
         self._size = 1 << 30  # steps of the next batch (at most the lookahead asked for)
         self.clear()
@@ -445,9 +450,13 @@ class Lookahead:
         b.prev = b.tires_at(k)
         return b, k
 
+    def batch(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
+        """A new batch of ``steps`` steps from the one ending at ``time`` (tires before it: ``tires_prev``)."""
+        return self._compute(time, tires_prev, dt, steps)
+
     def _compute(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
         times = [time]
-        end = self.fleet.horizon()  # live vehicles: no pose is known past the end of the advance under way
+        end = math.inf if self.planned else self.fleet.horizon()  # live: no pose is known past the advance's end
         end += clock_tolerance(end) if end < math.inf else 0.0
         for _ in range(steps - 1):
             if times[-1] + dt > end:

@@ -35,6 +35,7 @@ from .effects import Effects
 from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
+from .livesteps import LiveHostSide
 from .kernels import count_flying, shift_origin, switches
 from .layout import check_fits, world_layout
 from .rockfields import ID
@@ -128,7 +129,8 @@ class Simulation:
         start = initial_rocks(scene)
         self.world = self._allocate(start.radius)
         self._host = HostState()
-        self._host_side = HostSide(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD, plan.targets)
+        host = LiveHostSide if self.fleet.live else HostSide  # live vehicles: engine/livesteps.py
+        self._host_side = host(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD, plan.targets)
         self._host_side.start(self._host)
         self._stepper = stepper_for(plan)(self.world, plan, self._switches, self._sizing, self._host,
                                           scene.sim.hash.table_size == "auto", timer)

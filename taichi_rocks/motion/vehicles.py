@@ -175,15 +175,22 @@ class Fleet:
                 cols.append((a[0] + v[:, 0], a[1] + v[:, 1], (a[0] - self.anchor[0]) + v[:, 0],
                              (a[1] - self.anchor[1]) + v[:, 1], *v[:, 2:].T, np.full(len(v), math.nan)))
                 continue
-            rows = []
-            for t in times:
-                p = path.pose(t)
-                rel = self._relative(path, p)
-                rows.append((p.position[0], p.position[1], rel[0], rel[1], float(p.heading), float(p.speed),
-                             float(p.yaw_rate), p.velocity[0], p.velocity[1], float(p.wheel_spin)))
+            rows = [self._values(path, t) for t in times]
             cols.append(tuple(np.array(rows, dtype=np.float64).reshape(-1, 10).T))
         k = len(times)
         return PoseTable(*(np.array([c[q] for c in cols]).reshape(-1, k).T.copy() for q in range(10)))
+
+    def _values(self, path, t: float) -> tuple:
+        """A pose table's row entries of ``path`` at time t: x, y, rx, ry, heading, speed, yaw rate, vx, vy, wheel
+        spin (``poses(t)``'s bits)."""
+        p = path.pose(t)
+        rel = self._relative(path, p)
+        return (p.position[0], p.position[1], rel[0], rel[1], float(p.heading), float(p.speed), float(p.yaw_rate),
+                p.velocity[0], p.velocity[1], float(p.wheel_spin))
+
+    def poses_of(self, i: int, t: float) -> tuple:
+        """Vehicle i's entries of a pose table's row at time t (the order of PoseTable's fields)."""
+        return self._values(self.paths[i], t)
 
     def rear_tires_table(self, table: PoseTable) -> RearTires:
         """``rear_tires(poses, relative=True)`` at every time of ``table`` at once: arrays (K, T, ...), the
@@ -219,10 +226,11 @@ class Fleet:
         tread = np.tile(np.array(tread, dtype=np.float64).reshape(1, n, 5), (k, 1, 1))
         return RearTires(centre, bottom, velocity, fwd, spin, *(tread[..., q] for q in range(5)))
 
-    def rear_tires(self, poses: list[VehiclePose], relative: bool = False) -> RearTires:
-        """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor."""
+    def rear_tires(self, poses: list[VehiclePose], relative: bool = False, vehicles=None) -> RearTires:
+        """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor; ``vehicles``:
+        only those of these (splashing) vehicles."""
         rows = []
-        for i in self.splashing:
+        for i in self.splashing if vehicles is None else [i for i in self.splashing if i in vehicles]:
             spec, pose = self.specs[i], poses[i]
             base = pose.rel if relative else pose.position
             c, s = np.cos(pose.heading), np.sin(pose.heading)

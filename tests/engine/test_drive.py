@@ -182,9 +182,10 @@ def _all_same(xs, ys) -> bool:
         x.vehicle_positions, y.vehicle_positions) and x.launches_total == y.launches_total for x, y in zip(xs, ys))
 
 
-@pytest.fixture(scope="module")
-def weave():
-    sc = _live(_scripted(rocks=3000, dt=0.004), heading=0.0)
+@pytest.fixture(scope="module", params=[0.004, None], ids=["dt 4 ms", "a step a frame"])
+def weave(request):
+    """The weave at dt = 4 ms (batches of a frame's steps) and at one step a 30 Hz frame (engine/livesteps.py)."""
+    sc = _live(_scripted(rocks=3000, dt=request.param or 1 / 30), heading=0.0)
     return sc, _run(Simulation(sc), 60)
 
 
@@ -220,6 +221,38 @@ def test_a_recorded_drive_replays_the_live_run_bit_for_bit(weave, tmp_path):
         replay.advance_to(f / 30)
         got.append(replay.state())
     assert _all_same(whole, got)
+
+
+def test_a_tires_ray_row_in_plain_floats_is_the_numpy_rows_bit_for_bit():
+    """engine/livesteps.py ``ray_row`` (the live tires' rows a step) against engine/host.py ``ray_rows``: random
+    tires far from the origin, still, creeping, moving, jumping, turning and not."""
+    from taichi_rocks.engine.host import ray_rows
+    from taichi_rocks.engine.livesteps import ray_row
+    from taichi_rocks.engine.world import ACTIVE
+    from taichi_rocks.motion.vehicles import RearTires
+
+    rng = np.random.default_rng(5)
+
+    def tires(c, fwd=None):
+        n = len(c)
+        h = rng.uniform(-4, 4, n)
+        f = np.column_stack([np.cos(h), np.sin(h)]) if fwd is None else fwd
+        return RearTires(c, np.column_stack([c[:, :2], np.zeros(n)]),
+                         np.column_stack([rng.normal(0, 20, (n, 2)), np.zeros(n)]), f, rng.normal(0, 20, n),
+                         rng.uniform(0.05, 0.2, n), rng.uniform(0.03, 0.1, n), np.full(n, 0.33), np.full(n, 0.8),
+                         np.full(n, -1.0))
+
+    for trial in range(400):
+        c0 = np.column_stack([rng.uniform(-1e5, 1e5, (4, 2)), np.full(4, 0.33)])
+        move = rng.choice([0.0, 1e-9, 0.01, 0.3, 3.0])
+        c1 = c0 + np.column_stack([rng.normal(0, 1, (4, 2)) * move, np.zeros(4)])
+        prev = tires(c0)
+        cur = tires(c1, prev.forward if trial % 3 == 0 else None)
+        dt = (0.002, 1 / 60)[trial % 2]
+        want, _ = ray_rows(prev, cur, dt, np.zeros(2), 1e9)
+        want[:, ACTIVE] = 1.0
+        got = np.array([ray_row(prev, t, cur, t, dt) for t in range(4)])
+        assert got.tobytes() == want.tobytes(), trial
 
 
 def test_bad_drive_input_is_refused_naming_the_vehicle_and_the_value_and_changes_nothing():
