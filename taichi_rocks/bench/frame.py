@@ -258,8 +258,8 @@ def run_frame_study(out_dir="renders/bench", quick: bool = False, arch: str = "c
         else:
             res["loops"].append({"case": LIVE[0], "threads_asked": "auto", "threads": r["threads"],
                                  "steps_per_frame": r["steps_per_frame"], "rows_median": r["rows_median"],
-                                 **{k: r["live"][k] for k in ("advance_to", "impacts", "changes", "frame")},
-                                 "state": {"median_ms": None}})
+                                 "frames": r["frames"], "state": {"median_ms": None},  # (the frame has drive())
+                                 **{k: r["live"][k] for k in ("drive", "advance_to", "impacts", "changes", "frame")}})
         prog("frame: live player")
         steps = 20 if tiny else 120
         job = {"kind": "tasks", "arch": arch, "overrides": dict(CASES[0][1]), "steps": steps, "warm": 30,
