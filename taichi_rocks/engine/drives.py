@@ -1,12 +1,30 @@
-"""The live vehicles of a Simulation (motion/live.py): which vehicle a ``drive()`` names, and their keyframes in a
-checkpoint. A checkpoint holds, per live vehicle, its keyframes from the last one at or before the checkpoint's
+"""The live vehicles of a Simulation (motion/live.py): which vehicle a ``drive()`` names, the advance its pose is
+bound to, and their keyframes in a checkpoint. A checkpoint holds, per live vehicle, its keyframes from the last one at or before the checkpoint's
 time on (the segment under way and any pose set for later), as rows (vehicle index, t, x, y, heading, speed,
 yaw_rate, wheel_spin): a restore, in this Simulation or a new one of the same scene, continues the drive with
 the same bits; the pending ``drive()`` pose, not yet bound to a time, is not kept."""
 
 import numpy as np
 
-__all__ = ["live_index", "saved", "load"]
+from ..motion.live import clock_tolerance
+
+__all__ = ["live_index", "bind_to", "bind_steps", "saved", "load"]
+
+
+def bind_to(fleet, now: float, t: float) -> None:
+    """``advance_to(t)`` starts at time ``now``: the pending drive() poses are for t (nothing without a step)."""
+    if fleet.live and t - now > clock_tolerance(t):
+        fleet.bind(now, t)
+
+
+def bind_steps(fleet, now: float, n: int, dt: float) -> None:
+    """``step(n)`` starts at time ``now``: the pending drive() poses are for the clock after n steps of dt (added
+    step by step, as the clock is)."""
+    if fleet.live and n > 0:
+        end = now
+        for _ in range(n):
+            end += dt
+        fleet.bind(now, end)
 
 
 def live_index(fleet, name) -> int:

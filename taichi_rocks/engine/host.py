@@ -35,6 +35,11 @@ time its next row was computed for, and the previous tires the ones it served la
 shorter last step of ``advance_to``, coasting, a step taken without it) starts a new batch on the next step.
 Batches adapt to how long they last: one left after u steps is followed by one of u + 1 (the whole steps of an
 ``advance_to`` frame, then its short step), one used up by one twice as long (up to ``lookahead``).
+
+Live vehicles (motion/live.py, docs/drives.md): a live pose is known only up to the end of the advance under way
+(``Fleet.horizon``), so a batch ends there; a step for which a new batch would hold a single step is computed by
+itself (``alone``: a batch of one step costs about twice as much), in a scene with live vehicles with its scripted
+vehicles' part from a batch of their own (engine/livesteps.py).
 """
 
 from __future__ import annotations

@@ -314,11 +314,7 @@ class Simulation:
             n: the number of steps (>= 0).
         """
         n = int(n)
-        if self.fleet.live and n > 0:  # the live vehicles' drive() poses are for the end of these steps
-            end = self.time
-            for _ in range(n):
-                end += self.dt
-            self.fleet.bind(self.time, end)
+        drives.bind_steps(self.fleet, self.time, n, self.dt)  # live vehicles: drive() is for these steps' end
         while n > 0:
             if self._can_coast():
                 self._coast(n)
@@ -334,8 +330,7 @@ class Simulation:
             t: the time to reach, s; a time at or before ``time`` takes no step.
         """
         tol = 1e-9 * max(1.0, abs(t))
-        if self.fleet.live and t - self.time > tol:  # the live vehicles' drive() poses are for time t
-            self.fleet.bind(self.time, t)
+        drives.bind_to(self.fleet, self.time, t)  # live vehicles: drive() is for time t
         while self.time + self.dt <= t + tol:
             if self._can_coast():
                 k, clock = 0, self.time
