@@ -280,6 +280,11 @@ def _f(x, nd=3) -> str:
     return "n/a" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}g}"
 
 
+def _ms(x) -> str:
+    """A time in ms for a table's cell; "not timed" for None (the live player's row times no ``state()``)."""
+    return "not timed" if x is None else f"{_f(x)} ms"
+
+
 def frame_table(res: dict) -> list:
     """The frame per case and thread count (README and docs/performance.md, tools/readme_tables.py)."""
     L = ["| case | threads | steps / frame | `advance_to` | `impacts()` | `changes()` (rows) | frame median | "
@@ -292,7 +297,7 @@ def frame_table(res: dict) -> list:
         L.append(f"| {r['case']} | {t} | {r['steps_per_frame']:.3g} | {_f(r['advance_to']['median_ms'])} ms | "
                  f"{_f(r['impacts']['median_ms'])} ms | {_f(r['changes']['median_ms'])} ms "
                  f"({r['rows_median']:,.0f}) | **{_f(r['frame']['median_ms'])} ms** | {_f(r['frame']['p95_ms'])} ms "
-                 f"| {_f(r['state']['median_ms'])} ms |")
+                 f"| {_ms(r['state']['median_ms'])} |")
     return L
 
 
