@@ -37,10 +37,13 @@ class DriveFileError(ValueError):
 
 
 def is_drive_file(path: Union[str, os.PathLike]) -> bool:
-    """True if the file's first line is the drive header (``taichi-rocks check`` tells drives from scenes)."""
+    """True for a file named ``*.drive`` or whose first line names this format, in any version (``taichi-rocks
+    check`` tells drives from scenes so)."""
+    if str(path).endswith(".drive"):
+        return True
     try:
         with open(path, "rb") as f:
-            return f.readline(64).decode("utf-8", "replace").strip() == HEADER
+            return f.readline(64).decode("utf-8", "replace").startswith(HEADER.rsplit(" ", 1)[0])
     except OSError:
         return False
 
