@@ -84,8 +84,8 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    c = sub.add_parser("check", help="validate scene files and summarise what will run")
-    c.add_argument("scenes", nargs="+", metavar="SCENE")
+    c = sub.add_parser("check", help="validate scene files (and recorded drives) and summarise what will run")
+    c.add_argument("scenes", nargs="+", metavar="SCENE", help="a scene file, or a recorded drive (docs/drives.md)")
 
     sub.add_parser("schema", help="print the JSON Schema of scene files")
 
@@ -146,7 +146,13 @@ def _view_parser(sub, arches) -> None:
     v.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
     v.add_argument("--record", type=Path, metavar="DIR", help="write every frame shown (panel included) as "
                                                                "DIR/frame_00000.png ...")
-    v.add_argument("--overwrite", action="store_true", help="replace the frames in a --record DIR")
+    v.add_argument("--overwrite", action="store_true", help="replace the frames in a --record DIR and an existing "
+                                                            "--record-drive FILE")
+    v.add_argument("--drive", metavar="NAME", help="drive vehicle NAME with W/S/A/D (a scripted one starts where its "
+                                                    "path does); the camera follows it")
+    v.add_argument("--record-drive", type=Path, metavar="FILE", help="with --drive: write the poses driven to FILE "
+                                                                      "when the window closes (docs/drives.md), for "
+                                                                      'a scene\'s path = { kind = "recorded" }')
     v.add_argument("--quit-after", type=_positive_float, metavar="SECONDS",
                    help="close the window SECONDS after the first frame (automation, memory measurements)")
 
@@ -201,11 +207,22 @@ def _check_arch(scene, arch: str) -> None:
 
 
 def cmd_check(args) -> int:
+    from .config.drivefile import DriveFileError, is_drive_file, read_drive
     from .config.scene import SceneError, load_scene, summarise
     from .engine.layout import check_machine, estimate_memory
 
     status = EXIT_OK
     for i, path in enumerate(args.scenes):
+        if is_drive_file(path):  # a recorded drive (docs/drives.md)
+            try:
+                rows = read_drive(path)
+            except DriveFileError as e:
+                _err(str(e))
+                status = EXIT_USAGE
+                continue
+            print(("\n" if i else "") + f"drive {path}: {len(rows)} poses from t = {rows[0][0]:g} s to "
+                  f"{rows[-1][0]:g} s")
+            continue
         try:
             scene = load_scene(path)
             check_machine(scene)
@@ -319,19 +336,31 @@ def cmd_view(args) -> int:
     problem = display_problem()  # before Taichi starts: no window without a screen
     if problem:
         raise UsageError(f"{problem}: the window needs a screen; {NO_DISPLAY_HINT}")
-    from .app.view import check_record_dir, view_scene
+    from .app.view import check_drive_file, check_record_dir, drive_scene, view_scene
 
     if args.record is not None:
         check_record_dir(args.record, args.overwrite)  # before the window opens
+    if args.record_drive is not None and args.drive is None:
+        raise UsageError("--record-drive needs --drive NAME (the vehicle whose drive is recorded)")
+    if args.drive is not None:
+        try:
+            drive_scene(scene, args.drive)
+        except ValueError as e:
+            raise UsageError(str(e)) from None
+    if args.record_drive is not None:
+        check_drive_file(args.record_drive, args.overwrite)
     from .engine.runtime import init_taichi
 
     init_taichi(args.arch)
     info = view_scene(scene, arch=args.arch, resolution=args.resolution, record=args.record,
-                      overwrite=args.overwrite, quit_after=args.quit_after)
+                      overwrite=args.overwrite, quit_after=args.quit_after, drive=args.drive,
+                      record_drive=args.record_drive)
     shots = info["screenshots"]
     print(f"view: {info['frames_shown']} frames shown in {info['seconds']:.1f} s"
           + (f", {len(shots)} screenshot(s): {', '.join(shots)}" if shots else "")
-          + (f", {info['recorded']} frames written to {args.record}" if args.record is not None else ""))
+          + (f", {info['recorded']} frames written to {args.record}" if args.record is not None else "")
+          + (f", {info['driven']} poses of {args.drive} written to {args.record_drive}"
+             if args.record_drive is not None else ""))
     return EXIT_OK
 
 

@@ -26,7 +26,7 @@ SLOW_FILES = {
     "render/test_view_controls.py": 49, "engine/test_engine.py": 41, "engine/test_lookahead.py": 38,
     "test_cli.py": 31, "engine/test_golden.py": 30, "engine/test_tumble.py": 28, "engine/test_impacts_step.py": 28,
     "engine/test_backends.py": 26, "engine/test_impacts.py": 24, "engine/test_active.py": 20,
-    "render/test_view.py": 18, "render/test_marks_engine.py": 17, "engine/test_tires.py": 14,
+    "render/test_view.py": 18, "render/test_view_drive.py": 16, "engine/test_drive.py": 30, "render/test_marks_engine.py": 17, "engine/test_tires.py": 14,
     "bench/test_launch_study.py": 14, "bench/test_impacts_study.py": 14, "render/test_shots.py": 13,
     "output/test_export.py": 13, "render/test_render_stepping.py": 12, "render/test_interior.py": 12,
     "engine/test_rockfields.py": 11, "engine/test_reference_stepping.py": 10, "test_cli_coverage.py": 9,

@@ -35,6 +35,18 @@ def test_check_bad_scenes_one_line_each_exit_2(capsys):
         assert line.startswith(str(ROOT / "tests" / "bad_scenes")), line
 
 
+def test_check_takes_a_recorded_drive_and_refuses_a_broken_one_naming_the_file_and_line(capsys):
+    good = ROOT / "examples" / "swerve.drive"
+    r = cli_here(capsys, "check", good)
+    assert r.returncode == 0 and r.stdout.strip() == f"drive {good}: 481 poses from t = 0 s to 8 s", r.stderr
+    for name, where in (("times", ":6: t: times must increase, got 0.5 after 0.5"),
+                        ("nan", ":4: heading: must be finite"), ("header", ":1: expected the header")):
+        bad = ROOT / "tests" / "bad_scenes" / f"recorded_drive_{name}.drive"
+        r = cli_here(capsys, "check", bad)
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith(f"{bad}{where}"), r.stderr
+
+
 def test_simulate_bad_scene_creates_nothing(taichi_cpu, capsys, tmp_path):
     out = tmp_path / "x.npz"
     r = cli_here(capsys, "simulate", BAD[0], "--out", out)

@@ -18,15 +18,40 @@ def test_the_readme_game_loop_keeps_the_bed(monkeypatch, tmp_path):
     """As written (the small scene, fewer frames), from a folder other than the repository's."""
     text = (ROOT / "README.md").read_text()
     block = re.search(r"## In a game loop\n\n```python\n(.*?)```", text, re.S)[1]
-    assert 'scene_with(scene, {"sim.accuracy": "game"})' in block and "sim.changes()" in block
-    small = block.replace('"convoy"', '"minimal"').replace("range(1, 601)", "range(1, 31)")
-    assert small.count('"minimal"') == 1 and "range(1, 31)" in small
+    assert '"sim.accuracy": "game"' in block and "sim.changes()" in block
+    assert 'sim.drive("player"' in block and '"kind": "live"' in block
+    small = block.replace('"convoy"', '"minimal"').replace("range(1, 601)", "range(1, 31)").replace(
+        '"player"', '"car"')  # minimal.toml's vehicle is the car
+    assert small.count('"minimal"') == 1 and "range(1, 31)" in small and 'sim.drive("car"' in small
     monkeypatch.chdir(tmp_path)
     env: dict = {}
     exec(compile(small, "README.md", "exec"), env)
     sim, st = env["sim"], env["sim"].state()
     assert sim.dt == pytest.approx(1 / 60) and sim.step_count == 30
     assert np.array_equal(env["positions"], st["positions"]) and np.array_equal(env["phase"], st["phase"])
+    t = 30 / 60  # the player is where the loop drove it, off the road along +x
+    np.testing.assert_allclose(st.vehicle_positions[0, :2], [20.0 * t, 4.0 * np.sin(t)], atol=1e-9)
+    assert np.array_equal(st.bed_center, st.vehicle_positions[0])
+
+
+def test_the_drive_example_swerves_off_the_road_and_back_and_its_record_replays_it(monkeypatch, capsys, tmp_path):
+    from taichi_rocks.config.scene import load_scene, parse_scene, scene_to_dict
+    from taichi_rocks.motion.vehicles import Fleet
+
+    drive = tmp_path / "swerve.drive"
+    monkeypatch.setattr(sys, "argv", ["drive.py", "--frames", "240", "--rocks", "20000", "--record", str(drive)])
+    with pytest.raises(SystemExit) as done:
+        runpy.run_path(str(ROOT / "examples" / "drive.py"), run_name="__main__")
+    assert done.value.code == 0
+    lines = [x for x in capsys.readouterr().out.splitlines() if x.startswith("t ")]
+    assert len(lines) == 4 and "12.00 m off the road" in lines[-1]  # out at 3 s and holding
+    assert all("bed centre 0 m from it" in x for x in lines)  # the bed follows the player off the road
+    data = scene_to_dict(load_scene(ROOT / "scenes" / "convoy.toml"))
+    data["vehicle"][0]["path"] = {"kind": "recorded", "file": str(drive)}
+    fleet = Fleet(parse_scene(data))  # the drive as a scripted path: where the loop drove the player
+    np.testing.assert_allclose(fleet.poses(3.0)[0].position[:2], [60.0, 12.0], atol=1e-9)
+    shipped = (ROOT / "examples" / "swerve.drive").read_text().splitlines()  # the shipped drive is this one
+    assert drive.read_text().splitlines()[3:] == shipped[3:3 + 241]
 
 
 def test_shipped_scenes_are_found_from_any_folder(monkeypatch, tmp_path):

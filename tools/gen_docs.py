@@ -4,7 +4,7 @@
                            type, default, range and description, grouped by table, with one example per table
     docs/cli.md            every command and option, from the argument parser (taichi_rocks/cli.py ``_parser``)
     README.md              the block ``commands``: one line per command, from the same parser
-    docs/rendering.md      the blocks ``view-keys`` (app/view.py ``KEYS``) and ``view-sliders`` (engine/params.py
+    docs/rendering.md      the blocks ``view-keys`` (app/view.py ``KEYS`` and ``DRIVE_KEYS``) and ``view-sliders`` (engine/params.py
                            ``SLIDERS``)
     docs/records.md        every field of the typed records (config/records.py: the state, the changes, the
                            checkpoint, the export frame): its unit and what it is
@@ -69,6 +69,12 @@ SECTIONS = (
      VEHICLE + 'path = { points = [[0, 0], [100, 0], [150, 40]], speed = [10.0, 20.0, 15.0], smooth = true }\n'),
     ("vehicle.path: circle", models.CirclePath, "`path` of a `[[vehicle]]`, `kind = \"circle\"`",
      VEHICLE + 'path = { kind = "circle", center = [0.0, 0.0], radius = 25.0, speed = 12.0 }\n'),
+    ("vehicle.path: live", models.LivePath, "`path` of a `[[vehicle]]`, `kind = \"live\"` (driven by `Simulation.drive` "
+                                            "or `view --drive`: docs/drives.md)",
+     VEHICLE + 'path = { kind = "live", start = [0.0, 0.0], heading = 0.0, speed = 20.0 }\n'),
+    ("vehicle.path: recorded", models.RecordedPath, "`path` of a `[[vehicle]]`, `kind = \"recorded\"` (a drive "
+                                                    "recorded by `view --record-drive`: docs/drives.md)",
+     VEHICLE + 'path = { kind = "recorded", file = "../examples/swerve.drive" }   # in examples/, seen from scenes/\n'),
     ("[camera]", models.CameraSettings, "`[camera]` (the camera of `render`, `view` and `export`)",
      '[camera]\nview = "chase"\nlook_ahead = 6.0\nfov = 50.0\n'),
     ("[[camera.shot]]", models.Shot, "`[[camera.shot]]`, one table per cut, in increasing `at`",
@@ -208,7 +214,8 @@ def _check_example(heading: str, text: str) -> None:
     data = tomllib.loads(text)
     data.setdefault("vehicle", [{"name": "player"}])
     try:
-        parse_scene(data, source=f"scene-format example {heading}")
+        # as a scene file in scenes/ (the folder a recorded drive's file name is read from)
+        parse_scene(data, source=str(ROOT / "scenes" / "scene-format-example.toml"))
     except SceneError as e:
         raise SystemExit(f"gen_docs: the example of {heading} is not a valid scene: {e}") from None
 
@@ -333,10 +340,10 @@ def commands_block() -> str:
 
 # ------------------------------------------------------------------------------------------------ the viewer
 def view_keys_block() -> str:
-    from taichi_rocks.app.view import KEYS
+    from taichi_rocks.app.view import DRIVE_KEYS, KEYS
 
     rows = ["| key | does |", "|---|---|"]
-    rows += [f"| {label} | {_cell(does)} |" for _, label, does in KEYS]
+    rows += [f"| {label} | {_cell(does)} |" for _, label, does in KEYS + DRIVE_KEYS]
     return "\n".join(rows)
 
 

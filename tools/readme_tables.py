@@ -346,12 +346,13 @@ def frame(launch: dict, bench: dict) -> list:
     res = bench.get("frame_run")
     if not res:
         return []
-    from taichi_rocks.bench.frame import frame_table
+    from taichi_rocks.bench.frame import frame_table, live_lines
 
     m = res["machine"]
-    return frame_table(res) + ["", f"Run: {res['started'][:10]}, {m.get('cpu_model', '?')}, "
-                                   f"{m.get('usable_cores', '?')} cores, Taichi {m.get('taichi', '?')} "
-                                   f"({m.get('taichi_arch', '?')}), load average {res['load_average_start']}."]
+    live = ["", *live_lines(res)] if "live" in res else []  # runs before the live player was measured have none
+    return frame_table(res) + live + ["", f"Run: {res['started'][:10]}, {m.get('cpu_model', '?')}, "
+                                          f"{m.get('usable_cores', '?')} cores, Taichi {m.get('taichi', '?')} "
+                                          f"({m.get('taichi_arch', '?')}), load average {res['load_average_start']}."]
 
 
 def frame_details(launch: dict, bench: dict) -> list:

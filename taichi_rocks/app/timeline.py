@@ -11,6 +11,9 @@ States are saved every ``every`` frames; when more than ``keep`` are held, ``eve
 off the new grid are dropped, so memory stays bounded (``keep`` states) however long a session plays, and a
 scrub replays at most ``every`` frames. A changed runtime parameter invalidates the future: the states after
 the current frame are dropped (:meth:`forget_after`); going back then replays with the new settings.
+
+Driving (app/driving.py): ``before_advance`` is called with each frame about to be simulated (playing, stepping
+and the replays of a seek alike), and an ``endless`` timeline grows by a second whenever playing reaches its end.
 """
 
 import math
@@ -37,6 +40,8 @@ class Timeline:
         self.loop = True
         self.saved = {}  # frame -> (sim checkpoint, rig heading, rig clock)
         self.replayed = 0  # frames simulated by seeks (tests, the HUD)
+        self.before_advance = None  # called with the frame about to be simulated (a drive: app/driving.py)
+        self.endless = False  # playing past the last frame makes the timeline longer (a drive has no end)
         self._clock = 0.0  # s of simulated time wanted by the playback
 
     # ------------------------------------------------------------------------------------------ states
@@ -62,6 +67,8 @@ class Timeline:
     def advance(self, sim, view) -> None:
         """One frame forward: simulate to the next frame time and advance the camera (``view()``)."""
         self.frame += 1
+        if self.before_advance is not None:
+            self.before_advance(self.frame)
         sim.advance_to(self.frame / self.fps)
         view()
 
@@ -91,6 +98,8 @@ class Timeline:
         want = min(want, self.frame + MAX_CATCH_UP)
         n = 0
         while self.frame < want:
+            if self.frame >= self.frames - 1 and self.endless:
+                self.frames += max(1, int(round(self.fps)))  # one more second
             if self.frame >= self.frames - 1:
                 if not self.loop:
                     self.playing = False

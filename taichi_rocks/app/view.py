@@ -12,6 +12,11 @@ Right/Left one frame forward/back, Up/Down speed x2 / x1/2 (x1/4 .. x4), c next 
 it has [[camera.shot]] tables, then the presets; the shots play on the first), f free camera
 (W/A/S/D/E/Q, right mouse button to look), h hide/show the panel, p screenshot, Escape quit.
 
+Driving (``--drive NAME``, app/driving.py): W/S/A/D held drive the vehicle NAME (the free camera then only looks
+round), the camera's chase view follows it and the HUD shows its speed; the timeline has no end; going back in
+time shows what was driven and driving on from there replaces the rest; ``--record-drive FILE`` writes the poses
+driven as a recorded drive when the window closes.
+
 Automation: ``TAICHI_ROCKS_VIEW_STATUS=PATH`` writes a JSON status (:meth:`Viewer.status`) atomically after
 every frame shown; "view: ready" goes to stderr once the first frame is on the screen.
 
@@ -38,16 +43,17 @@ from ..engine.probes import rocks_in_air
 from ..engine.simulation import Simulation
 from ..engine.tuning import RUNTIME_KEYS, SWITCH_KEYS, rebuilder, runtime_values, scene_value, set_runtime
 from ..motion.camera import VIEWS
-from ..output.atomic import new_folders, write_atomically
+from ..output.atomic import check_place, new_folders, write_atomically
 from ..output.video import frame_name, png_bytes
 from ..render.freecam import FreeCamera
 from ..render.panel import draw_panel
 from ..render.renderer import SHOTS, Renderer
 from ..render.window import ShownWindow, trim_heap
+from .driving import DRIVE_KEYS, DriveSession, drive_scene
 from .timeline import Timeline
 
-__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "VIEW_SWITCHES", "KEYS", "check_record_dir",
-           "screenshot_path"]
+__all__ = ["Viewer", "view_scene", "STATUS_ENV", "READY_LINE", "VIEW_SWITCHES", "KEYS", "DRIVE_KEYS",
+           "check_record_dir", "check_drive_file", "drive_scene", "screenshot_path"]
 
 STATUS_ENV = "TAICHI_ROCKS_VIEW_STATUS"
 READY_LINE = "view: ready"
@@ -99,7 +105,7 @@ def screenshot_path(folder, scene_name: str, t: float) -> Path:
 class Viewer:
     """A window on a live simulation of ``scene``. See the module docstring."""
 
-    def __init__(self, scene, arch="cpu", resolution=None, record=None, status_path=None):
+    def __init__(self, scene, arch="cpu", resolution=None, record=None, status_path=None, drive=None):
         # the flying rocks are drawn turned; drawn from the device (engine/drawing.py), no changes() mirror
         self.sim = Simulation(scene, arch=arch, tumble=True, track_changes=False)
         res = tuple(resolution) if resolution is not None else tuple(int(x) for x in scene.render.resolution)
@@ -125,6 +131,11 @@ class Viewer:
         self.status_path = Path(status_path) if status_path else None
         self._times = []
         self.refreshes, self._rss_base = 0, None  # measured once the kernels are compiled (frame TRIM_EVERY)
+        self.driving = None  # with --drive: the drive (app/driving.py); the scene is drive_scene's
+        if drive is not None:
+            self.driving = DriveSession(self.sim, drive, fps)
+            self.timeline.before_advance = lambda frame: self.driving.before_frame(self.sim, frame)
+            self.timeline.endless = True
 
     # -------------------------------------------------------------------------------------------- loop
     def run(self, quit_after=None) -> dict:
@@ -150,14 +161,17 @@ class Viewer:
         finally:
             self.renderer.close()
         return {"frames_shown": self.shown, "frame": self.timeline.frame, "screenshots": list(map(str, self.screenshots)),
-                "recorded": self.recorded, "seconds": 0.0 if start is None else time.perf_counter() - start}
+                "recorded": self.recorded, "seconds": 0.0 if start is None else time.perf_counter() - start,
+                "driven": None if self.driving is None else len(self.driving.rows)}
 
     def _frame(self, wall_dt: float) -> None:
         tl, r = self.timeline, self.renderer
+        if self.driving is not None:
+            self.driving.keys(self.win.window.is_pressed)
         tl.tick(wall_dt, self.sim, r.rig, r.view)
         view = None
         if self.free_on:
-            view = self.free.update(self.win.window, self.sim.origin, r.view().heading)
+            view = self.free.update(self.win.window, self.sim.origin, r.view().heading, move=self.driving is None)
         r.render_frame(view)
         self.shown_view = view if view is not None else r.view()  # the same time: the rig does not move again
         self.in_air = rocks_in_air(self.sim)
@@ -210,7 +224,7 @@ class Viewer:
                 tl.playing = not tl.playing
             elif k in (ti.ui.RIGHT, ti.ui.LEFT):
                 tl.playing = False
-                self._seek((tl.frame + (1 if k == ti.ui.RIGHT else -1)) % tl.frames)  # round the loop
+                self._step_frame(1 if k == ti.ui.RIGHT else -1)
             elif k in (ti.ui.UP, ti.ui.DOWN):
                 tl.faster(k == ti.ui.UP)
             elif k == "c":
@@ -223,9 +237,21 @@ class Viewer:
             elif k == "p":
                 self._shot = True
 
+    def _step_frame(self, step: int) -> None:
+        """One frame forward or back: round the loop, or with a drive, on past the end and not before 0."""
+        tl = self.timeline
+        if not tl.endless:
+            self._seek((tl.frame + step) % tl.frames)
+            return
+        if tl.frame + step >= tl.frames:
+            tl.frames = tl.frame + step + 1
+        self._seek(max(tl.frame + step, 0))
+
     def _seek(self, frame: int) -> None:
         r = self.renderer
         self.timeline.seek(frame, self.sim, r.rig, r.view)
+        if self.driving is not None and self.driving.rewind(self.timeline.frame):  # drive on from here
+            self.timeline.forget_after(self.timeline.frame)
 
     def set_camera(self, name: str) -> None:
         """A preset of motion/camera.py VIEWS, the scene's own camera with its shots (``SHOTS``), or "free"
@@ -320,7 +346,17 @@ class Viewer:
                 "hits": self.renderer.hits.counts(),
                 "window_refreshes": self.refreshes,
                 "screenshots": [str(p) for p in self.screenshots], "recorded": self.recorded,
-                "rss_mb": _rss_mb()}
+                "rss_mb": _rss_mb(), "bed_center": self.sim.bed_center.tolist(), "drive": self._drive_status()}
+
+    def _drive_status(self):
+        """With --drive: the vehicle driven, its pose (world m, rad), speed (m/s) and the poses kept."""
+        d = self.driving
+        if d is None:
+            return None
+        i = self.sim.fleet.names.index(d.name)
+        p = self.sim.vehicle_poses()[i]
+        return {"vehicle": d.name, "position": p.position.tolist(), "heading": p.heading, "speed": p.speed,
+                "pedal": d.pedal, "steering": d.steering, "rows": len(d.rows)}
 
 
 def _rss_mb() -> float:
@@ -331,15 +367,39 @@ def _rss_mb() -> float:
         return 0.0
 
 
+def check_drive_file(path, overwrite: bool) -> None:
+    """FileExistsError if the --record-drive ``path`` exists and ``overwrite`` is off; ValueError if it cannot
+    be written there (output/atomic.py check_place)."""
+    path = Path(path)
+    if path.is_dir():
+        raise FileExistsError(f"{path}: is a folder (--record-drive takes a file name)")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists (pass --overwrite to replace it)")
+    check_place(path)
+
+
 def view_scene(scene, arch="cpu", resolution=None, record=None, overwrite=False, quit_after=None,
-               status_path=None) -> dict:
+               status_path=None, drive=None, record_drive=None) -> dict:
     """Open the window on ``scene`` (a validated Scene) and run it until closed; see :class:`Viewer`.
     ``record``: a folder to write every frame shown into (FileExistsError if it holds files, unless
-    ``overwrite``). Returns the summary of :meth:`Viewer.run`."""
+    ``overwrite``). ``drive``: the vehicle the keys drive (the scene is made ready with app/driving.py
+    ``drive_scene``); ``record_drive``: the file its drive is written to when the window closes. Returns the
+    summary of :meth:`Viewer.run` ("driven": the poses of the drive, written to ``record_drive``)."""
     if record is not None:
         check_record_dir(record, overwrite)
+    if record_drive is not None:
+        if drive is None:
+            raise ValueError("--record-drive needs --drive NAME (the vehicle whose drive is recorded)")
+        check_drive_file(record_drive, overwrite)
+    if drive is not None:
+        scene = drive_scene(scene, drive)
     status_path = status_path if status_path is not None else os.environ.get(STATUS_ENV)
-    folders = (record,) if record is not None else ()
+    folders = tuple(f for f in (record, None if record_drive is None else Path(record_drive).parent)
+                    if f is not None)
     with new_folders(*folders):
-        viewer = Viewer(scene, arch=arch, resolution=resolution, record=record, status_path=status_path)
-        return viewer.run(quit_after=quit_after)
+        viewer = Viewer(scene, arch=arch, resolution=resolution, record=record, status_path=status_path, drive=drive)
+        try:
+            return viewer.run(quit_after=quit_after)
+        finally:
+            if record_drive is not None:  # what was driven, also when the window failed on the way
+                viewer.driving.write(record_drive, scene.name)

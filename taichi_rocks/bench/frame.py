@@ -6,6 +6,8 @@ percentile over the frames after a warm-up, the clock read around each call with
 for comparison ``state()`` (every rock, O(N)) on every 10th frame, for:
 
 * ``[sim] accuracy = "game"`` (one step per frame, dt = 1/60 s) and the default dt = 2 ms (8-9 steps a frame);
+* the game preset with the player live (docs/drives.md: ``drive()`` each frame with the poses its scripted path
+  has at the frame times), measured in one process against the scripted player, frame by frame in turn;
 * Taichi's CPU thread pool of 1 thread, of every core, and the engine's choice (engine/runtime.py
   ``auto_threads``), each in a process of its own (the pool is sized once per process); on every core, the
   step's parallel variant forced beside the engine's choice of variant (engine/variant.py: serial loops on a
@@ -27,6 +29,7 @@ Writes ``frame.json`` and ``frame.md`` into the output folder (atomically).
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -42,6 +45,7 @@ from ..engine.params import drag_coefficients
 from ..engine.runtime import auto_threads, init_taichi, threads_in_use
 from ..engine.simulation import Simulation
 from ..engine.timing import clear_kernel_tasks, kernel_tasks
+from ..motion.vehicles import Fleet
 from ..output.atomic import new_folders, write_atomically
 from .activity import task_rows
 from .config import PRESET_SPEED, SAMPLE_EVERY, V_LAUNCH_MAX, make_config
@@ -56,6 +60,7 @@ from .scenes import probe_scene
 PREFIX = "frame-result: "
 SCENE = Path(__file__).resolve().parents[2] / "scenes" / "convoy.toml"
 CASES = (("game", {"sim.accuracy": "game"}), ("dt = 2 ms", {}))
+LIVE = ("game, live player", {"sim.accuracy": "game"})  # the player driven by drive() (docs/drives.md)
 OUTPUTS = ("frame.json", "frame.md")
 
 
@@ -70,17 +75,62 @@ def _scene(overrides: dict, path=SCENE):
     return scene_with(sc, overrides) if overrides else sc
 
 
+def _timed(fn):
+    ti.sync()
+    t0 = time.perf_counter()
+    out = fn()
+    ti.sync()
+    return out, 1e3 * (time.perf_counter() - t0)
+
+
+def live_twin(scene):
+    """``scene`` with the vehicle the bed follows live, starting where and as its path does, and that path (the
+    poses a game drives it with: motion/paths.py)."""
+    i = scene.vehicle_index(scene.bed.follow)
+    path = Fleet(scene).paths[i]
+    p = path.pose(0.0)
+    live = scene_with(scene, {f"vehicle[{i}].path": {"kind": "live", "start": [float(v) for v in p.position],
+                                                     "heading": math.degrees(p.heading), "speed": float(p.speed)}})
+    return live, scene.vehicles[i].name, path
+
+
+def measure_live(overrides: dict, arch: str, frames: int, warm: int, fps: float = 60.0, path=SCENE) -> dict:
+    """The game loop with the player live (driven each frame with the poses its scripted path has at the frame
+    times: ``drive()`` + ``advance_to`` + ``impacts()`` + ``changes()``) and, in the same process, frame by frame
+    in turn, the loop with the player scripted: the frame of each ("live", "scripted") and the median of the
+    frame-by-frame differences."""
+    scene = _scene(overrides, path)
+    live_scene, name, twin = live_twin(scene)
+    sims = {"scripted": Simulation(scene, arch=arch), "live": Simulation(live_scene, arch=arch)}
+    ms = {k: {"drive": [], "advance_to": [], "impacts": [], "changes": [], "frame": []} for k in sims}
+    rows = []
+    for f in range(warm + frames):
+        p = twin.pose(f / fps)
+        for k, sim in sims.items():
+            a = 0.0
+            if k == "live":
+                _, a = _timed(lambda: sim.drive(name, p.position, p.heading, speed=p.speed, yaw_rate=p.yaw_rate))
+            _, b = _timed(lambda: sim.advance_to(f / fps))
+            _, c = _timed(sim.impacts)
+            ch, d = _timed(sim.changes)
+            if f >= warm and k == "live":
+                rows.append(len(ch.ids))
+            if f >= warm:
+                for part, v in zip(ms[k], (a, b, c, d, a + b + c + d)):
+                    ms[k][part].append(v)
+    out = {k: {part: _stats(v) for part, v in parts.items()} for k, parts in ms.items()}
+    diff = np.asarray(ms["live"]["frame"]) - np.asarray(ms["scripted"]["frame"])
+    out.update(extra_ms=float(np.median(diff)), extra_p95_ms=float(np.percentile(diff, 95)), dt=sims["live"].dt,
+               steps_per_frame=(1.0 / fps) / sims["live"].dt, rocks=sims["live"].n_rocks, frames=frames, warm=warm,
+               vehicle=name, rows_median=float(np.median(rows)), loops=sims["live"].loops)
+    return out
+
+
 def measure_loop(overrides: dict, arch: str, frames: int, warm: int, fps: float = 60.0, path=SCENE,
                  loops: str = "auto") -> dict:
     """The game loop in this process: ``warm`` frames, then ``frames`` timed ones; ``loops``: the step's variant
     ("auto": the engine's choice, engine/variant.py)."""
-    def timed(fn):
-        ti.sync()
-        t0 = time.perf_counter()
-        out = fn()
-        ti.sync()
-        return out, 1e3 * (time.perf_counter() - t0)
-
+    timed = _timed
     sim = Simulation(_scene(overrides, path), arch=arch)
     sim.loops = loops
     sim.changes()
@@ -185,6 +235,8 @@ def worker(job: dict) -> dict:
     elif job["kind"] == "variants":
         out = measure_variants(arch, job["sizes"], job["rounds"])
         out["task_costs"] = measure_task_costs(calls=20 if job["rounds"] <= 1 else 200)
+    elif job["kind"] == "live":
+        out = measure_live(job["overrides"], arch, job["frames"], job["warm"], path=job["scene"])
     else:
         out = measure_loop(job["overrides"], arch, job["frames"], job["warm"], path=job["scene"],
                            loops=job.get("loops", "auto"))
@@ -255,7 +307,7 @@ def run_frame_study(out_dir="renders/bench", quick: bool = False, arch: str = "c
     # variant; and on every core the parallel variant forced (the A/B of the variants, engine/variant.py)
     forced = [(cores, "parallel")] if arch == "cpu" and cores > 1 else []
     loops = [(name, ov, t, v) for name, ov in CASES for t, v in [(t, "auto") for t in threads + [None]] + forced]
-    prog = Progress(len(loops) + 3, progress)
+    prog = Progress(len(loops) + 4, progress)
     res = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine(arch), "load_average_start": loadavg(),
            "scene": scene.name, "fps": 60.0, "auto_threads": auto_threads(), "loops": [], "errors": []}
     with new_folders(out):
@@ -267,6 +319,19 @@ def run_frame_study(out_dir="renders/bench", quick: bool = False, arch: str = "c
             if "error" in r:
                 res["errors"].append(f"{name}, {t} threads, {v} loops: {r['error']}")
             prog(f"frame: {name}, {t or 'auto'} threads, {v} loops")
+        job = {"kind": "live", "arch": arch, "overrides": dict(LIVE[1]), "frames": frames, "warm": warm,
+               "scene": str(scene)}
+        r = _run_job(job, None)
+        res["live"] = r
+        if "error" in r:
+            res["errors"].append(f"{LIVE[0]}: {r['error']}")
+        else:
+            res["loops"].append({"case": LIVE[0], "threads_asked": "auto", "threads": r["threads"],
+                                 "loops_asked": "auto", "loops": r.get("loops", "serial"),
+                                 "steps_per_frame": r["steps_per_frame"], "rows_median": r["rows_median"],
+                                 "frames": r["frames"], "state": {"median_ms": None},  # (the frame has drive())
+                                 **{k: r["live"][k] for k in ("drive", "advance_to", "impacts", "changes", "frame")}})
+        prog("frame: live player")
         steps = 20 if tiny else 120
         job = {"kind": "tasks", "arch": arch, "overrides": dict(CASES[0][1]), "steps": steps, "warm": 30,
                "scene": str(scene)}
@@ -291,6 +356,11 @@ def _f(x, nd=3) -> str:
     return "n/a" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}g}"
 
 
+def _ms(x) -> str:
+    """A time in ms for a table's cell; "not timed" for None (the live player's row times no ``state()``)."""
+    return "not timed" if x is None else f"{_f(x)} ms"
+
+
 def frame_table(res: dict) -> list:
     """The frame per case and thread count (README and docs/performance.md, tools/readme_tables.py)."""
     L = ["| case | threads | loops | steps / frame | `advance_to` | `impacts()` | `changes()` (rows) | frame median | "
@@ -304,8 +374,21 @@ def frame_table(res: dict) -> list:
         L.append(f"| {r['case']} | {t} | {v} | {r['steps_per_frame']:.3g} | {_f(r['advance_to']['median_ms'])} ms | "
                  f"{_f(r['impacts']['median_ms'])} ms | {_f(r['changes']['median_ms'])} ms "
                  f"({r['rows_median']:,.0f}) | **{_f(r['frame']['median_ms'])} ms** | {_f(r['frame']['p95_ms'])} ms "
-                 f"| {_f(r['state']['median_ms'])} ms |")
+                 f"| {_ms(r['state']['median_ms'])} |")
     return L
+
+
+def live_lines(res: dict) -> list:
+    """The live player against the scripted one, measured in one process frame by frame in turn."""
+    r = res.get("live")
+    if not r or "error" in r:
+        return [f"(live player: {r.get('error', 'not measured') if r else 'not measured'})"]
+    lv, sc = r["live"], r["scripted"]
+    return [f"The game frame with the player live (`drive()` each frame with its scripted path's poses, "
+            f"{_f(lv['drive']['median_ms'])} ms of it) against the scripted player, in one process, frame by frame "
+            f"in turn ({r['threads']} threads): **{_f(lv['frame']['median_ms'])} ms against "
+            f"{_f(sc['frame']['median_ms'])} ms** (medians), the frame-by-frame difference "
+            f"{_f(r['extra_ms'])} ms (median; 95th percentile {_f(r['extra_p95_ms'])} ms)."]
 
 
 def task_table(res: dict) -> list:
@@ -380,6 +463,7 @@ def report_lines(res: dict) -> list:
          "Per frame: `advance_to(f / 60)`, `impacts()`, `changes()`; medians (and the frame's 95th percentile) "
          "over the timed frames. `state()` (every rock) for comparison.", ""]
     L += frame_table(res)
+    L += [""] + live_lines(res)
     L += ["", "## The step's tasks, game preset (kernel profiler), in both variants", ""] + task_table(res)
     L += ["", "## The variants' crossover: the step with every rock active", ""] + variant_table(res)
     L += ["", "## What a task costs from Python", ""] + task_cost_table(res)

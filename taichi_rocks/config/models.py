@@ -3,12 +3,14 @@ and the source of the JSON Schema (config/scene.py). No Taichi."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, create_model, field_validator, model_validator
 
 from .values import (Bool, CellSize, Color, Float, Int, Name, Pixels, Range, Speed, TableSize, Vec2, Vec3, _either,
                      _f, _follow, _is_list, _raise_problems, _show, _Table, SEED_MAX)
+from .drivefile import DriveFileError, read_drive
 from .resolution import MIN_SIDE
 from .impacts import Impacts
 from .limits import MAX_STEPS, steps_estimate
@@ -144,8 +146,50 @@ class CirclePath(_Table):
     reverse: Bool = _f(False, "drive backwards along the path")
 
 
-Path_ = Union[WaypointPath, CirclePath]
-PATH_KINDS = {"waypoints": WaypointPath, "circle": CirclePath}
+MAX_LIVE_SPEED = 150.0  # m/s: a start speed or top speed above it is a unit mistake (km/h for m/s)
+
+
+class LivePath(_Table):
+    """A vehicle driven at run time: by the game (``Simulation.drive``) or by the keyboard (``taichi-rocks view
+    --drive NAME``). Without a drive it keeps its start heading at its start speed."""
+    kind: Literal["live"] = _f(..., "path kind")
+    start: Vec2 = _f((0.0, 0.0), "m, where the body centre is at t = 0 [x, y]")
+    heading: Float = _f(0.0, "deg, the heading at t = 0, counter-clockwise from +x")
+    speed: Float = _f(0.0, "m/s, the speed at t = 0 along the heading (negative: reversing), in [-150, 150]",
+                      ge=-MAX_LIVE_SPEED, le=MAX_LIVE_SPEED)
+    steer_limit: Float = _f(35.0, "deg, the front wheels' steering limit when the keyboard drives (view --drive), "
+                                  "in (0, 60]", gt=0, le=60)
+    acceleration: Float = _f(4.0, "m/s^2, full throttle when the keyboard drives (braking: twice this), in (0, 30]",
+                             gt=0, le=30)
+    top_speed: Float = _f(30.0, "m/s, the top speed when the keyboard drives (reversing: a quarter of it), in "
+                                "(0, 150]", gt=0, le=MAX_LIVE_SPEED)
+
+
+class RecordedPath(_Table):
+    """A recorded drive replayed as a scripted path (``view --record-drive`` writes one; the format:
+    docs/drives.md): ``render`` and ``export`` reproduce the drive frame for frame."""
+    kind: Literal["recorded"] = _f(..., "path kind")
+    file: Name = _f(..., "the drive file (docs/drives.md), relative to the scene file's folder")
+    _rows: tuple = PrivateAttr(())
+
+    @property
+    def rows(self) -> tuple:
+        """The drive's poses: (t, x, y, heading, speed, yaw_rate, wheel_spin) tuples (NaN wheel spin: rolling)."""
+        return self._rows
+
+    @model_validator(mode="after")
+    def _read(self, info: ValidationInfo) -> RecordedPath:
+        base = Path((info.context or {}).get("base", "."))
+        where = base / self.file
+        try:
+            self._rows = read_drive(where, shown=self.file if base == Path(".") else str(where))
+        except DriveFileError as e:
+            _raise_problems([(("file",), str(e))])
+        return self
+
+
+Path_ = Union[WaypointPath, CirclePath, LivePath, RecordedPath]
+PATH_KINDS = {"waypoints": WaypointPath, "circle": CirclePath, "live": LivePath, "recorded": RecordedPath}
 
 
 # Vehicle keys that must fit in keys before them: (that key, its share, why). A key that failed its own check

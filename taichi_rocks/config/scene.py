@@ -21,7 +21,7 @@ from pydantic import ValidationError
 
 from .messages import _key_path, _line, _messages, _unknown
 from .models import (CAMERA_VIEWS, PATH_KINDS, Bed, CameraSettings, CirclePath, Effects, Environment, Hash, Launch,
-                     Render, Scene, Shot, Sim, SunAngles, Vehicle, WaypointPath)
+                     LivePath, RecordedPath, Render, Scene, Shot, Sim, SunAngles, Vehicle, WaypointPath)
 from .presets import PRESETS
 from .summary import summarise
 from .tomltext import read_toml
@@ -29,7 +29,7 @@ from .values import _is_list, _show, dumped
 
 __all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict", "shipped_scene",
            "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
-           "Sim", "WaypointPath", "CirclePath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings", "Shot",
+           "Sim", "WaypointPath", "CirclePath", "LivePath", "RecordedPath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings", "Shot",
            "SunAngles", "Render", "PRESETS"]
 
 
@@ -103,7 +103,7 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
     scene = None
     try:
         try:
-            scene = Scene.model_validate(_with_defaults(data, default_name))
+            scene = Scene.model_validate(_with_defaults(data, default_name), context={"base": _folder(source)})
         except ValidationError as e:
             problems = [p for err in e.errors() for p in _messages(err)] + problems
     except RecursionError:   # not seen: validating goes as deep as the models, _show as deep as it prints
@@ -112,6 +112,12 @@ def parse_scene(data: dict, source: str = "<scene>", default_name: str = "scene"
         raise SceneError([_line(source, loc, msg) for loc, msg in problems])
     scene._source = source
     return scene
+
+
+def _folder(source: str) -> str:
+    """The folder a scene's relative file names (a recorded drive's) are read from: the scene file's, or the
+    current one for a scene that is not a file."""
+    return "." if source.startswith("<") else str(Path(source).parent)
 
 
 def load_scene(path: Union[str, os.PathLike]) -> Scene:

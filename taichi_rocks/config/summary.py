@@ -12,6 +12,11 @@ from .plan import Plan
 
 
 def _speed(path) -> str:
+    if path.kind == "recorded":
+        rows = path.rows
+        return f"{len(rows)} poses, {rows[-1][0] - rows[0][0]:g} s"
+    if path.kind == "live":
+        return f"{path.speed:g} m/s at start"
     if isinstance(path.speed, tuple):
         return f"{min(path.speed):g}-{max(path.speed):g} m/s (per point)"
     return f"{path.speed:g} m/s"

@@ -35,6 +35,11 @@ time its next row was computed for, and the previous tires the ones it served la
 shorter last step of ``advance_to``, coasting, a step taken without it) starts a new batch on the next step.
 Batches adapt to how long they last: one left after u steps is followed by one of u + 1 (the whole steps of an
 ``advance_to`` frame, then its short step), one used up by one twice as long (up to ``lookahead``).
+
+Live vehicles (motion/live.py, docs/drives.md): a live pose is known only up to the end of the advance under way
+(``Fleet.horizon``), so a batch ends there; a step for which a new batch would hold a single step is computed by
+itself (``alone``: a batch of one step costs about twice as much), in a scene with live vehicles with its scripted
+vehicles' part from a batch of their own (engine/livesteps.py).
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import patch
+from ..motion.live import clock_tolerance
 from ..motion.vehicles import RearTires, TablePoses, tire_fields
 from .impact_pass import batch_pose_rows, pose_rows
 from .world import ACTIVE, BATCH_ROWS, HALF_W, HULL, RAY_FIELDS
@@ -203,11 +209,15 @@ class HostSide:
         """Steps 1 to 4 of the module docstring for ``st``; the rays are the splashing tires' (or a dummy row)."""
         st.step_count += 1
         st.time += dt
-        if self.lookahead and dt == self.dt:  # from the lookahead's batch: the same bits
-            b, k = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead)
+        if self.lookahead and dt == self.dt and self.ahead.pays(st.time, st.tires_prev, dt):
+            b, k = self.ahead.take(st.time, st.tires_prev, dt, self.lookahead)  # the same bits as step by step
             if b.frames is None:
                 b.frames = self.frames(st, b)
             return self._serve(st, b, k, dt)
+        return self.alone(st, dt)
+
+    def alone(self, st: HostState, dt: float) -> StepInput:
+        """The step just counted on the clock, computed by itself (no batch)."""
         poses = self.fleet.poses(st.time)
         move = self._follow(st, poses[self.follow])
         moved = self._keep_origin_near(st)
@@ -394,10 +404,10 @@ class _Batch:
         self.next = 0
         self.prev = prev  # the tires the next step's rays start from
         self.frames = None
-        self._tire_arrays = tire_fields(tires)
+        self.tire_arrays = tire_fields(tires)
 
     def tires_at(self, k: int) -> RearTires:
-        return RearTires(*(a[k] for a in self._tire_arrays))
+        return RearTires(*(a[k] for a in self.tire_arrays))
 
 
 class Lookahead:
@@ -405,8 +415,9 @@ class Lookahead:
     docstring). ``follow``: the vehicle the bed follows; ``rays``: compute ray rows (splashing tires);
     ``reach_m``: farther from the bed centre, a tire is parked."""
 
-    def __init__(self, fleet, follow: int, rays: bool, reach_m: float):
+    def __init__(self, fleet, follow: int, rays: bool, reach_m: float, planned: bool = False):
         self.fleet, self.follow, self.rays, self.reach_m = fleet, follow, rays, reach_m
+        self.planned = planned  # batches past the fleet's horizon (engine/livesteps.py: the scripted part only)
         self.batches = 0  # batches computed so far
         self._size = 1 << 30  # steps of the next batch (at most the lookahead asked for)
         self.clear()
@@ -415,13 +426,27 @@ class Lookahead:
         """Forget the batch (restore(), anything that changes the clock or the tires other than a step)."""
         self._batch = None
 
+    def _continues(self, time: float, tires_prev: RearTires, dt: float) -> bool:
+        """Whether the batch in hand serves the step ending at ``time``."""
+        b = self._batch
+        return not (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != time
+                    or b.prev is not tires_prev)
+
+    def pays(self, time: float, tires_prev: RearTires, dt: float) -> bool:
+        """Whether the step ending at ``time`` is better served by a batch than alone: a batch in hand continues,
+        or a new one would hold at least two steps (the poses are final up to the fleet's horizon: the end of
+        the advance under way with live vehicles; a batch of one step costs about twice the step alone)."""
+        if self._continues(time, tires_prev, dt):
+            return True
+        end = self.fleet.horizon()
+        return end == math.inf or time + dt <= end + clock_tolerance(end)
+
     def take(self, time: float, tires_prev: RearTires, dt: float, limit: int) -> tuple:
         """The step being taken: the clock already advanced by ``dt`` to ``time``, ``tires_prev`` the tires of
         the step before; a new batch holds at most ``limit`` steps (and BATCH_ROWS). Returns (batch, its row):
         the row's tires are ``batch.tires_at(row)``, which the next take() expects as ``tires_prev``."""
         b = self._batch
-        if (b is None or b.next >= len(b.times) or b.dt != dt or b.times[b.next] != time
-                or b.prev is not tires_prev):
+        if not self._continues(time, tires_prev, dt):
             if b is not None:  # a batch used up: the next twice as long; left early: as long as was used
                 self._size = 2 * len(b.times) if b.next >= len(b.times) else b.next + 1
             b = self._batch = self._compute(time, tires_prev, dt, max(1, min(self._size, int(limit), BATCH_ROWS)))
@@ -430,9 +455,17 @@ class Lookahead:
         b.prev = b.tires_at(k)
         return b, k
 
+    def batch(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
+        """A new batch of ``steps`` steps from the one ending at ``time`` (tires before it: ``tires_prev``)."""
+        return self._compute(time, tires_prev, dt, steps)
+
     def _compute(self, time: float, tires_prev: RearTires, dt: float, steps: int) -> _Batch:
         times = [time]
+        end = math.inf if self.planned else self.fleet.horizon()  # live: no pose is known past the advance's end
+        end += clock_tolerance(end) if end < math.inf else 0.0
         for _ in range(steps - 1):
+            if times[-1] + dt > end:
+                break
             times.append(times[-1] + dt)
         table = self.fleet.pose_table(times)
         cur = self.fleet.rear_tires_table(table)

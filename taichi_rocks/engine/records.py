@@ -80,6 +80,9 @@ class Checkpoint(Record):
     scene: np.ndarray = entry("", "the scene's name")
     seed: np.int64 = entry("", "the scene's random seed")
     rocks: np.int64 = entry("", "the number of rocks N")
+    drives: np.ndarray = entry("", "(K, 8) float64, with live vehicles: their keyframes from the last one at or "
+                                   "before this time on: vehicle index, t (s), x, y (m), heading (rad), speed "
+                                   "(m/s), yaw_rate (rad/s), wheel_spin (rad/s; NaN: rolling)", optional=True)
     effects: dict = entry("", "the state of each optional effect that runs (engine/effects/), by key: the dict's "
                               "<effect>_<name> entries (dust: its ring's fields, the emission's carried fractions, "
                               "particle count and pending time, the origin of its positions)", optional=True)

@@ -27,14 +27,16 @@ import taichi as ti
 from ..config.arches import API, arch_problem
 from ..config.plan import Plan
 from ..config.scene import SceneError, load_scene, scene_with
+from ..motion.live import drive_pose
 from ..motion.vehicles import Fleet
-from . import arguments, changes, rocks
+from . import arguments, changes, drives, rocks
 from .records import Changes, Checkpoint, State
 from .rocks import state_arrays
 from .effects import Effects
 from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
+from .livesteps import LiveHostSide
 from .kernels import count_flying, shift_origin
 from .launcher import Launcher
 from .layout import check_fits, world_layout
@@ -132,7 +134,8 @@ class Simulation:
         start = initial_rocks(scene)
         self.world = self._allocate(start.radius)
         self._host = HostState()
-        self._host_side = HostSide(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD, plan.targets)
+        host = LiveHostSide if self.fleet.live else HostSide  # live vehicles: engine/livesteps.py
+        self._host_side = host(scene, self.fleet, self.follow, self.world.n_tires, LOOKAHEAD, plan.targets)
         self._host_side.start(self._host)
         self._stepper = stepper_for(plan)(self.world, plan, self._sizing, self._host,
                                           scene.sim.hash.table_size == "auto", timer)
@@ -263,6 +266,47 @@ class Simulation:
         """
         return self._host.poses
 
+    def drive(self, name: str, position, heading: float, speed=None, yaw_rate=None, wheel_spin=None, *,
+              at=None) -> None:
+        """Set where live vehicle ``name`` (``path = { kind = "live" }``) will be at the end of the next
+        ``advance_to`` / ``step`` (or at time ``at``). Between that and the pose it has now, the pose is
+        interpolated (cubic Hermite: the tires sweep continuously over the sub-steps); a move farther than its
+        speeds allow is a jump (a teleport: no launches along it). A later call before the advance replaces
+        this one. The manual: docs/drives.md; the interpolation: motion/live.py.
+
+        Args:
+            name: a live vehicle of the scene.
+            position: (x, y), world coordinates, m (as ``state()`` reports them).
+            heading: rad, counter-clockwise from +x.
+            speed: m/s along the heading (negative: reversing); None: derived from the motion.
+            yaw_rate: rad/s; None: derived from the motion.
+            wheel_spin: the rear wheels' spin, rad/s (faster than speed / tire radius: a burnout, which throws
+                harder); None: rolling, speed / tire_radius (1 + slip).
+            at: the time the pose is for, s (after ``time``); None: the end of the next advance.
+
+        Raises:
+            ValueError: naming the vehicle and the value: an unknown name, a scripted vehicle, a NaN or infinite
+                value, a position that is not (x, y), ``at`` already passed. The simulation is unchanged.
+        """
+        i = drives.live_index(self.fleet, name)
+        self.fleet.paths[i].pending = drive_pose(name, position, heading, speed, yaw_rate, wheel_spin, at, self.time)
+
+    def drive_track(self, name: str) -> np.ndarray:
+        """The poses live vehicle ``name`` was given so far (its keyframes: motion/live.py), as a recorded drive's
+        rows (config/drivefile.py ``drive_text`` writes them; docs/drives.md).
+
+        Args:
+            name: a live vehicle of the scene.
+
+        Returns:
+            (K, 7) float64: t (s), x, y (world m), heading (rad), speed (m/s), yaw_rate (rad/s), wheel_spin
+            (rad/s; NaN: rolling).
+
+        Raises:
+            ValueError: an unknown name or a scripted vehicle.
+        """
+        return self.fleet.paths[drives.live_index(self.fleet, name)].rows()
+
     def tile_shift(self) -> np.ndarray:
         """The floating origin's shift in tiles of active stepping's store (whole numbers, float64; zeros with
         full stepping): what drawing the tiles needs (engine/drawing.py).
@@ -297,6 +341,7 @@ class Simulation:
             ValueError: ``n`` is negative, or too many steps.
         """
         n = arguments.whole_steps(n, self.step_count)
+        drives.bind_steps(self.fleet, self.time, n, self.dt)  # live vehicles: drive() is for these steps' end
         while n > 0:
             if self._can_coast():
                 self._coast(n)
@@ -317,6 +362,7 @@ class Simulation:
         """
         t = arguments.target_time(t, self.time, self.dt, self.step_count)
         tol = 1e-9 * max(1.0, abs(t))
+        drives.bind_to(self.fleet, self.time, t)  # live vehicles: drive() is for time t
         while self.time + self.dt <= t + tol:
             if self._can_coast():
                 k, clock = 0, self.time
@@ -523,7 +569,8 @@ class Simulation:
                           **self._host.saved(), launches=np.int64(self.launches_total),
                           recycles=np.int64(self.recycles_total), impacts_dropped=np.int64(self.impacts_dropped),
                           scene=np.array(self.scene.name), seed=np.int64(self.scene.seed),
-                          rocks=np.int64(self.n_rocks), effects=self._effects.saved() or None)
+                          rocks=np.int64(self.n_rocks), effects=self._effects.saved() or None,
+                          drives=drives.saved(self.fleet, self.time))
 
     def restore(self, data: dict) -> None:
         """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint
@@ -547,6 +594,7 @@ class Simulation:
         w.set_params(par)
         self._stepper.load(rocks.from_checkpoint(w, data))  # after the origin: the tiles are keyed by its shift
         self._stepper.sync_drawn()
+        drives.load(self.fleet, data, h.time)  # the live vehicles' keyframes, before their poses are asked
         self._host_side.resume(h)
         if self.plan.splash:
             self._put_rays()

@@ -54,30 +54,45 @@ def batch_arrays(centre, move, lead, grid, shift, dt, tile: float, rays, start=N
     return data, frame, poses
 
 
+def packed(w, rays: np.ndarray, frame: np.ndarray, bodies: np.ndarray) -> np.ndarray:
+    """The arrays of :func:`batch_arrays` as the one (K, width) float64 array :func:`load_batch` takes, row k:
+    the step's frame rows (FRAME_ROWS x 2), its rays (n_tires x RAY_FIELDS, with tires) and its pose rows (the
+    World's ``step_bodies`` row, with impacts; dummies and rows past them zero). One array argument: Taichi 1.7.4
+    handles each array argument in Python at every launch (a third of the launch's cost for three)."""
+    k = len(frame)
+    parts = [frame.reshape(k, FRAME_ROWS * 2)]
+    if w.n_tires:
+        parts.append(rays.reshape(k, w.n_tires * RAY_FIELDS) if len(rays) == k else np.zeros((k, w.n_tires * RAY_FIELDS)))
+    if w.impacts:
+        width = 2 * w.step_bodies.shape[1]
+        b = np.zeros((k, width))
+        if len(bodies) == k:
+            b[:, :bodies.shape[1] * 2] = bodies.reshape(k, -1)
+        parts.append(b)
+    return np.ascontiguousarray(np.concatenate(parts, axis=1) if len(parts) > 1 else parts[0])
+
+
 # What each offloaded task of load_batch does (the kernel profiler names tasks by index; see active.TASKS)
 TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames, tire rays, pose rows")}
 SERIAL_TASKS = {"load_batch": ("serial variant: batch upload: frames, tire rays, pose rows",)}  # engine/loops.py
 
 
 @ti.kernel
-def load_batch(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=3),
-               frame: ti.types.ndarray(dtype=vec2, ndim=2), bodies: ti.types.ndarray(dtype=vec2, ndim=2)):
-    """A batch's rows into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per batch): one
-    parallel loop over the batch's steps, each copying its rows (a loop per field would be a task per field
-    to compile with every World, for a few kilobytes). ``rays`` and ``bodies`` may be one-row dummies
-    (:func:`batch_arrays`): only the rows they have are copied. ``plan``: the step's variant (engine/loops.py)."""
+def load_batch(w: ti.template(), plan: ti.template(), data: ti.types.ndarray(dtype=ti.f64, ndim=2)):
+    """A batch's rows (:func:`packed`) into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per
+    batch): one loop over the batch's steps, each copying its rows (a loop per field would be a task per field to
+    compile with every World, for a few kilobytes). ``plan``: the step's variant (engine/loops.py)."""
     top_loop(plan)
-    for k in range(frame.shape[0]):
+    for k in range(data.shape[0]):
         for r in range(FRAME_ROWS):
-            w.step_frame[k, r] = frame[k, r]
+            w.step_frame[k, r] = ti.Vector([data[k, 2 * r], data[k, 2 * r + 1]])
         if ti.static(w.n_tires > 0):
-            if k < rays.shape[0]:
-                for t, f in ti.ndrange(w.n_tires, RAY_FIELDS):
-                    w.step_rays[k, t, f] = rays[k, t, f]
+            for t, f in ti.ndrange(w.n_tires, RAY_FIELDS):
+                w.step_rays[k, t, f] = data[k, 2 * FRAME_ROWS + t * RAY_FIELDS + f]
         if ti.static(w.impacts):
-            if k < bodies.shape[0]:
-                for r in range(bodies.shape[1]):
-                    w.step_bodies[k, r] = bodies[k, r]
+            base = 2 * FRAME_ROWS + w.n_tires * RAY_FIELDS
+            for r in range(w.step_bodies.shape[1]):
+                w.step_bodies[k, r] = ti.Vector([data[k, base + 2 * r], data[k, base + 2 * r + 1]])
 
 
 def put_t_ref(w, t_ref: float) -> None:

@@ -316,7 +316,8 @@ class ActiveStepper(Stepper):
             centre, move, lead, shift, dt, rays, start, bodies = rows
             data, frame, poses = stepdata.batch_arrays(centre, move, lead, centre - self.sizing.grid_half, shift,
                                                        dt, self.world.store_tile, rays, start, bodies)
-            self._launch["load_batch"](self.world, self.switches["load_batch"], data, frame, poses)
+            self._launch["load_batch"](self.world, self.switches["load_batch"],
+                                       stepdata.packed(self.world, data, frame, poses))
         self._on_device = f
         return 0 if f is None else s.row
 

@@ -52,6 +52,7 @@ class Pose:
     yaw_rate: float       # rad/s, d(heading)/dt
     velocity: np.ndarray  # (2,) m/s = speed * (cos h, sin h)
     from_anchor: np.ndarray | None = None  # (2,) m, position - path.anchor as computed (None: not known)
+    wheel_spin: float = math.nan  # rad/s of the rear wheels; NaN: rolling (motion/vehicles.py's rule)
 
 
 class Path:
@@ -394,7 +395,8 @@ class CirclePath(_ProfiledPath):
 
 
 def path_from_spec(kind: str, **kwargs) -> Path:
-    """Build a path from a scene's ``[vehicle.path]`` table (circle angles in degrees)."""
+    """Build a path from a scene's ``[vehicle.path]`` table (circle angles in degrees); the live and recorded
+    kinds are motion/live.py's (motion/vehicles.py builds them)."""
     if kind == "waypoints":
         return WaypointPath(**kwargs)
     if kind == "circle":

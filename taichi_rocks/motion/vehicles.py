@@ -8,7 +8,13 @@ themselves (~1e-16 of their distance from the world origin; none when the offset
 
 A rear wheel sits at body offset (-wheelbase/2, +-track/2). Its rigid-body velocity is
 v_wheel = v_body + yaw_rate * z x r_wheel, so the rear wheels of a turning vehicle slide outwards (the path
-steers the body centre). Its tread speed is omega R = (v_wheel . heading) * (1 + slip).
+steers the body centre). Its tread speed is omega R = (v_wheel . heading) * (1 + slip), or, where the pose
+gives the rear wheels' spin omega (a live vehicle driven with ``wheel_spin``: a burnout), omega R.
+
+Poses come from each vehicle's path: a scripted one (motion/paths.py) or a track of keyframes (motion/live.py:
+``kind = "live"``, driven by the game, and ``kind = "recorded"``). ``bind`` tells the live ones that an advance
+from t0 to t1 starts (their pending ``drive()`` poses get their times), ``horizon`` is the time up to which every
+pose is final (the engine plans its steps no further ahead, engine/host.py).
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .live import LivePath
 from .paths import path_from_spec
 
 
@@ -31,6 +38,7 @@ class VehiclePose:
     yaw_rate: float
     velocity: np.ndarray  # (3,)
     rel: np.ndarray | None = None  # (3,) position - (fleet anchor, 0), computed without world coordinates
+    wheel_spin: float = math.nan  # rad/s of the rear wheels; NaN: rolling (the module docstring's rule)
 
 
 @dataclass(frozen=True)
@@ -58,8 +66,8 @@ def tire_fields(tires: RearTires) -> list[np.ndarray]:
 @dataclass(frozen=True)
 class PoseTable:
     """Every vehicle's pose at each of a few times, float64 (K, V) arrays with the bits of ``Fleet.poses``:
-    world position (x, y), position relative to the fleet's anchor (rx, ry), heading, speed, yaw rate and
-    velocity (vx, vy)."""
+    world position (x, y), position relative to the fleet's anchor (rx, ry), heading, speed, yaw rate,
+    velocity (vx, vy) and the rear wheels' spin (``wheel_spin``, rad/s; NaN: rolling)."""
 
     x: np.ndarray
     y: np.ndarray
@@ -70,6 +78,7 @@ class PoseTable:
     yaw_rate: np.ndarray
     vx: np.ndarray
     vy: np.ndarray
+    wheel_spin: np.ndarray | None = None  # None: every wheel rolls
 
 
 class TablePoses(Sequence):
@@ -91,14 +100,19 @@ class TablePoses(Sequence):
             self._built[i] = VehiclePose(
                 self._fleet.specs[i].name, np.array([t.x[k, i], t.y[k, i], z]), float(t.heading[k, i]),
                 float(t.speed[k, i]), float(t.yaw_rate[k, i]), np.array([t.vx[k, i], t.vy[k, i], 0.0]),
-                np.array([t.rx[k, i], t.ry[k, i], z]))
+                np.array([t.rx[k, i], t.ry[k, i], z]), math.nan if t.wheel_spin is None else float(t.wheel_spin[k, i]))
         return self._built[i]
 
 
-def _path_kwargs(path) -> dict:
-    data = path.model_dump() if hasattr(path, "model_dump") else dict(path)
+def _path_of(spec):
+    """The path of a scene's ``[vehicle.path]`` table: scripted (motion/paths.py) or a track (motion/live.py)."""
+    if spec.kind == "live":
+        return LivePath.starting(spec.start, math.radians(spec.heading), spec.speed)
+    if spec.kind == "recorded":
+        return LivePath(spec.rows, live=False)
+    data = spec.model_dump()
     kind = data.pop("kind")
-    return kind, data
+    return path_from_spec(kind, **data)
 
 
 class Fleet:
@@ -106,10 +120,8 @@ class Fleet:
         self.specs = tuple(scene.vehicles)
         self.names = [v.name for v in self.specs]
         self.ground_z = float(scene.world.ground_z)
-        self.paths = []
-        for v in self.specs:
-            kind, kwargs = _path_kwargs(v.path)
-            self.paths.append(path_from_spec(kind, **kwargs))
+        self.paths = [_path_of(v.path) for v in self.specs]
+        self.live = [i for i, p in enumerate(self.paths) if getattr(p, "live", False)]  # driven by the game
         self.splashing = [i for i, v in enumerate(self.specs) if v.splash]
         # per vehicle: half tread width, half contact length, tire radius, fender angle (rad), flap edge
         self._tread = [(0.5 * v.tire_width, 0.5 * v.contact_length, v.tire_radius, math.radians(v.fender_angle),
@@ -133,6 +145,16 @@ class Fleet:
         """Time from which the vehicles ``indices`` never move again (0 for none; inf if one always may)."""
         return max((float(getattr(self.paths[i], "still_after", math.inf)) for i in indices), default=0.0)
 
+    def bind(self, t0: float, t1: float) -> None:
+        """An advance of the clock from t0 to t1 starts: the live vehicles' pending drive() poses get their times
+        (motion/live.py ``LivePath.bind``)."""
+        for i in self.live:
+            self.paths[i].bind(t0, t1)
+
+    def horizon(self) -> float:
+        """The time up to which every vehicle's pose is final (inf without live vehicles)."""
+        return min((self.paths[i].horizon for i in self.live), default=math.inf)
+
     def poses(self, t: float) -> list[VehiclePose]:
         out = []
         for spec, path in zip(self.specs, self.paths):
@@ -140,7 +162,7 @@ class Fleet:
             vel = np.array([p.velocity[0], p.velocity[1], 0.0])
             out.append(VehiclePose(spec.name, np.array([p.position[0], p.position[1], self.ground_z]),
                                    float(p.heading), float(p.speed), float(p.yaw_rate), vel,
-                                   self._relative(path, p)))
+                                   self._relative(path, p), float(p.wheel_spin)))
         return out
 
     def pose_table(self, times) -> PoseTable:
@@ -151,23 +173,30 @@ class Fleet:
             if hasattr(path, "pose_values_many") and a is not None:  # a profiled path: NumPy over the times
                 v = path.pose_values_many(times)
                 cols.append((a[0] + v[:, 0], a[1] + v[:, 1], (a[0] - self.anchor[0]) + v[:, 0],
-                             (a[1] - self.anchor[1]) + v[:, 1], *v[:, 2:].T))
+                             (a[1] - self.anchor[1]) + v[:, 1], *v[:, 2:].T, np.full(len(v), math.nan)))
                 continue
-            rows = []
-            for t in times:
-                p = path.pose(t)
-                rel = self._relative(path, p)
-                rows.append((p.position[0], p.position[1], rel[0], rel[1], float(p.heading), float(p.speed),
-                             float(p.yaw_rate), p.velocity[0], p.velocity[1]))
-            cols.append(tuple(np.array(rows, dtype=np.float64).reshape(-1, 9).T))
+            rows = [self._values(path, t) for t in times]
+            cols.append(tuple(np.array(rows, dtype=np.float64).reshape(-1, 10).T))
         k = len(times)
-        return PoseTable(*(np.array([c[q] for c in cols]).reshape(-1, k).T.copy() for q in range(9)))
+        return PoseTable(*(np.array([c[q] for c in cols]).reshape(-1, k).T.copy() for q in range(10)))
+
+    def _values(self, path, t: float) -> tuple:
+        """A pose table's row entries of ``path`` at time t: x, y, rx, ry, heading, speed, yaw rate, vx, vy, wheel
+        spin (``poses(t)``'s bits)."""
+        p = path.pose(t)
+        rel = self._relative(path, p)
+        return (p.position[0], p.position[1], rel[0], rel[1], float(p.heading), float(p.speed), float(p.yaw_rate),
+                p.velocity[0], p.velocity[1], float(p.wheel_spin))
+
+    def poses_of(self, i: int, t: float) -> tuple:
+        """Vehicle i's entries of a pose table's row at time t (the order of PoseTable's fields)."""
+        return self._values(self.paths[i], t)
 
     def rear_tires_table(self, table: PoseTable) -> RearTires:
         """``rear_tires(poses, relative=True)`` at every time of ``table`` at once: arrays (K, T, ...), the
         same bits as the per-time call."""
         k = table.heading.shape[0]
-        vi, bx, by, cz, slip, tread = [], [], [], [], [], []
+        vi, bx, by, cz, slip, radius, tread = [], [], [], [], [], [], []
         for i in self.splashing:
             spec = self.specs[i]
             for side in (1.0, -1.0):
@@ -176,6 +205,7 @@ class Fleet:
                 by.append(side * 0.5 * spec.track)
                 cz.append(self.ground_z + spec.tire_radius)
                 slip.append(1.0 + spec.slip)
+                radius.append(spec.tire_radius)
                 tread.append(self._tread[i])
         n = len(vi)
         bx, by, cz, slip = (np.array(a, dtype=np.float64) for a in (bx, by, cz, slip))
@@ -186,6 +216,9 @@ class Fleet:
         vel = np.stack([table.vx[:, vi] + yaw * -r1, table.vy[:, vi] + yaw * r0], axis=-1)
         fwd = np.stack([c, s], axis=-1)
         spin = (vel[..., None, :] @ fwd[..., :, None])[..., 0, 0] * slip  # as vel @ fwd, tire by tire
+        given = None if table.wheel_spin is None else table.wheel_spin[:, vi]
+        if given is not None and not np.isnan(given).all():  # a live vehicle's wheels spinning as the game says
+            spin = np.where(np.isnan(given), spin, given * np.array(radius, dtype=np.float64))
         centre = np.stack([table.rx[:, vi] + r0, table.ry[:, vi] + r1, np.tile(cz, (k, 1))], axis=-1)
         bottom = centre.copy()
         bottom[..., 2] = self.ground_z
@@ -193,10 +226,11 @@ class Fleet:
         tread = np.tile(np.array(tread, dtype=np.float64).reshape(1, n, 5), (k, 1, 1))
         return RearTires(centre, bottom, velocity, fwd, spin, *(tread[..., q] for q in range(5)))
 
-    def rear_tires(self, poses: list[VehiclePose], relative: bool = False) -> RearTires:
-        """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor."""
+    def rear_tires(self, poses: list[VehiclePose], relative: bool = False, vehicles=None) -> RearTires:
+        """The rear tires in world coordinates, or (``relative``) relative to the fleet's anchor; ``vehicles``:
+        only those of these (splashing) vehicles."""
         rows = []
-        for i in self.splashing:
+        for i in self.splashing if vehicles is None else [i for i in self.splashing if i in vehicles]:
             spec, pose = self.specs[i], poses[i]
             base = pose.rel if relative else pose.position
             c, s = np.cos(pose.heading), np.sin(pose.heading)
@@ -207,6 +241,8 @@ class Fleet:
                 vel = pose.velocity[:2] + pose.yaw_rate * np.array([-r[1], r[0]])
                 centre = np.array([base[0] + r[0], base[1] + r[1], self.ground_z + spec.tire_radius])
                 spin = float(vel @ fwd) * (1.0 + spec.slip)
+                if not math.isnan(pose.wheel_spin):  # a live vehicle's wheels spinning as the game says
+                    spin = pose.wheel_spin * spec.tire_radius
                 rows.append((centre, np.array([centre[0], centre[1], self.ground_z]),
                              np.array([vel[0], vel[1], 0.0]), fwd, spin, *self._tread[i]))
         if not rows:

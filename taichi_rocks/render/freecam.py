@@ -42,15 +42,16 @@ class FreeCamera:
     def _helper(self, which) -> np.ndarray:
         return np.array([float(which[k]) for k in range(3)])
 
-    def update(self, window, origin, heading: float) -> View:
-        """Follow the floating origin, apply this frame's keys and mouse, return the view."""
+    def update(self, window, origin, heading: float, move: bool = True) -> View:
+        """Follow the floating origin, apply this frame's keys and mouse, return the view; ``move`` False: the
+        mouse only (the keys drive a vehicle: app/driving.py)."""
         origin = np.asarray(origin, np.float64)
         if self.origin is not None and np.any(origin != self.origin):
             move = TO_HELPER @ (self.origin - origin)  # the same world point in the new local frame
             self.ggui.position(*(self._helper(self.ggui.curr_position) + move))
             self.ggui.lookat(*(self._helper(self.ggui.curr_lookat) + move))
         self.origin = origin.copy()
-        self.ggui.track_user_inputs(window, movement_speed=self.speed, hold_key=ti.ui.RMB)
+        self.ggui.track_user_inputs(window, movement_speed=self.speed if move else 0.0, hold_key=ti.ui.RMB)
         return self.view(heading)
 
     def view(self, heading: float) -> View:

@@ -1,6 +1,6 @@
 """The view's panel and HUD: GGUI (Dear ImGui) widgets drawn over the picture, in two sub-windows.
 
-* "taichi-rocks" (bottom left): the HUD (time and frame, playing or paused and the speed, frames per second
+* "taichi-rocks" (bottom left): the HUD (driving with --drive: the vehicle's speed; time and frame, playing or paused and the speed, frames per second
   shown, rocks in the air, launches, the camera; with impacts on or hits seen, the player's hits by damage
   class, render/hits.py; notices such as "recompiling") and the time slider;
 * "tune" (right): the runtime parameters as sliders (engine/tuning.py SLIDERS, from engine/params.py; they act
@@ -21,7 +21,7 @@ __all__ = ["SLIDERS", "Changes", "draw_panel", "hud_lines", "panel_width"]
 OVERLAYS = (("bed_edge", "bed edge"), ("tire_rays", "tire rays"), ("hash_cells", "hash cells"),
             ("tread_patch", "tread patch"))
 PANEL_PX = 300  # width of "tune" in pixels (at most 45% of the window)
-HUD_PX = 170  # height of "taichi-rocks" in pixels (up to six lines and the time slider)
+HUD_PX = 190  # height of "taichi-rocks" in pixels (up to seven lines and the time slider)
 
 
 @dataclass
@@ -47,6 +47,10 @@ def hud_lines(v) -> list:
              f"{state} x{tl.speed:g}   {v.fps:5.1f} fps",
              f"in the air {v.in_air}   launches {v.sim.launches_total}",
              f"camera {v.camera_name}"]
+    d = getattr(v, "driving", None)
+    if d is not None:  # app/driving.py: the vehicle the keys drive
+        lines.insert(0, f"driving {d.name}: {abs(d.speed) * 3.6:4.0f} km/h{' reverse' if d.speed < 0 else ''}"
+                        f"   (W/S/A/D)")
     hits = v.renderer.hits
     if v.switches.get("effects.impacts") or len(hits.hits.events):
         n = hits.counts()

@@ -5,9 +5,10 @@ lists the step's kernels), refuses to overwrite, and the game preset is one step
 import json
 import os
 
+import numpy as np
 import pytest
 
-from taichi_rocks.bench.frame import _scene, frame_table, run_frame_study
+from taichi_rocks.bench.frame import _scene, frame_table, live_lines, run_frame_study
 from taichi_rocks.config.presets import PRESETS
 
 
@@ -22,17 +23,23 @@ def test_tiny_frame_study(tmp_path):
     res = run_frame_study(tmp_path, tiny=True, progress=False)
     assert res["errors"] == []
     saved = json.loads((tmp_path / "frame.json").read_text())
-    # each case with the engine's choice of the step's variant, and (more than one core) the parallel one forced
+    # each case with the engine's choice of the step's variant, and (more than one core) the parallel one forced;
+    # then the live player
     forced = ["parallel"] if (os.cpu_count() or 1) > 1 else []
     assert [(r["case"], r["loops_asked"]) for r in saved["loops"]] == [
-        (c, v) for c in ("game", "dt = 2 ms") for v in ["auto"] + forced]
+        (c, v) for c in ("game", "dt = 2 ms") for v in ["auto"] + forced] + [("game, live player", "auto")]
     for r in saved["loops"]:
         assert r["loops"] in ("serial", "parallel") and (r["loops_asked"] == "auto" or r["loops"] == r["loops_asked"])
+        live = r["case"] == "game, live player"  # its frame has drive(), and state() is not timed
         assert r["frames"] == 20 and r["threads"] >= 1 and r["rows_median"] >= 0
-        for part in ("advance_to", "impacts", "changes", "state"):
+        for part in ("advance_to", "impacts", "changes") + (("drive",) if live else ("state",)):
             assert 0 < r[part]["median_ms"] <= r[part]["max_ms"]
         assert r["frame"]["median_ms"] <= r["frame"]["p95_ms"] <= r["frame"]["max_ms"]
-        assert r["frame"]["max_ms"] <= r["advance_to"]["max_ms"] + r["impacts"]["max_ms"] + r["changes"]["max_ms"] + 1e-9
+        calls = r["advance_to"]["max_ms"] + r["impacts"]["max_ms"] + r["changes"]["max_ms"]
+        assert r["frame"]["max_ms"] <= calls + (r["drive"]["max_ms"] if live else 0.0) + 1e-9
+    pair = saved["live"]  # the live player against the scripted one, in one process
+    assert pair["frames"] == 20 and pair["vehicle"] == "car" and np.isfinite(pair["extra_ms"])
+    assert pair["scripted"]["frame"]["median_ms"] > 0 and pair["live"]["frame"]["median_ms"] > 0
     for loops in ("parallel", "serial"):  # the task table of each variant, every task's share of the device time
         t = saved["tasks"][loops]
         kernels = [x["kernel"] for x in t["tasks"]]
@@ -48,7 +55,8 @@ def test_tiny_frame_study(tmp_path):
     assert [r["items"] for r in costs["rows"]] == [1_000, 10_000, 100_000] and costs["empty_us"] > 0
     assert all(r[k] > 0 for r in costs["rows"] for k in ("parallel_us", "serial_us", "four_parallel_us"))
     md = (tmp_path / "frame.md").read_text()
-    assert frame_table(saved)[0] in md and "## The step's tasks" in md and "## The variants' crossover" in md and "## What a task costs" in md
+    assert frame_table(saved)[0] in md and "## The step's tasks" in md and live_lines(saved)[0] in md
+    assert "## The variants' crossover" in md and "## What a task costs" in md
     with pytest.raises(FileExistsError, match="--overwrite"):
         run_frame_study(tmp_path, tiny=True, progress=False)
 

@@ -51,6 +51,11 @@ CASES = {
     # and are thrown again (the impacts' pass once stopped the thread on Vulkan: such a stone was hashed a step
     # late, one launch short)
     "convoy": ("convoy.toml", 5, 60, []),
+    # a live drive (docs/drives.md): the car replays a recorded drive that weaves off its road, its wheels spinning
+    # at twice their rolling rate for a while (_write_drive), the poses between the drive's interpolated
+    "drive": ("minimal.toml", 16, 60, [("rocks = 2000\n", "rocks = 8000\n"),
+                                        ("path = { points = [[0.0, 0.0], [40.0, 0.0]], speed = 10.0 }",
+                                         'path = { kind = "recorded", file = "drive.drive" }')]),
 }
 
 
@@ -71,11 +76,28 @@ def _commands(scenes_dir, folder: Path, arch: str) -> dict:
             text = _edited(text, [("[sim]\n", f'[sim]\nstepping = "{STEPPING[case][arch]}"\n')])
         scene = folder / f"{case}.toml"
         scene.write_text(text)
+        if case == "drive":
+            _write_drive(folder / "drive.drive")
         commands[case] = ("simulate", scene, "--arch", arch, "--frames", frames, "--fps", fps,
                           "--out", folder / f"{case}.npz")
     commands["render"] = ("render", scenes_dir / "minimal.toml", "--arch", arch, "--frames", 3, "--format", "png",
                           "--resolution", "160x96", "--out", folder / "render")
     return {name: [str(a) for a in args] for name, args in commands.items()}
+
+
+def _write_drive(path: Path) -> None:
+    """A recorded drive of 0.5 s at 30 poses a second: along +x at 10 m/s, weaving 1.5 m to the side, the rear
+    wheels at twice their rolling rate from 0.1 s to 0.3 s (R = 0.33 m: minimal.toml's default tire)."""
+    from taichi_rocks.config.drivefile import drive_text
+
+    rows = []
+    for k in range(16):
+        t = k / 30
+        vy, ay = 1.5 * 6.0 * np.cos(6.0 * t), -1.5 * 36.0 * np.sin(6.0 * t)
+        spin = 2.0 * 10.0 / 0.33 if 0.1 <= t <= 0.3 else float("nan")
+        rows.append((t, 10.0 * t, 1.5 * np.sin(6.0 * t), np.arctan2(vy, 10.0), np.hypot(10.0, vy),
+                     10.0 * ay / (100.0 + vy * vy), spin))
+    path.write_text(drive_text(rows))
 
 
 def _start_vulkan(folder: Path, commands: dict) -> subprocess.Popen:
