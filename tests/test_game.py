@@ -41,8 +41,9 @@ def _rows(ids, pos, phase, quat):
 
 
 def _check_chunks(mesh: R.RockMesh, pos, phase, quat, origin):
-    """Every rock in exactly one chunk, in the slot it is listed at, in the cell it lies in (its flight's own
-    chunks when in the air), and drawn where it is: its pebble's corners as a NumPy reference turns them."""
+    """Every rock in exactly one chunk, in the slot it is listed at, in the cell it lies in (the chunk of the
+    stones in flight when in the air), and drawn where it is: its pebble's corners as a NumPy reference turns
+    them."""
     n = len(pos)
     np.testing.assert_array_equal(mesh.positions, pos)
     np.testing.assert_array_equal(mesh.phase, phase)
@@ -58,7 +59,8 @@ def _check_chunks(mesh: R.RockMesh, pos, phase, quat, origin):
         if not chunk.count:
             continue
         cells = np.floor((pos[rocks, :2] - origin[:2]) / R.CELL).astype(np.int64)
-        keys = ((cells[:, 0] * (1 << 32) + cells[:, 1]) << 1) | (phase[rocks] == R.FLYING)
+        keys = (cells[:, 0] * (1 << 32) + cells[:, 1]) << 1
+        keys[phase[rocks] == R.FLYING] = R.AIR  # the stones in flight: one chunk
         np.testing.assert_array_equal(keys, chunk.key)
         pebbles, points = chunk.views()
         turned = np.stack([Rotation.from_quat(quat[i].astype(np.float64)).apply(mesh._shape[i]) for i in rocks])

@@ -20,11 +20,11 @@ grid fixed in the world, each with its own vertex buffers holding the rocks in i
 engine culls the chunks out of view, and draws each chunk of resting rocks as pebbles within GROUND_LOD of the
 camera and as one-pixel points beyond (Panda3D's LODNode; a 3 cm stone 10 m away is ~3 pixels across at 960x540,
 and the pebbles cost 4 vertices a rock against the point's 1: measured, 13 ms a frame against 40 with every rock a
-pebble). The stones in flight have chunks of their own, pebbles out to AIR_LOD: they are what the game is about,
-and few (a few hundred). A changed row is written where its
-rock is; a rock that moved to another cell leaves its slot (the chunk's last rock moves into the hole: one copy
-of its vertices) and is appended to its new cell's chunk. A chunk emptied (the bed moved on) is used again for a
-cell the bed reaches.
+pebble). The stones in flight share one chunk of their own, always pebbles and never culled: they are what the
+game is about, few (a few hundred) and on the move (a chunk per cell would see them change cells every frame).
+A changed row is written where its rock is; a rock that moved to another chunk leaves its slot (the chunk's last
+rock moves into the hole: one copy of its vertices) and is appended to its new chunk. A chunk emptied (the bed
+moved on) is used again for a cell the bed reaches.
 
 Streaks: each stone in flight is also drawn as a one-pixel line from where it was at the previous frame, as the
 camera saw it, to where it is (the rows that changed carry both: the mirror before and after; the camera rides
@@ -48,7 +48,7 @@ TETRA = np.array([[0.0, 0.0, 1.0], [0.943, 0.0, -0.333], [-0.471, 0.816, -0.333]
 FACES = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]])  # counter-clockwise seen from outside
 CELL = 6.0  # m: a chunk's cell
 GROUND_LOD = 10.0  # m from the camera to a chunk's centre: pebbles nearer, points farther
-AIR_LOD = 80.0  # m: the same for the chunks of stones in flight
+AIR = 1  # the key of the stones in flight's chunk (a cell's key is even)
 FIRST_CAPACITY = 4096  # rocks a new chunk holds before it grows (the bed's gravel: ~2,600 in a cell)
 FLYING = 1  # the phase code of a stone in the air (docs/records.md)
 REACH = (0.2, -0.5, 12.0)  # m: a chunk's bounds beyond its cell (its pebbles' corners), below and above ground
@@ -66,18 +66,16 @@ def templates(seed: int = 11) -> np.ndarray:
     return out
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis (written out: np.cross costs more than the arithmetic at these sizes)."""
-    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
-    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
-
-
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """v (k, m, 3) turned by unit quaternions q (k, 4) as (x, y, z, w): v + 2 w (u x v) + 2 u x (u x v)."""
-    u, w = q[:, None, :3], q[:, None, 3:4]
-    t = 2.0 * _cross(u, v)
-    return v + w * t + _cross(u, t)
+    """v (k, m, 3) turned by unit quaternions q (k, 4) as (x, y, z, w): v R(q)^T, R(q) the rotation matrix
+    [[1 - 2(y^2 + z^2), 2(xy - zw), 2(xz + yw)], [2(xy + zw), 1 - 2(x^2 + z^2), 2(yz - xw)],
+     [2(xz - yw), 2(yz + xw), 1 - 2(x^2 + y^2)]] (one batched product: cheaper than cross products here)."""
+    x, y, z, w = (np.asarray(q, np.float64)[:, i] for i in range(4))
+    m = np.empty((len(x), 3, 3))
+    m[:, 0, 0], m[:, 0, 1], m[:, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+    m[:, 1, 0], m[:, 1, 1], m[:, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+    m[:, 2, 0], m[:, 2, 1], m[:, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+    return np.matmul(v, m.transpose(0, 2, 1))
 
 
 def rock_colours(ids: np.ndarray, radii: np.ndarray) -> np.ndarray:
@@ -126,12 +124,18 @@ class Chunk:
         self.rock = np.concatenate([self.rock, np.full(capacity - self.capacity, -1, np.int64)])
         self.capacity = capacity
 
-    def place(self, key, centre, lod: float) -> None:
+    def place(self, key, centre, lod) -> None:
         """Use this chunk for cell ``key``, whose centre is ``centre`` (render frame), pebbles out to ``lod`` m from
         the camera: the engine culls it by the cell's box (a rock is filed by where it is each time it changes, so
-        it lies in its cell)."""
+        it lies in its cell). ``centre`` None: the stones in flight, pebbles at any distance, never culled."""
         self.key = key
         self.lod.clearSwitches()
+        if centre is None:
+            self.lod.addSwitch(1e9, 0.0)
+            self.lod.addSwitch(0.0, 0.0)  # the points: never
+            self.lod.setBounds(OmniBoundingVolume())
+            self.node.show()
+            return
         self.lod.addSwitch(lod, 0.0)  # the pebbles (child 0) from 0 to lod m, the points (child 1) beyond
         self.lod.addSwitch(1e5, lod)
         self.lod.setCenter(Point3(*centre))
@@ -204,7 +208,7 @@ class RockMesh:
         ids = np.arange(n)
         self._shape = templates()[ids % SHAPES] * (SIZE * radii)[:, None, None]  # (N, 4, 3), turned on apply
         self._inv_len = 1.0 / np.linalg.norm(self._shape, axis=2)
-        self._base = rock_colours(ids, radii)
+        self._base255 = 255.0 * rock_colours(ids, radii)
         # a far rock is one pixel: its lit top or its shaded side, so the far bed reads as speckle on the ground
         self._glint = np.where((ids * 2654435761) % 7 < 2, 0.55, 1.1)
         self.node = parent.attachNewNode("rocks")
@@ -238,12 +242,13 @@ class RockMesh:
         k = len(ids)
         pebbles, dots = np.empty((k, 4), VERTEX), np.empty(k, VERTEX)  # as the buffers hold them
         pebbles["p"] = corners
+        lit = np.minimum(self._base255[ids][:, None, :] * light[..., None], 255.0)
         colour = pebbles["c"]
-        colour[..., :3] = np.round(255.0 * np.clip(self._base[ids][:, None, :] * light[..., None], 0.0, 1.0))
+        colour[..., :3] = lit
         colour[..., 3] = 255
         dots["p"] = local
         dot = dots["c"]
-        dot[:, :3] = np.round(np.clip(colour[..., :3].max(axis=1) * self._glint[ids, None], 0, 255))
+        dot[:, :3] = np.minimum(lit.max(axis=1) * self._glint[ids, None], 255.0)
         dot[:, 3] = 255
         self._file(ids, local, (pebbles, dots))
         seg = np.stack([before + np.asarray(camera_move, np.float64), rows.positions[flying]], 1) - self.origin
@@ -256,8 +261,8 @@ class RockMesh:
         """Each row into the chunk of its cell: in place where it stays, moved where it changed cell. The rows are
         grouped by chunk with one sort, so a frame costs one update per chunk it touches."""
         cells = np.floor(local[:, :2] * (1.0 / CELL)).astype(np.int64)
-        air = (np.asarray(self.phase[ids]) == FLYING).astype(np.int64)
-        keys = ((cells[:, 0] * (1 << 32) + cells[:, 1]) << 1) | air  # a cell's stones in flight: a chunk apart
+        keys = (cells[:, 0] * (1 << 32) + cells[:, 1]) << 1
+        keys[np.asarray(self.phase[ids]) == FLYING] = AIR
         uniq, inverse = np.unique(keys, return_inverse=True)
         new = np.array([self._chunk_for(k) for k in uniq.tolist()], np.int64)[inverse.ravel()]
         old = self.chunk_of[ids]
@@ -291,11 +296,14 @@ class RockMesh:
             else:
                 self.chunks.append(Chunk(self.node))
                 c = len(self.chunks) - 1
-            air, cell = key & 1, key >> 1
-            ix, iy = cell >> 32, cell - ((cell >> 32) << 32)
-            if iy >= 1 << 31:
-                ix, iy = ix + 1, iy - (1 << 32)
-            self.chunks[c].place(key, ((ix + 0.5) * CELL, (iy + 0.5) * CELL, 0.0), AIR_LOD if air else GROUND_LOD)
+            if key == AIR:
+                self.chunks[c].place(key, None, None)
+            else:
+                cell = key >> 1
+                ix, iy = cell >> 32, cell - ((cell >> 32) << 32)
+                if iy >= 1 << 31:
+                    ix, iy = ix + 1, iy - (1 << 32)
+                self.chunks[c].place(key, ((ix + 0.5) * CELL, (iy + 0.5) * CELL, 0.0), GROUND_LOD)
             self._by_key[key] = c
         return c
 
