@@ -39,7 +39,8 @@ from .vehicles import VehicleModel
 FPS = 60.0  # the offscreen clock
 SKY = (0.60, 0.73, 0.88, 1.0)
 ROAD_HALF = 3.6  # m
-CHASE = dict(back=7.8, up=3.3, ahead=12.0, aim_z=0.7, fov=68.0, lag=0.25)  # m, deg, s
+GROUND_CELL = 40.0  # m: the ground's triangles (the software renderer loses parts of huge ones cut by the near plane)
+CHASE = dict(back=7.4, up=4.3, ahead=10.0, aim_z=0.2, fov=66.0, lag=0.25)  # m, deg, s
 COCKPIT_FOV = 78.0
 
 
@@ -62,7 +63,8 @@ def configure_panda(opts: Options) -> None:
     """Panda3D's settings, before ShowBase starts: offscreen with the software renderer, or a window."""
     w, h = opts.size
     lines = [f"win-size {w} {h}", "sync-video 0", "audio-library-name null", "window-title taichi_rocks: gravel",
-             "notify-level-x11display fatal", "notify-level-device fatal", "notify-level-display error",
+             "print-pipe-types 0",
+             "notify-level-x11display fatal", "notify-level-device fatal", "notify-level-display fatal",
              "framebuffer-multisample 0"]
     if opts.offscreen:
         lines += ["window-type offscreen", "load-display p3tinydisplay"]
@@ -116,12 +118,12 @@ class Game:
     # ------------------------------------------------------------------------------------------ the scene
     def _ground(self) -> None:
         centre = road_centre(self.scene)
-        lo, hi = centre.min(axis=0) - 400.0, centre.max(axis=0) + 400.0
-        verts = np.array([[lo[0], lo[1], 0.0], [hi[0], lo[1], 0.0], [hi[0], hi[1], 0.0], [lo[0], hi[1], 0.0]])
+        lo, hi = centre.min(axis=0) - 700.0, centre.max(axis=0) + 700.0  # out under the hills (_horizon)
+        verts, tris = meshes.grid(lo, hi, GROUND_CELL)
         verts -= self.origin
         tile = 3.0  # m of ground a texture repeat
         uv = (verts[:, :2] - verts[0, :2]) / tile
-        ground = self.world.attachNewNode(meshes.textured("ground", verts, uv, np.array([[0, 1, 2], [0, 2, 3]])))
+        ground = self.world.attachNewNode(meshes.textured("ground", verts, uv, tris))
         ground.setTexture(meshes.texture("gravel", meshes.gravel_texture()))
         v, uv, tris = meshes.ribbon(centre - self.origin[:2], ROAD_HALF, 0.0, 8.0)
         road = self.world.attachNewNode(meshes.textured("road", v, uv, tris))
@@ -135,7 +137,7 @@ class Game:
 
     def _horizon(self, centre) -> None:
         """A ring of low hills far out, so the ground meets the sky at a soft edge."""
-        mid, r, n = centre.mean(axis=0) - self.origin[:2], 900.0, 72
+        mid, r, n = centre.mean(axis=0) - self.origin[:2], 650.0, 72
         a = np.linspace(0, 2 * np.pi, n, endpoint=False)
         rng = np.random.default_rng(3)
         top = 18.0 + 22.0 * np.abs(np.sin(3 * a + 1.0)) * rng.uniform(0.6, 1.0, n)

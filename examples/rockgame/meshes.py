@@ -146,6 +146,19 @@ def ribbon(centre, half_width: float, z: float, v_scale: float) -> tuple:
     return verts, uv, tris
 
 
+def grid(lo, hi, cell: float) -> tuple:
+    """A flat grid over the rectangle ``lo`` .. ``hi`` (x, y) at z = 0 in squares of about ``cell``: vertices (V, 3)
+    and triangles facing +z."""
+    nx, ny = (max(int(np.ceil((hi[i] - lo[i]) / cell)), 1) for i in (0, 1))
+    x, y = np.linspace(lo[0], hi[0], nx + 1), np.linspace(lo[1], hi[1], ny + 1)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    verts = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    a = (i * (ny + 1) + j).ravel()
+    b, c, d = a + (ny + 1), a + (ny + 1) + 1, a + 1
+    return verts, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
 def textured(name, verts, uv, tris) -> GeomNode:
     """A GeomNode of textured triangles (white vertices, texture coordinates ``uv``)."""
     fmt = GeomVertexFormat.getV3t2()

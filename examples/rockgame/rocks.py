@@ -59,9 +59,10 @@ def templates(seed: int = 11) -> np.ndarray:
     rng = np.random.default_rng(seed)
     out = np.empty((SHAPES, 4, 3))
     for s in range(SHAPES):
-        a = np.linalg.qr(rng.normal(size=(3, 3)))[0]  # a random rotation
+        a = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        a[:, 0] *= np.sign(np.linalg.det(a))  # a rotation, not a reflection: the faces keep their winding
         t = TETRA @ a.T @ np.diag(rng.uniform(0.8, 1.2, 3))
-        t[:, 2] *= 0.75
+        t[:, 2] *= 0.55  # gravel lies flat: a low mound, not a spike
         out[s] = t + rng.normal(scale=0.06, size=(4, 3))
     return out
 
@@ -210,7 +211,7 @@ class RockMesh:
         self._inv_len = 1.0 / np.linalg.norm(self._shape, axis=2)
         self._base255 = 255.0 * rock_colours(ids, radii)
         # a far rock is one pixel: its lit top or its shaded side, so the far bed reads as speckle on the ground
-        self._glint = np.where((ids * 2654435761) % 7 < 2, 0.55, 1.1)
+        self._glint = np.where((ids * 2654435761) % 7 < 2, 0.6, 1.12)
         self.node = parent.attachNewNode("rocks")
         self.chunks: list[Chunk] = []
         self._by_key: dict = {}
@@ -248,7 +249,7 @@ class RockMesh:
         colour[..., 3] = 255
         dots["p"] = local
         dot = dots["c"]
-        dot[:, :3] = np.minimum(lit.max(axis=1) * self._glint[ids, None], 255.0)
+        dot[:, :3] = np.minimum(lit.mean(axis=1) * self._glint[ids, None], 255.0)
         dot[:, 3] = 255
         self._file(ids, local, (pebbles, dots))
         seg = np.stack([before + np.asarray(camera_move, np.float64), rows.positions[flying]], 1) - self.origin
