@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 from panda3d.core import (Filename, Geom, GeomNode, GeomPoints, GeomVertexData,
-                          GeomVertexFormat, OmniBoundingVolume, PNMImage, TextNode, loadPrcFileData)
+                          GeomVertexFormat, GraphicsPipeSelection, OmniBoundingVolume, PNMImage, TextNode,
+                          loadPrcFileData)
 
 from taichi_rocks import Simulation
 from taichi_rocks.config.drivefile import drive_text
@@ -73,13 +74,29 @@ def configure_panda(opts: Options) -> None:
     loadPrcFileData("rockgame", "\n".join(lines))
 
 
+def offscreen_pipe():
+    """The software renderer's pipe that needs no X server (TinyOffscreenGraphicsPipe), or None: offscreen, Panda3D
+    would otherwise take the X11 pipe wherever an X server answers, and depend on it."""
+    sel = GraphicsPipeSelection.getGlobalPtr()
+    for i in range(sel.getNumPipeTypes()):
+        t = sel.getPipeType(i)
+        if t.getName() == "TinyOffscreenGraphicsPipe":
+            return sel.makePipe(t)
+    return None
+
+
 class Game:
     def __init__(self, opts: Options):
         from direct.showbase.ShowBase import ShowBase
 
         configure_panda(opts)
         self.opts = opts
-        self.base = ShowBase()
+        if opts.offscreen:
+            self.base = ShowBase(windowType="none")
+            self.base.pipe = offscreen_pipe() or self.base.pipe
+            self.base.openDefaultWindow(type="offscreen")
+        else:
+            self.base = ShowBase()
         self.base.disableMouse()
         self.base.win.setClearColor(SKY)
         self.scene = game_scene(opts.rocks, opts.truck_tires)
