@@ -13,8 +13,6 @@ between two game frames.
 from __future__ import annotations
 
 import json
-import time
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -26,14 +24,6 @@ class Budget:
     def __init__(self):
         self.ms = {}
         self.frames = 0
-
-    @contextmanager
-    def part(self, name: str):
-        t0 = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.ms.setdefault(name, []).append(1e3 * (time.perf_counter() - t0))
 
     def add(self, name: str, ms: float) -> None:
         self.ms.setdefault(name, []).append(ms)
