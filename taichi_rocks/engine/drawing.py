@@ -63,12 +63,12 @@ def listed_orientation(w: ti.template(), i):
 
 @ti.func
 def slot_count(w: ti.template()):
-    return ti.static(w.store_grid * w.store_grid)
+    return w.store_grid * w.store_grid
 
 
 @ti.func
 def slot_capacity(w: ti.template()):
-    return ti.static(w.store_capacity)
+    return w.store_capacity
 
 
 @ti.func
@@ -82,7 +82,7 @@ def slot_bounds(w: ti.template(), t, tiles):
     """Where the rocks of an occupied slot t lie (``tiles``: the origin's shift in tiles, f32 2-vector): their
     centres in the XY box lo .. lo + s (local frame, f32) and, at rest, z in ground .. ground + 2 r_max, radii
     <= r_max. Returns (lo, s, ground, r_max)."""
-    s = ti.static(w.store_tile)
+    s = ti.cast(w.store_tile, ti.f32)
     key = w.ts_key[t]
     lo = (ti.Vector([ti.cast(key[0], ti.f32), ti.cast(key[1], ti.f32)]) - tiles) * s
     return lo, s, ti.cast(w.par[Par.GROUND_Z], ti.f32), ti.cast(w.par[Par.R_MAX], ti.f32)
@@ -91,5 +91,5 @@ def slot_bounds(w: ti.template(), t, tiles):
 @ti.func
 def slot_rock(w: ti.template(), t, k):
     """Rock k (< slot_rocks) of slot t: local centre and radius (f32), phase (resting), id."""
-    j = t * ti.static(w.store_capacity) + k
+    j = t * w.store_capacity + k
     return ti.cast(w.ts_pos[j], ti.f32), ti.cast(w.ts_radius[j], ti.f32), RESTING, w.ts_rock_id[j]
