@@ -8,7 +8,8 @@ Taichi functions over the rocks wherever they are, so that nothing outside engin
   :func:`slot_rocks` rocks in slot t, :func:`slot_bounds` the box every rock of slot t lies in (local frame),
   :func:`slot_rock` its k-th rock.
 
-A rock is (centre, radius) in the kernels' local frame as f32, its phase (engine/rockfields.py codes) and its
+A renderer's kernel over a World is a world kernel (:func:`world_kernel`, engine/view.py: the World's data are
+ndarrays, passed as its arguments). A rock is (centre, radius) in the kernels' local frame as f32, its phase (engine/rockfields.py codes) and its
 id; a listed rock also has an orientation (:func:`listed_orientation`: the engine's with tumbling, the identity
 without; :func:`has_orientations`). Flying rocks are always listed. The tiles' boxes need the floating origin's
 shift in tiles, ``Simulation.tile_shift()`` (zeros without tiles), as an f32 2-vector. :func:`slot_total`
@@ -18,9 +19,10 @@ shift in tiles, ``Simulation.tile_shift()`` (zeros without tiles), as an f32 2-v
 import taichi as ti
 
 from .rockfields import RESTING
+from .view import world_kernel  # noqa: F401 - a renderer's kernels over a World take it as engine/view.py says
 from .world import IPar, Par
 
-__all__ = ["has_tiles", "has_orientations", "slot_total", "listed_count", "listed_rock", "listed_orientation",
+__all__ = ["world_kernel", "has_tiles", "has_orientations", "slot_total", "listed_count", "listed_rock", "listed_orientation",
            "slot_count", "slot_capacity", "slot_rocks", "slot_bounds", "slot_rock"]
 
 

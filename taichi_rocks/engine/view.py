@@ -222,6 +222,8 @@ def world_kernel(fn=None, *, param: str = "w"):
     merged[first - 1:first - 1 + len(text)] = text
     linecache.cache[filename] = (sum(map(len, merged)), None, merged, filename)
     ns = fn.__globals__
+    if fn.__closure__:  # a kernel defined in a function: its free variables join a copy of the module's names
+        ns = {**ns, **{name: cell.cell_contents for name, cell in zip(fn.__code__.co_freevars, fn.__closure__)}}
     ns.setdefault("_world_view", _view)
     ns.setdefault("ti", ti)
     scope: dict = {}

@@ -10,7 +10,6 @@ estimate (engine/layout.py) adds it up.
 
 import math
 import os
-import warnings
 from dataclasses import dataclass
 from typing import Optional
 
@@ -346,9 +345,8 @@ class World:
         return [v for v in vars(self).values() if isinstance(v, HostField) and not v.name.endswith("head")]
 
     def nbytes(self) -> int:
-        """Bytes of the World's groups on the device."""
-        return sum(int(np.prod(g.shape)) * g.element_type_bytes() if hasattr(g, "element_type_bytes") else 0
-                   for g in self.groups) or sum(f.nbytes() for f in self.fields())
+        """Bytes of the World's groups on the device (its fields, the table of where they lie, row alignment)."""
+        return self.placement.nbytes("f64" if self.real == ti.f64 else "f32")
 
     def set_params(self, par: np.ndarray, ipar: Optional[np.ndarray] = None) -> None:
         """The scene's parameters into ``par``, and into ``ipar`` unless None (its counts, which the kernels

@@ -76,6 +76,11 @@ class Placement:
         self.real_head = np.array([float(real_sizes.get(n, 0.0)) for n in REAL_SIZES])
         self.lengths = {g: max(n, 1) for g, n in used.items()}
 
+    def nbytes(self, real: str) -> int:
+        """Bytes of the groups on the device, in precision ``real`` ("f32" or "f64")."""
+        size = {"real": 8 if real == "f64" else 4, "i32": 4, "f64": 8, "i64": 8}
+        return sum(n * GROUPS[g][1] * size[GROUPS[g][0]] for g, n in self.lengths.items())
+
 
 class HostField:
     """Field ``name`` of a World from Python: its group ``arr`` (a ti.ndarray of elements of ``width``
