@@ -3,8 +3,8 @@ launch rocks into the air (Chen, Fu & Wegman 1999), simulated with Taichi and dr
 
 The public API, imported lazily so that ``import taichi_rocks`` stays cheap (no Taichi, no SciPy)::
 
-    from taichi_rocks import Simulation, load_scene
-    sim = Simulation(load_scene("scenes/minimal.toml"))
+    from taichi_rocks import Simulation, load_scene, shipped_scene
+    sim = Simulation(load_scene(shipped_scene("minimal")))  # or the path of any scene file
     sim.step(100)
     state = sim.state()
 
@@ -22,7 +22,8 @@ __version__ = "0.1.0"
 
 _API = {
     "Scene": "config.scene", "SceneError": "config.scene", "load_scene": "config.scene",
-    "parse_scene": "config.scene", "scene_with": "config.scene", "Plan": "config.plan",
+    "parse_scene": "config.scene", "scene_with": "config.scene", "shipped_scene": "config.scene",
+    "Plan": "config.plan",
     "Simulation": "engine.simulation", "HealthError": "engine.simulation", "init_taichi": "engine.runtime",
     "record": "app.simulate", "load_run": "output.runs", "render_scene": "app.render",
     "Renderer": "render.renderer",

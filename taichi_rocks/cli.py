@@ -428,6 +428,12 @@ _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "sweep": ("multiproces
 _PRELOAD_CALLS = {"render": (("PIL.Image", "init"),)}
 
 
+# The commands that start Taichi here or in their workers, and whether TAICHI_ROCKS_THREADS counts for them (a
+# sweep's workers get theirs from --threads): their environment variables (config/environment.py) are checked
+# before anything starts.
+_ENVIRONMENT = {"simulate": True, "export": True, "render": True, "bench": True, "view": True, "sweep": False}
+
+
 def _start(argv):
     """Parse the arguments, import what the command needs and start Taichi (main holds Ctrl-C back meanwhile).
 
@@ -449,6 +455,12 @@ def _start(argv):
         writer_class(args.format)  # the format's module and the libraries it needs (usd-core for usd)
     for module, function in _PRELOAD_CALLS.get(args.command, ()):
         getattr(importlib.import_module(module), function)()
+    if args.command in _ENVIRONMENT:
+        from .config.environment import environment_problem
+
+        problem = environment_problem(threads=_ENVIRONMENT[args.command])
+        if problem:
+            raise UsageError(f"taichi-rocks {args.command}: {problem}")
     if args.command in ("simulate", "export", "render", "bench"):
         from .engine.runtime import init_taichi
 
@@ -472,6 +484,9 @@ def main(argv=None, *, held=None, restore=None) -> int:
     try:
         try:
             args = _start(argv)
+        except UsageError as e:  # a bad environment variable: one line, before anything started
+            _err(str(e))
+            return EXIT_USAGE
         finally:
             signal.signal(signal.SIGINT, restore)
             for s in STOP_SIGNALS:

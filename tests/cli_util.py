@@ -82,6 +82,16 @@ def start_held_writer(marker, *args):
                             env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def start_held_sweep(when: str, marker, *args, new_session: bool = False):
+    """Start ``taichi-rocks sweep ARGS`` in the background, holding at ``when`` ("row": after its first finished
+    run's row; "build": while it builds its runs) after creating ``marker`` (tests/held_sweep.py): wait for
+    ``marker``, then interrupt. ``new_session``: in a process group of its own (to signal it as a terminal
+    does, with its workers)."""
+    return subprocess.Popen([sys.executable, str(ROOT / "tests" / "held_sweep.py"), when, str(marker), "sweep",
+                             *map(str, args)], env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=new_session)
+
+
 def wait_for(condition, proc, timeout=180.0, poll=0.01):
     """Poll ``condition()`` until true; fail if ``proc`` ends first or time runs out."""
     deadline = time.time() + timeout

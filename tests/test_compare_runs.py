@@ -43,6 +43,29 @@ def test_round_off_is_allowed_and_a_moved_rock_is_found():
     assert "first frame where they part: 3" in compare_runs.report(res, 1)
 
 
+def test_runs_that_differ_only_in_launches_or_only_in_phases_differ():
+    """Positions to the bit, yet not the same runs: a launch counted in another frame, a rock in another phase."""
+    a = _run()
+    launches = {k: np.copy(v) for k, v in a.items()}
+    launches["launches"][4] += 1
+    res = compare_runs.compare(a, launches)
+    assert not res["same"] and res["first"]["frame"] == 4 and res["first"]["rocks"] == []
+    assert "first frame where they part: 4 (launches 4/5" in compare_runs.report(res, 1)
+    phase = {k: np.copy(v) for k, v in a.items()}
+    phase["phase"][2, 11] = 2
+    res = compare_runs.compare(a, phase)
+    assert not res["same"] and res["first"]["frame"] == 2 and [r[0] for r in res["first"]["rocks"]] == [11]
+    assert [r["phase"] for r in res["frames"]] == [0, 0, 1, 0, 0, 0]
+
+
+def test_runs_without_rocks_compare():
+    a = _run(rocks=0)
+    assert compare_runs.compare(a, {k: np.copy(v) for k, v in a.items()})["same"]
+    b = {k: np.copy(v) for k, v in a.items()}
+    b["launches"][1] = 7
+    assert not compare_runs.compare(a, b)["same"]
+
+
 def test_other_frames_are_refused():
     a = _run()
     with pytest.raises(ValueError):
@@ -59,6 +82,46 @@ def test_the_command_says_whether_runs_agree(tmp_path):
     assert same.returncode == 0 and "agree to round-off" in same.stdout
     differ = subprocess.run(tool + [str(tmp_path / "a.npz"), str(tmp_path / "b.npz")], capture_output=True, text=True)
     assert differ.returncode == 1 and "first frame where they part: 2" in differ.stdout
+
+
+def _tool(name, *args, cwd=None):
+    return subprocess.run([sys.executable, str(ROOT / "tools" / name), *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd, timeout=300)
+
+
+def _one_line(r, *words):
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert "Traceback" not in r.stderr and len(lines) <= 2, r.stderr  # argparse: its usage line, then the error
+    for w in words:
+        assert w in lines[-1], lines[-1]
+
+
+def test_compare_runs_refuses_bad_input_in_one_line(tmp_path):
+    good = tmp_path / "a.npz"
+    np.savez(good, **_run())
+    (tmp_path / "text.npz").write_text("not a run\n")
+    np.savez(tmp_path / "partial.npz", positions=np.zeros((2, 3, 3)), time=np.zeros(2))
+    np.savez(tmp_path / "flat.npz", **{**_run(), "positions": np.zeros((6, 150))})
+    _one_line(_tool("compare_runs.py", tmp_path / "missing.npz", good), "missing.npz: cannot be read",
+              "No such file")
+    _one_line(_tool("compare_runs.py", good, tmp_path / "text.npz"), "text.npz: cannot be read")
+    _one_line(_tool("compare_runs.py", good, tmp_path / "partial.npz"), "partial.npz: not a --layout full run",
+              "no phase, launches, dt")
+    _one_line(_tool("compare_runs.py", good, tmp_path / "flat.npz"), "flat.npz: positions has shape (6, 150)")
+    for tol in ("nan", "inf", "-1", "x"):
+        _one_line(_tool("compare_runs.py", good, good, "--tol", tol), "--tol")
+    _one_line(_tool("compare_runs.py", good, good, "--every", "0"), "--every")
+    with pytest.raises(ValueError, match="--tol must be a finite distance"):
+        compare_runs.compare(_run(), _run(), float("nan"))
+
+
+def test_nudge_refuses_bad_input_in_one_line(tmp_path):
+    minimal = ROOT / "scenes" / "minimal.toml"
+    _one_line(_tool("nudge.py", tmp_path / "missing.toml"), "missing.toml: cannot read scene")
+    for by in ("nan", "inf", "-1e-6"):
+        _one_line(_tool("nudge.py", minimal, "--by", by), "--by")
+    _one_line(_tool("nudge.py", minimal, "--steps", "-5"), "--steps")
 
 
 def test_nudge_counts_the_rocks_that_part(taichi_cpu):

@@ -3,7 +3,8 @@ removed (and the folders the command made), one line saying which signal, no tra
 number (143, 129).
 
 Each command runs twice at once, one for each signal; the signal is sent once the process shows it is working
-(its temporaries are growing on disk, or its first run's row is written), never after a sleep alone."""
+(its temporaries are growing on disk, or a sweep's first run's row is written: the sweep then holds there,
+tests/held_sweep.py), never after a sleep alone."""
 
 import signal
 import subprocess
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from cli_util import reaped, start_cli, wait_for
+from cli_util import reaped, start_cli, start_held_sweep, wait_for
 
 ROOT = Path(__file__).resolve().parents[1]
 MINIMAL = ROOT / "scenes" / "minimal.toml"
@@ -97,13 +98,16 @@ def test_sweep(tmp_path):
     (sweep_dir / "base.toml").write_text(MINIMAL.read_text())
     (sweep_dir / "sweep.toml").write_text('scene = "base.toml"\nseeds = [1, 2, 3, 4, 5, 6, 7, 8]\nduration = 2.0\n'
                                           '[grid]\n"launch.grip" = [1e5, 2e5]\n[measure]\nmetrics = ["launch"]\n')
-    procs = {s: start_cli("sweep", sweep_dir / "sweep.toml", "--out", tmp_path / signal.Signals(s).name,
-                          "--workers", 1, "--threads", 1) for s in SIGNALS}
+    names = {s: signal.Signals(s).name for s in SIGNALS}
+    # each driver holds after its first row (tests/held_sweep.py): the second cannot finish its 16 runs while
+    # the first is being ended, however fast the machine
+    procs = {s: start_held_sweep("row", tmp_path / f"{names[s]}.row", sweep_dir / "sweep.toml", "--out",
+                                 tmp_path / names[s], "--workers", 1, "--threads", 1) for s in SIGNALS}
     with reaped(procs[SIGNALS[0]]), reaped(procs[SIGNALS[1]]):
         for s, p in procs.items():
-            out = tmp_path / signal.Signals(s).name
-            wait_for(lambda: (out / "results.csv").is_file(), p, poll=0.02)
+            out = tmp_path / names[s]
+            wait_for((tmp_path / f"{names[s]}.row").exists, p, poll=0.02)
             _ended_by(p, s)
             assert not list(out.rglob(".*")), list(out.rglob(".*"))  # no temporaries
             rows = (out / "results.csv").read_text().splitlines()
-            assert 2 <= len(rows) < 17, rows  # the header and the finished runs, not all 16
+            assert len(rows) == 2, rows  # the header and the finished run

@@ -7,12 +7,14 @@ Each rock moves by ``by`` metres along each axis, the sign drawn at random (seed
 rounding does to a position. A model with discrete choices (a tire hits a rock or misses it, a rock is inside
 the bed or outside) turns a few such differences into different outcomes; this measures how many, as a floor for
 comparing two backends (tools/compare_runs.py). It prints the rocks more than 1 mm and 1 m apart, the largest
-distance and both runs' launch totals, and writes nothing.
+distance and both runs' launch totals, and writes nothing. A scene that cannot be used, a ``--by`` that is not a
+finite distance >= 0 and a ``--steps`` below 0 are one line and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -23,13 +25,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from taichi_rocks.engine.runtime import init_taichi  # noqa: E402
 
 
-def run(scene: str, steps: int, by: float) -> dict:
-    """The states of ``scene`` after ``steps`` steps, as is and with every rock moved by ``by`` first."""
+def run(scene, steps: int, by: float) -> dict:
+    """The states of ``scene`` (a Scene, or a scene file) after ``steps`` steps, as is and with every rock moved by
+    ``by`` first."""
+    from taichi_rocks.config.scene import load_scene
     from taichi_rocks.engine.simulation import Simulation
 
+    scene = load_scene(scene) if isinstance(scene, (str, Path)) else scene
     out = {}
     for name, step in (("as is", 0.0), ("nudged", by)):
-        sim = Simulation.from_scene(scene)
+        sim = Simulation(scene)
         if step:
             st = sim.state()
             sign = np.sign(np.random.default_rng(0).standard_normal(st.positions.shape))
@@ -46,14 +51,42 @@ def summary(states: dict) -> dict:
             "max": float(d.max()) if len(d) else 0.0, "launches": (int(a.launches_total), int(b.launches_total))}
 
 
+def _distance(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a distance in metres, got {text!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite distance >= 0, got {text}")
+    return v
+
+
+def _steps(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of steps, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
+    return v
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("scene")
-    ap.add_argument("--steps", type=int, default=300)
-    ap.add_argument("--by", type=float, default=1e-6, help="metres each rock moves along each axis (default 1e-6)")
+    ap.add_argument("--steps", type=_steps, default=300)
+    ap.add_argument("--by", type=_distance, default=1e-6, help="metres each rock moves along each axis (default "
+                                                              "1e-6)")
     args = ap.parse_args(argv)
-    init_taichi("cpu")
-    s = summary(run(args.scene, args.steps, args.by))
+    from taichi_rocks.config.scene import SceneError, load_scene
+
+    try:
+        scene = load_scene(args.scene)
+        init_taichi("cpu")
+    except (SceneError, ValueError) as e:
+        print(str(e) if isinstance(e, SceneError) else f"nudge: {e}", file=sys.stderr)  # one line per problem
+        return 2
+    s = summary(run(scene, args.steps, args.by))
     print(f"{s['rocks']} rocks after {args.steps} steps, moved by {args.by:g} m first: {s['over_1mm']} more than "
           f"1 mm apart, {s['over_1m']} more than 1 m, at most {s['max']:.3g} m; launches {s['launches'][0]} and "
           f"{s['launches'][1]}")

@@ -27,14 +27,19 @@ class Record(Mapping):
     of its fields that are not None."""
 
     _holder = None  # the name of a field that holds entries of the dict (a dict itself), not an entry
+    _holders = ()  # more such fields, if any
     _extra_first = False  # the held entries come first in the dict
+
+    def _held(self) -> tuple:
+        """The fields that hold entries (``_holder`` and ``_holders``)."""
+        return ((self._holder,) if self._holder else ()) + tuple(self._holders)
 
     def _extra(self) -> dict:
         """Entries beyond the dataclass's fields (held by the field ``_holder``), by their keys in the dict."""
         return getattr(self, self._holder) or {} if self._holder else {}
 
     def __getitem__(self, key: str):
-        if key == self._holder:
+        if key in self._held():
             raise KeyError(key)  # not an entry: the entries it holds are
         if key in _names(type(self)):
             value = getattr(self, key)
@@ -54,7 +59,7 @@ class Record(Mapping):
         raise KeyError(f"{type(self).__name__} has no entry {key!r}")
 
     def __iter__(self):
-        own = (n for n in _names(type(self)) if n != self._holder and getattr(self, n) is not None)
+        own = (n for n in _names(type(self)) if n not in self._held() and getattr(self, n) is not None)
         parts = (self._extra(), own) if self._extra_first else (own, self._extra())
         for part in parts:
             yield from part

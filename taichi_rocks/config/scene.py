@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Union
 
@@ -26,14 +27,15 @@ from .summary import summarise
 from .tomltext import read_toml
 from .values import _is_list, _show, dumped
 
-__all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict",
+__all__ = ["SceneError", "Scene", "load_scene", "parse_scene", "scene_with", "scene_to_dict", "shipped_scene",
            "scene_json_schema", "summarise", "Environment", "Bed", "Launch", "Effects", "Hash",
            "Sim", "WaypointPath", "CirclePath", "PATH_KINDS", "Vehicle", "CAMERA_VIEWS", "CameraSettings", "Shot",
            "SunAngles", "Render", "PRESETS"]
 
 
-class SceneError(Exception):
-    """A scene that cannot be used; ``problems`` holds one ``FILE: key.path: message`` line per problem."""
+class SceneError(ValueError):
+    """A scene that cannot be used; ``problems`` holds one ``FILE: key.path: message`` line per problem. A
+    ValueError: what the Python API raises for a bad argument, here the scene (each line names its key)."""
 
     def __init__(self, problems: list[str]):
         self.problems = list(problems)
@@ -130,6 +132,30 @@ def load_scene(path: Union[str, os.PathLike]) -> Scene:
     return parse_scene(data, source, Path(path).stem)
 
 
+SCENES = Path(__file__).resolve().parents[2] / "scenes"  # the shipped scenes, beside the package in its repository
+
+
+def shipped_scene(name: str) -> Path:
+    """The file of a scene that ships with taichi_rocks (its repository's scenes/ folder), wherever the caller
+    runs: ``load_scene(shipped_scene("convoy"))`` reads scenes/convoy.toml from any folder.
+
+    Args:
+        name: the scene's name, the file's stem ("convoy", "minimal", ...).
+
+    Returns:
+        The scene file's absolute path.
+
+    Raises:
+        ValueError: no shipped scene of that name (the message lists them).
+    """
+    path = SCENES / f"{name}.toml"
+    if not isinstance(name, str) or "/" in name or not path.is_file():
+        known = sorted(p.stem for p in SCENES.glob("*.toml"))
+        raise ValueError(f"name: no shipped scene {name!r} in {SCENES}" +
+                         (f"; the shipped scenes: {', '.join(known)}" if known else ""))
+    return path
+
+
 # ---------------------------------------------------------------------------------------------- derived
 def scene_to_dict(scene: Scene) -> dict:
     """The scene as a TOML-like dict with every key filled in (lists, file key names); parse_scene reads it back."""
@@ -157,8 +183,16 @@ def scene_with(scene: Scene, overrides: dict) -> Scene:
         A new, validated Scene.
 
     Raises:
+        TypeError: ``overrides`` is not a dict, or a key of it is not a string.
         SceneError: a bad key path or value (one line per problem).
     """
+    if not isinstance(overrides, Mapping):
+        raise TypeError(f"overrides must be a dict of dotted keys and values, like {{\"sim.dt\": 0.01}}, got "
+                        f"{type(overrides).__name__}")
+    for key in overrides:
+        if not isinstance(key, str):
+            raise TypeError(f"overrides: each key must be a dotted key path (a string) like \"sim.dt\", got {key!r}")
+    overrides = {key: _plain(value) for key, value in overrides.items()}
     data = scene_to_dict(scene)
     preset = overrides.get("sim.accuracy")
     if isinstance(preset, str) and preset in PRESETS:
@@ -182,6 +216,18 @@ def scene_with(scene: Scene, overrides: dict) -> Scene:
             else:
                 node = node[step] if isinstance(step, int) else node.setdefault(step, {})
     return parse_scene(data, scene.source, scene.name)
+
+
+def _plain(value):
+    """``value`` with NumPy's numbers and arrays as the Python numbers and lists a TOML file gives (a scene's
+    integer key takes ``np.int64(100)`` as it takes 100; no NumPy import here: they are known by ``tolist``)."""
+    if type(value).__module__ == "numpy" and callable(getattr(value, "tolist", None)):
+        value = value.tolist()
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
 
 
 def scene_json_schema() -> dict:

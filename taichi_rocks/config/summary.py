@@ -50,7 +50,8 @@ def summarise(scene, memory_bytes: Optional[int] = None) -> str:
         f"effects: splash {on[e.splash]}, recycle {on[e.recycle]}, gravity {on[e.gravity]}, drag {e.drag},"
         f" ground {e.ground}, impacts {on[plan.impacts]}"
         + (f" ({', '.join(scene.vehicles[i].name for i in plan.targets)} hit)" if plan.impacts else "")
-        + "".join(f", {name} {on[name in plan.effects]}" for name in EFFECTS),
+        + "".join(f", {name} {on[name in plan.effects]}" + (f" ({m.idle(scene)})" if m.idle(scene) else "")
+                  for name, m in EFFECTS.items()),
         "passes per step: " + (", ".join(passes) or "none"),
         f"time: dt {sim.dt:g} s, {math.ceil(round(scene.duration / sim.dt, 6))} steps, integrator {sim.integrator},"
         f" detection {sim.detection} (substeps {sim.substeps}), precision {sim.precision}, origin {sim.origin}",

@@ -251,10 +251,12 @@ class ImpactLog:
         self.chunks, self.kept = [], 0
         return out
 
-    def restore(self, step: int, time: float) -> None:
+    def restore(self, step: int, time: float, dropped: int = 0) -> None:
         """After a restore to step ``step`` at ``time``: the device's events are dropped, the host keeps the
-        events of steps up to ``step``; the steps run from here record theirs again."""
+        events of steps up to ``step``; the steps run from here record theirs again. ``dropped``: the events lost
+        before that step (the checkpoint's count), counted on from there."""
         self.buf.reset(time)
+        self.lost = int(dropped)
         self.chunks = [c[c["step"] <= step] for c in self.chunks]
         self.chunks = [c for c in self.chunks if len(c)]
         self.kept = sum(len(c) for c in self.chunks)

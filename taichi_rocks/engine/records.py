@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config.effects import EFFECTS
 from ..config.records import Record, entry
 
 __all__ = ["State", "Changes", "Checkpoint"]
@@ -75,19 +76,26 @@ class Checkpoint(Record):
     lead: np.ndarray = entry("-", "(2,): unit vector, the bed's direction of travel")
     launches: np.int64 = entry("", "rocks launched since the start")
     recycles: np.int64 = entry("", "rocks recycled since the start")
+    impacts_dropped: np.int64 = entry("", "impact events dropped before the checkpoint (Simulation.impacts_dropped)")
     scene: np.ndarray = entry("", "the scene's name")
     seed: np.int64 = entry("", "the scene's random seed")
     rocks: np.int64 = entry("", "the number of rocks N")
+    effects: dict = entry("", "the state of each optional effect that runs (engine/effects/), by key: the dict's "
+                              "<effect>_<name> entries (dust: its ring's fields, the emission's carried fractions, "
+                              "particle count and pending time, the origin of its positions)", optional=True)
 
-    _holder, _extra_first = "rock_fields", True
+    _holder, _holders, _extra_first = "rock_fields", ("effects",), True
 
     def _extra(self) -> dict:
-        return {f"rock_{name}": a for name, a in self.rock_fields.items()}
+        return {**{f"rock_{name}": a for name, a in self.rock_fields.items()}, **(self.effects or {})}
 
     def _set_extra(self, key: str, value) -> None:
-        if not key.startswith("rock_"):
+        if key.startswith("rock_"):
+            self.rock_fields[key[len("rock_"):]] = value
+        elif any(key.startswith(f"{name}_") for name in EFFECTS):
+            self.effects = {**(self.effects or {}), key: value}
+        else:
             super()._set_extra(key, value)
-        self.rock_fields[key[len("rock_"):]] = value
 
 
 RECORDS = (State, Changes, Checkpoint)

@@ -14,6 +14,7 @@ import sys
 import taichi as ti
 
 from ..config.arches import ARCHES
+from ..config.environment import PARALLEL_SCAN, THREADS, parallel_scan_wanted, threads_wanted  # noqa: F401
 from . import frontend
 
 _state: dict = {"arch": None}
@@ -26,9 +27,12 @@ def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
     ``gpu``/``cuda``/``vulkan`` fall back to the CPU with one warning line when unavailable.
     Calling again with another arch keeps the first one (and says so once). ``profiler``: turn on Taichi's
     kernel profiler (engine/timing.py ``kernel_tasks``; every task then times itself: for the benchmark).
+    Raises ValueError (one line naming it) for a bad ``arch`` or a bad value of an environment variable of
+    config/environment.py, before Taichi starts.
     """
     if arch not in ARCHES:
         raise ValueError(f"arch must be one of {', '.join(ARCHES)}, got {arch!r}")
+    threads_wanted(), parallel_scan_wanted()  # a bad value is refused at every start, not only the first
     warn = warn or (lambda msg: print(f"taichi-rocks: warning: {msg}", file=sys.stderr))
     if _state["arch"] is not None:
         return _state["arch"]
@@ -58,27 +62,20 @@ def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
     return _state["arch"]
 
 
-THREADS = "TAICHI_ROCKS_THREADS"  # the environment variable that sets the CPU thread pool's size
 AUTO_THREADS_MAX = 4  # the engine's choice: every core up to this many (bench --only frame measures it)
 
 
 def threads_set() -> bool:
-    return bool(os.environ.get(THREADS, "").strip())
+    return threads_wanted() is not None
 
 
 def auto_threads() -> int:
     """The CPU backend's thread pool: ``TAICHI_ROCKS_THREADS`` if set (a whole number >= 1), else every core up
     to AUTO_THREADS_MAX. A step is a chain of small parallel tasks (a few hundred rocks each in a game's
     frame); each wakes the whole pool, so past a few threads a step gets slower, not faster (measured on 16
-    cores: 13.7 ms a frame against 5.5-9.4 ms on 2)."""
-    raw = os.environ.get(THREADS, "").strip()
-    if raw:
-        try:
-            n = int(raw)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ValueError(f"{THREADS} must be a whole number >= 1, got {raw!r}")
+    cores: 13.7 ms a frame against 5.5-9.4 ms on 2). A bad value: ValueError (config/environment.py)."""
+    n = threads_wanted()
+    if n is not None:
         return n
     return max(1, min(os.cpu_count() or 1, AUTO_THREADS_MAX))
 

@@ -24,10 +24,11 @@ bit-identical to stepping (``Simulation.coast = False`` turns it off).
 import numpy as np
 import taichi as ti
 
+from ..config.arches import API, arch_problem
 from ..config.plan import Plan
-from ..config.scene import load_scene, scene_with
+from ..config.scene import SceneError, load_scene, scene_with
 from ..motion.vehicles import Fleet
-from . import changes, rocks
+from . import arguments, changes, rocks
 from .records import Changes, Checkpoint, State
 from .rocks import state_arrays
 from .effects import Effects
@@ -78,8 +79,10 @@ class Simulation:
             returns (engine/changes.py; about 24 bytes a rock); False: neither allocated nor compiled.
 
     Raises:
-        SceneError: the scene does not fit this machine's memory, or resting rocks would lie inside a body
-            that stones hit.
+        SceneError: (a ValueError; one line per problem, naming the key) the scene does not fit this machine's
+            memory, resting rocks would lie inside a body that stones hit, or ``arch`` cannot run it (``sim.precision
+            = "f64"`` or ``sim.hash.insert = "aabb"`` on Vulkan: config/arches.py, as the command line refuses them).
+        ValueError: ``arch`` is not a backend's name, or an environment variable of config/environment.py is bad.
 
     Attributes:
         scene: the Scene (with ``seed`` applied).
@@ -113,7 +116,9 @@ class Simulation:
             scene = scene_with(scene, {"seed": int(seed)})
         check_fits(scene)  # a scene too big for this machine is refused before anything is allocated
         check_bodies(scene)  # and one whose resting rocks would lie inside a body that stones hit
+        self._check_arch(scene, arch)  # and one the backend asked for cannot run, before Taichi starts
         self.arch = init_taichi(arch)
+        self._check_arch(scene, self.arch)  # and the backend Taichi runs on (it starts once per process)
         self.scene = scene
         self.real = ti.f64 if scene.sim.precision == "f64" else ti.f32
         self.n_rocks = int(scene.bed.rocks)
@@ -153,6 +158,12 @@ class Simulation:
         # coasting: once these vehicles stop for good, steps run as one launch per call (False: always step)
         self.coast = True
         self._matter = sorted({self.follow, *(self.fleet.splashing if plan.splash else ())})
+
+    @staticmethod
+    def _check_arch(scene, arch) -> None:
+        problem = arch_problem(scene, arch, API)
+        if problem:
+            raise SceneError([problem])
 
     def _allocate(self, radius: np.ndarray) -> World:
         """The World of this scene's layout (a released one from the pool if there is one), sized for the
@@ -279,9 +290,13 @@ class Simulation:
         """Take ``n`` steps of dt.
 
         Args:
-            n: the number of steps (>= 0).
+            n: the number of steps, a whole number >= 0 (the kernels count at most 2^31 - 1 steps).
+
+        Raises:
+            TypeError: ``n`` is not a whole number.
+            ValueError: ``n`` is negative, or too many steps.
         """
-        n = int(n)
+        n = arguments.whole_steps(n, self.step_count)
         while n > 0:
             if self._can_coast():
                 self._coast(n)
@@ -294,8 +309,13 @@ class Simulation:
         interval (so frame f is the state at f / fps for any fps). A game calls it once per frame.
 
         Args:
-            t: the time to reach, s; a time at or before ``time`` takes no step.
+            t: the time to reach, s, a finite number; a time at or before ``time`` takes no step.
+
+        Raises:
+            TypeError: ``t`` is not a number.
+            ValueError: ``t`` is infinite, NaN or past the last step the kernels count (2^31 - 1 steps).
         """
+        t = arguments.target_time(t, self.time, self.dt, self.step_count)
         tol = 1e-9 * max(1.0, abs(t))
         while self.time + self.dt <= t + tol:
             if self._can_coast():
@@ -394,19 +414,22 @@ class Simulation:
             velocities: (len(ids), 3) m/s, or None.
             phase: phase codes (0 resting, 1 flying, 2 sliding), or None.
             **fields: any rock field of ``rock_arrays()`` by its name, one value per id or one for all.
+
+        Raises:
+            TypeError: ids that are not whole numbers, values that are not numbers, a field this simulation has not.
+            ValueError: an id outside 0 .. N-1 or given twice, values of the wrong shape, or values no rock can
+                have (not finite, a radius <= 0, a phase code that is none, ...; engine/arguments.py). Nothing is
+                set then.
         """
         r = self.rock_arrays()
-        ids = np.atleast_1d(np.asarray(ids, np.int64))
-        if positions is not None:
-            fields["pos"] = np.asarray(positions, np.float64).reshape(len(ids), 3) - self.origin
-        if velocities is not None:
-            fields["vel"] = velocities
-        if phase is not None:
-            fields["phase"] = phase
-        for name, value in fields.items():
-            a, v = r[name], np.asarray(value)
-            shape = (len(ids),) + a.shape[1:]
-            a[ids] = (v.reshape(shape) if v.size == np.prod(shape) else np.broadcast_to(v, shape)).astype(a.dtype)
+        given = {name: (name, value) for name, value in fields.items()}
+        for name, field, value in (("positions", "pos", positions), ("velocities", "vel", velocities),
+                                   ("phase", "phase", phase)):
+            if value is not None:
+                given[name] = (field, value)
+        ids, values = arguments.rock_values(r, self.n_rocks, ids, given, self.origin, len(self.scene.vehicles))
+        for field, v in values.items():
+            r[field][ids] = v
         r[ID] = np.arange(self.n_rocks, dtype=np.int32)
         self._stepper.load(r)
         self._stepper.sync_drawn()
@@ -498,8 +521,9 @@ class Simulation:
             self._impacts.drain(self.time)
         return Checkpoint(rock_fields=rocks.checkpoint_fields(self.world, self.rock_arrays(), self.n_rocks),
                           **self._host.saved(), launches=np.int64(self.launches_total),
-                          recycles=np.int64(self.recycles_total), scene=np.array(self.scene.name),
-                          seed=np.int64(self.scene.seed), rocks=np.int64(self.n_rocks))
+                          recycles=np.int64(self.recycles_total), impacts_dropped=np.int64(self.impacts_dropped),
+                          scene=np.array(self.scene.name), seed=np.int64(self.scene.seed),
+                          rocks=np.int64(self.n_rocks), effects=self._effects.saved() or None)
 
     def restore(self, data: dict) -> None:
         """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint
@@ -509,11 +533,11 @@ class Simulation:
             data: what ``checkpoint()`` returned (or its ``np.load``).
 
         Raises:
-            ValueError: the checkpoint belongs to another scene (rock count or seed differ).
+            ValueError: the checkpoint belongs to another scene (rock count or seed differ), or a key is missing or
+                holds what no checkpoint of this simulation can hold (the message names it). Nothing changes then.
         """
+        data = self._checked(data)
         self._host_side.ahead.clear()
-        if int(data["rocks"]) != self.n_rocks or int(data["seed"]) != self.scene.seed:
-            raise ValueError("checkpoint does not belong to this scene (rock count or seed differ)")
         w, h = self.world, self._host
         h.load(data)
         w.launches[None] = int(data["launches"])
@@ -521,17 +545,24 @@ class Simulation:
         par = self._par.copy()
         par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
         w.set_params(par)
-        if self.plan.spin and "rock_orient" not in data:  # a checkpoint of a run without tumbling
-            data = {**data, "rock_orient": initial_orientations(self.scene.seed, self.n_rocks),
-                    "rock_spin": np.zeros((self.n_rocks, 3))}
         self._stepper.load(rocks.from_checkpoint(w, data))  # after the origin: the tiles are keyed by its shift
         self._stepper.sync_drawn()
         self._host_side.resume(h)
         if self.plan.splash:
             self._put_rays()
         if self._impacts is not None:  # the events of the steps after the checkpoint come again
-            self._impacts.restore(h.step_count, h.time)
-        self._effects.reset(h)  # the optional effects are not in checkpoints: they start again, empty
+            self._impacts.restore(h.step_count, h.time, int(data.get("impacts_dropped", 0)))
+        self._effects.load(data, h)  # a checkpoint saved before the effects were in them: they start again, empty
+
+    def _checked(self, data) -> dict:
+        """Checkpoint ``data`` as a dict that fits this simulation (engine/arguments.py), or ValueError."""
+        orient = (lambda: initial_orientations(self.scene.seed, self.n_rocks)) if self.plan.spin else None
+        data = arguments.checkpoint_data(data, self.n_rocks, self.scene.seed, orient)
+        problem = arguments.host_problem(data) or self._effects.problem(data)
+        if problem:
+            raise ValueError(problem)
+        arguments.checked_rock_fields(rocks.saved_fields(self.world), data, self.n_rocks, len(self.scene.vehicles))
+        return data
 
     # ------------------------------------------------------------------------------------------ guard, probes
     def check_health(self) -> None:

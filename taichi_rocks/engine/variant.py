@@ -19,21 +19,17 @@ variant compiles once, the first time it runs.
 
 from __future__ import annotations
 
-import os
+from ..config.environment import LOOP_CHOICES as CHOICES, LOOPS, loops_wanted
 
-LOOPS = "TAICHI_ROCKS_LOOPS"  # the environment variable: "auto" (default), "serial" or "parallel"
-CHOICES = ("auto", "serial", "parallel")
+__all__ = ["LOOPS", "CHOICES", "CROSSOVER", "crossover", "loops_from_env", "VariantChoice"]
+
 CROSSOVER = 60_000  # rocks in a step's loops past which 2 threads beat one (bench --only frame: variants)
 
 
 def loops_from_env() -> str:
-    """``TAICHI_ROCKS_LOOPS`` as one of :data:`CHOICES` ("auto" when unset); ValueError naming the variable."""
-    raw = os.environ.get(LOOPS, "").strip().lower()
-    if not raw:
-        return "auto"
-    if raw not in CHOICES:
-        raise ValueError(f"{LOOPS} must be one of {', '.join(CHOICES)}, got {raw!r}")
-    return raw
+    """``TAICHI_ROCKS_LOOPS`` as one of :data:`CHOICES` ("auto" when unset); ValueError naming the variable
+    (config/environment.py: the command line checks it before anything starts)."""
+    return loops_wanted()
 
 
 def crossover(threads: int) -> float:

@@ -9,13 +9,13 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 import taichi as ti
 
+from ..config.environment import PARALLEL_SCAN, parallel_scan_wanted  # noqa: F401 - PARALLEL_SCAN re-exported
 from ..config.plan import Plan
 from .events import N_INT, N_REAL, EventBuffer, record_type
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
@@ -119,18 +119,15 @@ def scan_level_sizes(table: int) -> tuple:
     return tuple(max(1, -(-int(table) // SCAN_BLOCK ** (k + 1))) for k in range(SCAN_LEVELS))
 
 
-PARALLEL_SCAN = "TAICHI_ROCKS_PARALLEL_SCAN"  # "1" or "0": the scan's way on any backend (tests, profiling)
-
-
 def scan_in_parallel(requested: Optional[bool] = None) -> bool:
     """Does a World's hash build scan its counts in parallel (engine/hashgrid.py block_scan)? As ``requested``,
-    else as ``TAICHI_ROCKS_PARALLEL_SCAN`` says ("1" or "0"), else off the CPU only: one GPU thread pays some
-    15 ns per slot for a serial scan, a CPU core about 1 ns."""
+    else as ``TAICHI_ROCKS_PARALLEL_SCAN`` says ("1" or "0"; another value: ValueError, config/environment.py),
+    else off the CPU only: one GPU thread pays some 15 ns per slot for a serial scan, a CPU core about 1 ns."""
     if requested is not None:
         return bool(requested)
-    env = os.environ.get(PARALLEL_SCAN, "").strip()
-    if env in ("0", "1"):
-        return env == "1"
+    env = parallel_scan_wanted()
+    if env is not None:
+        return env
     if ti.lang.impl.get_runtime().prog is None:  # Taichi not started (a memory estimate made before): the CPU's
         return False
     return ti.lang.impl.current_cfg().arch not in (ti.x64, ti.arm64)

@@ -17,6 +17,10 @@ its time), ``int vehicle`` (the vehicle hit, scene order), ``uchar part`` (index
 (m/s), ``float normal_momentum`` (N s), ``float energy`` (J), ``float radius`` (m), ``int rock`` and ``int
 thrower`` (-1: unknown). Comments in its header name the labels, the classes and the vehicles; read it as
 above with ``dtype=IMPACT``.
+
+With ``[effects] dust`` (frames carry ``dust``), each frame's dust particles are ``DIR/dust_00000.ply``, ...:
+``double x, y, z`` (world metres), ``float width`` (the drawn diameter, m) and ``float opacity`` (output/dust.py
+:data:`~taichi_rocks.output.dust.DUST_VERTEX`); read them with ``dtype=DUST_VERTEX``.
 """
 
 from __future__ import annotations
@@ -26,9 +30,10 @@ import numpy as np
 
 from ..config.impacts import DAMAGE_CLASSES
 from ..motion.bodies import LABELS
+from .dust import DUST_VERTEX, dust_rows
 from .formats import FolderWriter, frame_file
 
-__all__ = ["PlyWriter", "VERTEX", "IMPACT", "IMPACTS_FILE", "ply_name"]
+__all__ = ["PlyWriter", "VERTEX", "IMPACT", "IMPACTS_FILE", "DUST_FRAME", "ply_name"]
 
 VERTEX = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("radius", "<f4"), ("vx", "<f4"), ("vy", "<f4"),
                    ("vz", "<f4"), ("id", "<u4")])
@@ -37,6 +42,7 @@ IMPACT = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("nx", "<f4"), ("ny
                    ("speed", "<f4"), ("normal_speed", "<f4"), ("normal_momentum", "<f4"), ("energy", "<f4"),
                    ("radius", "<f4"), ("rock", "<i4"), ("thrower", "<i4")])
 IMPACTS_FILE = "impacts.ply"
+DUST_FRAME = "dust_{:05d}.ply"  # a frame's dust particles
 _TYPES = {"<f8": "double", "<f4": "float", "<u4": "uint", "<i4": "int", "|u1": "uchar"}
 
 
@@ -65,13 +71,16 @@ class PlyWriter(FolderWriter):
 
     @classmethod
     def owned(cls, name: str) -> bool:
-        return name == IMPACTS_FILE or super().owned(name)  # the run's impacts beside its frames are ours too
+        # the run's impacts and the frames' dust beside its frames are ours too
+        dust = name.startswith("dust_") and name.endswith(".ply") and name[5:-4].isdigit()
+        return name == IMPACTS_FILE or dust or super().owned(name)
 
     def __init__(self, out, run):
         super().__init__(out, run)
         self.scene = _ascii(run.scene.name)
         self.vehicles = [_ascii(v.name) for v in run.scene.vehicles]
         self.impacts = None  # the run's events (IMPACT rows), once a frame has brought impacts
+        self.dust_table = run.scene.dust
 
     def write(self, fr: dict) -> None:
         ids = np.asarray(fr["ids"], np.int64)
@@ -91,6 +100,13 @@ class PlyWriter(FolderWriter):
             f.write(rows.tobytes())
         if "impacts" in fr:
             self._add_impacts(fr["impacts"], int(fr["frame"]))
+        if "dust" in fr:
+            rows = dust_rows(fr["dust"], self.dust_table)
+            header = _header("vertex", DUST_VERTEX, len(rows), (f"taichi-rocks scene {self.scene} dust",
+                                                                f"frame {fr['frame']} time {fr['time']!r} s"))
+            with open(self.file_path(DUST_FRAME.format(int(fr["frame"]))), "xb") as f:
+                f.write(header)
+                f.write(rows.tobytes())
 
     def _add_impacts(self, imp: dict, frame: int) -> None:
         ev = imp["events"]

@@ -8,6 +8,12 @@ many overlapping puffs. Puffs are depth-tested against the resting rocks (the sp
 particles (Lorach 2007, "Soft Particles", NVIDIA): a puff is a ball of depths [z - R, z + R], and a pixel shows
 the fraction of it in front of the rock there, so a puff on the road is cut by it smoothly, not by a line;
 against the vehicles, by the boxes of their bodies: a puff behind a vehicle is hidden where the vehicle is drawn.
+Seen from a cabin (the driver's view), the vehicle ridden in is tested pixel by pixel: each pixel's ray is cast
+at its body below the belt line (the bonnet, the doors) and at its windscreen's frame (the pillars, the header,
+the roof's lining, the dashboard, the floor: render/interior.py ``frame_solids``), and the nearest gives the
+pixel a depth that the puffs are tested against as softly as against the rocks; and no puff is drawn at all
+over a pixel of the frame, which lies inside the glass where no dust is (tested again at the frame's full
+resolution as it is blended).
 
 Offscreen (``render``) the puffs are composited over the finished frame (:class:`SoftDust`): each covered pixel
 of an image at half the frame's resolution sums the optical depth -ln(1 - a) of the puffs over it, in fixed point (integer sums: the same frame whatever
@@ -24,7 +30,9 @@ import numpy as np
 import taichi as ti
 
 from ..engine.trees import FieldTrees
+from ..motion.cabin import cabin_of
 from .camera import to_gl
+from .interior import frame_solids
 from .kernels import empty_key, is_key, key_depth, raw_rgb
 from .looks import GROUND_A, GROUND_B, rgb
 
@@ -111,6 +119,37 @@ def vehicle_boxes(sim, poses, origin, ground_z) -> list:
     return out
 
 
+SOLID = 12  # a solid's row for the kernels: M (3 x 3, row-major), o (3): s(t) = o + t M (x tan_x, y tan_y, 1)
+
+
+def cabin_solids(spec, pose, origin, eye, fwd, right, up) -> np.ndarray:
+    """The windscreen's frame of vehicle ``spec`` at ``pose`` (render/interior.py ``frame_solids``), then its body
+    below the belt line (a box from the ground), placed as its mesh is (body frame on the ground, turned by the
+    heading, local frame), as rows of :data:`SOLID` for a camera at ``eye`` (:func:`solid_rows`)."""
+    c, s = math.cos(pose.heading), math.sin(pose.heading)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    place = np.asarray(pose.position, np.float64) - np.asarray(origin, np.float64)
+    cab = cabin_of(spec)
+    body = np.array([(-cab.length / 2, -cab.width / 2, 0.0), (cab.length, 0, 0), (0, cab.width, 0), (0, 0, cab.belt)])
+    solids = np.concatenate([frame_solids(cab), body[None]])
+    placed = solids @ rot.T
+    placed[:, 0] += place
+    return solid_rows(placed, eye, fwd, right, up)
+
+
+def solid_rows(solids, eye, fwd, right, up) -> np.ndarray:
+    """Parallelepipeds ``solids`` ((K, 4, 3): a corner and three edges, local frame) as rows of :data:`SOLID` for
+    a camera at ``eye`` looking along ``fwd``: a point of the ray through the pixel at (x, y) (-1 to 1 across the
+    frame), at depth t along ``fwd``, lies in solid k when each coordinate of s(t) = o + t M (x tan_x, y tan_y,
+    1) is in [0, 1]."""
+    basis = np.column_stack([right, up, fwd]).astype(np.float64)  # camera (x, y, depth) -> local
+    rows = []
+    for corner, *edges in np.asarray(solids, np.float64):
+        inv = np.linalg.inv(np.column_stack(edges))
+        rows.append(np.concatenate([(inv @ basis).ravel(), inv @ (np.asarray(eye, np.float64) - corner)]))
+    return np.array(rows, np.float32).reshape(-1, SOLID)
+
+
 SQUARES = (4, 8, 16, 32, MAX_PX)  # the half sides of the squares puffs are drawn in, by their radius (pixels)
 
 
@@ -126,10 +165,11 @@ def _by_square(rows: np.ndarray) -> list:
 def _splat(tau: ti.template(), rows: ti.types.ndarray(dtype=ti.math.vec4, ndim=1),
            alpha: ti.types.ndarray(dtype=ti.f32, ndim=1), reach: ti.types.ndarray(dtype=ti.f32, ndim=1),
            hidden: ti.types.ndarray(dtype=ti.i32, ndim=1), zbuf: ti.template(), use_z: ti.template(),
-           half: ti.template()):
+           half: ti.template(), own: ti.template()):
     """Each puff's optical depth into the pixels it covers, twice: over the background (``tau[i, j][0]``: the
     part of the puff in front of the resting rock there, soft) and over what GGUI draws (``[1]``: unless a
-    vehicle hides the puff). One flat loop over (puff, pixel of its square of half side ``half``), no inner
+    vehicle hides the puff, and in front of ``own``, the depth of the vehicle the eye rides in). One flat loop
+    over (puff, pixel of its square of half side ``half``), no inner
     loop; integer sums (the same result in any order). Runs between the rock pass and the ground pass, which
     clears the depths."""
     W, H = tau.shape
@@ -151,8 +191,10 @@ def _splat(tau: ti.template(), rows: ti.types.ndarray(dtype=ti.math.vec4, ndim=1
                         front = ti.min(ti.max((near - p[3] + reach[k]) / (2.0 * reach[k]), 0.0), 1.0)
                 if front > 0.0:
                     ti.atomic_add(tau[ii, jj][0], ti.cast(-ti.log(1.0 - a * front) * TAU_ONE + 0.5, ti.i32))
-                if hidden[k] == 0:
-                    ti.atomic_add(tau[ii, jj][1], ti.cast(-ti.log(1.0 - a) * TAU_ONE + 0.5, ti.i32))
+                # the 3D layer: the part in front of the vehicle the eye rides in (FAR: all of it)
+                mine = ti.min(ti.max((own[ii, jj] - p[3] + reach[k]) / (2.0 * reach[k]), 0.0), 1.0)
+                if hidden[k] == 0 and mine > 0.0:
+                    ti.atomic_add(tau[ii, jj][1], ti.cast(-ti.log(1.0 - a * mine) * TAU_ONE + 0.5, ti.i32))
 
 
 @ti.func
@@ -172,19 +214,58 @@ def _transmittance(tau, u, v, c: ti.template()):
     return T
 
 
+FAR = 1.0e30  # a depth no puff is behind
+
+
+@ti.func
+def _nearest(solids: ti.template(), n, dx, dy):
+    """The depth (along the view) at which the ray of camera direction (dx, dy, 1) enters the nearest of the
+    first ``n`` solids (rows of SOLID) in front of the eye, or FAR. Slabs: each coordinate of s(t) = o + t v
+    within [0, 1]."""
+    depth = FAR
+    for k in range(n):
+        near, far = 0.0, FAR
+        for a in ti.static(range(3)):
+            o = solids[k, 9 + a]
+            v = solids[k, 3 * a] * dx + solids[k, 3 * a + 1] * dy + solids[k, 3 * a + 2]
+            if ti.abs(v) < 1.0e-12:
+                if o < 0.0 or o > 1.0:
+                    near = FAR  # parallel to this slab and outside it
+            else:
+                t0, t1 = -o / v, (1.0 - o) / v
+                near = ti.max(near, ti.min(t0, t1))
+                far = ti.min(far, ti.max(t0, t1))
+        if near <= far:
+            depth = ti.min(depth, near)
+    return depth
+
+
+@ti.kernel
+def _own_depth(own: ti.template(), solids: ti.types.ndarray(dtype=ti.f32, ndim=2), n: ti.i32, tan_x: ti.f32,
+               tan_y: ti.f32):
+    """Each half-resolution pixel's depth of the vehicle the eye rides in (the nearest of the ``n`` solids its
+    ray meets; FAR: none)."""
+    W, H = own.shape
+    for i, j in own:
+        own[i, j] = _nearest(solids, n, ((i + 0.5) * 2.0 / W - 1.0) * tan_x, ((j + 0.5) * 2.0 / H - 1.0) * tan_y)
+
+
 @ti.kernel
 def _blend(tau: ti.template(), out: ti.types.ndarray(dtype=ti.u8, ndim=3), raw: ti.types.ndarray(dtype=ti.f32, ndim=3),
-           color: ti.math.vec3):
+           color: ti.math.vec3, solids: ti.types.ndarray(dtype=ti.f32, ndim=2), n_solids: ti.i32, tan_x: ti.f32,
+           tan_y: ti.f32):
     """c = c T + c_dust (1 - T) over the frame, T = exp(-sum) of the half-resolution sums, bilinear (the
-    background's sums where GGUI left its clear colour, else the 3D layer's); then the sums cleared."""
+    background's sums where GGUI left its clear colour, else the 3D layer's, but none over a pixel of the first
+    ``n_solids`` solids: the windscreen's frame around the eye, inside the glass); then the sums cleared."""
     H, W = out.shape[0], out.shape[1]
     for i, j in ti.ndrange(W, H):
         u, v = (i + 0.5) * 0.5, (j + 0.5) * 0.5
         r, g, b = raw_rgb(raw, i, j)
-        T = 0.0
+        T = 1.0
         if is_key(r, g, b):
             T = _transmittance(tau, u, v, 0)
-        else:
+        elif _nearest(solids, n_solids, ((i + 0.5) * 2.0 / W - 1.0) * tan_x,
+                      ((j + 0.5) * 2.0 / H - 1.0) * tan_y) >= FAR:
             T = _transmittance(tau, u, v, 1)
         if T < 0.999:
             for c in ti.static(range(3)):
@@ -204,28 +285,40 @@ class SoftDust:
         self._trees = FieldTrees(owner=self)
         self.tau = self._trees.image((width + 1) // 2, (height + 1) // 2, (2, ti.i32))
         self.tau.fill(0)
+        self.own = self._trees.image((width + 1) // 2, (height + 1) // 2, (1, ti.f32))  # see _own_depth
+        self.own.fill(FAR)
         self.pending = False
+        self.solids = np.zeros((1, SOLID), np.float32)  # the vehicle the eye rides in (cabin_solids)
+        self.n_frame, self.tan, self.rides = 0, (1.0, 1.0), False
 
-    def splat(self, buf, sim, settings, views, view, poses, origin) -> int:
+    def splat(self, buf, sim, settings, views, view, poses, origin, inside=None) -> int:
         """Sum ``sim``'s puffs into the pixels (``buf``: the background layer's buffers, its depths still in
-        place); return the puffs."""
+        place); ``inside``: the vehicle whose cabin the camera looks out of, or None. Return the puffs."""
         d = sim.effect_arrays().get("dust")
         if d is None or not len(d["opacity"]):
             return 0
         eye, _, fwd, right, up = view[:5]
         boxes = vehicle_boxes(sim, poses, origin, views.ground_z)
+        self.tan = (views.tan_x, views.tan_y)
+        if inside is not None:
+            self.solids = cabin_solids(sim.scene.vehicles[inside], poses[inside], origin, eye, fwd, right, up)
+            _own_depth(self.own, self.solids, len(self.solids), *self.tan)
+        elif self.rides:
+            self.own.fill(FAR)
+        self.rides, self.n_frame = inside is not None, (0 if inside is None else len(self.solids) - 1)
         rows, alpha, reach, hidden = puffs(to_gl(d["positions"], origin), d["opacity"], sim.scene.dust, eye, fwd,
                                            right, up, views, settings.resolution, boxes)
         rows = rows * np.array([0.5, 0.5, 0.5, 1.0], np.float32)  # half resolution: x, y, radius in its pixels
         for half, idx in _by_square(rows):  # small squares for the many far puffs: the work follows their area
-            _splat(self.tau, rows[idx], alpha[idx], reach[idx], hidden[idx], buf.zbuf, buf.splat, half)
+            _splat(self.tau, rows[idx], alpha[idx], reach[idx], hidden[idx], buf.zbuf, buf.splat, half, self.own)
             self.pending = True
         return len(rows)
 
     def blend(self, out, raw, sim) -> None:
         """The summed puffs over the finished frame ``out`` ((H, W, 3) uint8; ``raw`` GGUI's read-back)."""
         if self.pending:
-            _blend(self.tau, out, raw, ti.math.vec3(*rgb(sim.scene.dust.color)))
+            _blend(self.tau, out, raw, ti.math.vec3(*rgb(sim.scene.dust.color)), self.solids, self.n_frame,
+                   *self.tan)
             self.pending = False
 
 

@@ -30,7 +30,7 @@ from ..motion.cabin import cabin_of
 from .looks import DASHBOARD_COLOR, HEADLINER_COLOR, PILLAR_COLOR
 from .meshes import VehicleMesh, box, merge, quad
 
-__all__ = ["Interior", "interior_of", "hidden_from_inside", "windscreen_frame"]
+__all__ = ["Interior", "interior_of", "hidden_from_inside", "windscreen_frame", "frame_solids"]
 
 PILLAR = 0.04  # A-pillar width, in vehicle widths (7 cm for a 1.8 m car)
 HEADER = 0.08  # the roof's front edge: its height down the windscreen, in its height
@@ -68,14 +68,19 @@ def hidden_from_inside(mesh: VehicleMesh, cab) -> np.ndarray:
     return body & (c[:, 2] > cab.belt + 1e-3) & (c[:, 0] >= back) & (c[:, 0] <= cab.base_x + 0.01)
 
 
+def _beam_axes(a, b, side) -> tuple:
+    """A beam's unit axes: along it (a to b), across it towards ``side``, and their normal."""
+    u = (b - a) / np.linalg.norm(b - a)
+    v = np.asarray(side, np.float64) - (np.asarray(side, np.float64) @ u) * u
+    v /= np.linalg.norm(v)
+    return u, v, np.cross(u, v)
+
+
 def _beam(a, b, side, width: float, depth: float, color):
     """A straight beam from ``a`` to ``b`` (3-vectors), ``width`` across towards ``side`` (a unit vector
     roughly perpendicular to b - a) and ``depth`` deep along their normal: a box of 6 flat faces."""
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    u = (b - a) / np.linalg.norm(b - a)
-    v = np.asarray(side, np.float64) - (np.asarray(side, np.float64) @ u) * u
-    v /= np.linalg.norm(v)
-    n = np.cross(u, v)
+    u, v, n = _beam_axes(a, b, side)
     corners = [p + dv * width * v + dn * depth * n for dn in (-0.5, 0.5) for dv in (0.0, 1.0) for p in (a, b)]
     c = np.array(corners)  # index: 4 * dn + 2 * dv + end
     faces = [((0, 1, 3, 2), -n), ((4, 5, 7, 6), n), ((0, 1, 5, 4), -v), ((2, 3, 7, 6), v), ((0, 2, 6, 4), -u),
@@ -83,9 +88,10 @@ def _beam(a, b, side, width: float, depth: float, color):
     return merge([quad(c[list(f)], normal, color) for f, normal in faces])
 
 
-def windscreen_frame(cab):
-    """The frame of the windscreen of cabin ``cab`` seen from inside (one mesh, body frame): the two A-pillars,
-    the header with the roof's lining behind it, and the dashboard."""
+def _frame_parts(cab) -> list:
+    """The windscreen's frame of cabin ``cab`` as parts (body frame), each once for its mesh and its solid:
+    ("beam", a, b, side, width, depth, colour), ("quad", corners, normal, colour) or ("box", centre, size,
+    colour): the two A-pillars, the header with the roof's lining behind it, the dashboard and the floor."""
     W = cab.width
     pillar, colour = PILLAR * W, np.array(PILLAR_COLOR)
     header = HEADER * (cab.roof - cab.belt)
@@ -93,26 +99,63 @@ def windscreen_frame(cab):
     for s in (1.0, -1.0):
         foot = (cab.base_x - INSET, s * (cab.base_half - INSET), cab.belt)
         head = (cab.top_x - INSET, s * (cab.top_half - INSET), cab.roof - INSET)
-        parts.append(_beam(foot, head, (0.0, -s, 0.0), pillar, 2.0 * INSET, colour))
+        parts.append(("beam", foot, head, (0.0, -s, 0.0), pillar, 2.0 * INSET, colour))
     top = cab.top_x - INSET
     slope = (cab.top_x - cab.base_x) / (cab.roof - cab.belt)  # dx per dz down the windscreen
-    parts.append(_beam((top, -cab.top_half, cab.roof - INSET), (top, cab.top_half, cab.roof - INSET),
-                       (-slope * header, 0.0, -header), header, 2.0 * INSET, colour))
+    parts.append(("beam", (top, -cab.top_half, cab.roof - INSET), (top, cab.top_half, cab.roof - INSET),
+                  (-slope * header, 0.0, -header), header, 2.0 * INSET, colour))
     back = cab.back_top_x + 0.02
     lining = [(back, -cab.top_half, cab.roof - 2 * INSET), (top, -cab.top_half, cab.roof - 2 * INSET),
               (top, cab.top_half, cab.roof - 2 * INSET), (back, cab.top_half, cab.roof - 2 * INSET)]
-    parts.append(quad(lining, (0.0, 0.0, -1.0), HEADLINER_COLOR))
-    parts.append(_dashboard(cab))
+    parts.append(("quad", lining, (0.0, 0.0, -1.0), HEADLINER_COLOR))
+    parts.append(("box", *_dashboard(cab), DASHBOARD_COLOR))
     floor = cab.belt + INSET  # the cabin's floor at the belt line, in the interior's colour (not the paint's)
     x0, x1 = cab.back_x + 0.02, cab.base_x - DASH_DEPTH * cab.length
     half = 0.98 * cab.half_inside
-    parts.append(quad([(x0, -half, floor), (x1, -half, floor), (x1, half, floor), (x0, half, floor)],
-                      (0.0, 0.0, 1.0), DASHBOARD_COLOR))
-    return merge(parts)
+    parts.append(("quad", [(x0, -half, floor), (x1, -half, floor), (x1, half, floor), (x0, half, floor)],
+                  (0.0, 0.0, 1.0), DASHBOARD_COLOR))
+    return parts
 
 
-def _dashboard(cab):
-    """A box across the cabin in front of the driver, its top (up to its far edge) below the eye's line over
+def windscreen_frame(cab):
+    """The frame of the windscreen of cabin ``cab`` seen from inside (one mesh, body frame): the two A-pillars,
+    the header with the roof's lining behind it, the dashboard and the floor."""
+    meshes = []
+    for kind, *args in _frame_parts(cab):
+        if kind == "beam":
+            meshes.append(_beam(*args))
+        elif kind == "quad":
+            meshes.append(quad(*args))
+        else:
+            centre, size, colour = args
+            meshes.append(box(centre, size, {k: np.array(colour) for k in ("+x", "-x", "+y", "-y", "+z")}))
+    return merge(meshes)
+
+
+def frame_solids(cab) -> np.ndarray:
+    """The parts of the windscreen's frame of cabin ``cab`` (body frame) as solids the dust's drawing casts
+    rays at (render/dust.py): (K, 4, 3), each a corner and its three edges (a parallelepiped; a quad gets the
+    frame's depth, 2 INSET, centred on it)."""
+    out = []
+    for kind, *args in _frame_parts(cab):
+        if kind == "beam":
+            a, b, side, width, depth, _ = args
+            a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+            _, v, n = _beam_axes(a, b, side)
+            out.append((a - 0.5 * depth * n, b - a, width * v, depth * n))
+        elif kind == "quad":
+            corners, normal, _ = args
+            c, n = np.asarray(corners, np.float64), np.asarray(normal, np.float64)
+            out.append((c[0] - INSET * n, c[1] - c[0], c[3] - c[0], 2.0 * INSET * n))
+        else:
+            centre, size, _ = args
+            half = 0.5 * np.asarray(size, np.float64)
+            out.append((np.asarray(centre, np.float64) - half, *np.diag(2.0 * half)))
+    return np.array([np.stack(s) for s in out])
+
+
+def _dashboard(cab) -> tuple:
+    """The (centre, size) of a box across the cabin in front of the driver, its top (up to its far edge) below the eye's line over
     the bonnet's front, and its far edge INSET behind the glass at the top's height (a sloping windscreen leans
     back over it: a box up to the glass's foot would poke through the glass, in front of the marks on it)."""
     eye = cab.eye
@@ -126,8 +169,7 @@ def _dashboard(cab):
     x1 = min(x1, cab.windscreen_x(cab.belt + height) - INSET)  # nearer the eye the line is higher: still below
     x0 = min(x0, x1 - 0.02)
     half = 0.98 * min(cab.base_half, cab.half_inside)
-    return box(((x0 + x1) / 2, 0.0, cab.belt + height / 2 - 0.002), (x1 - x0, 2 * half, height),
-               {k: np.array(DASHBOARD_COLOR) for k in ("+x", "-x", "+y", "-y", "+z")})
+    return ((x0 + x1) / 2, 0.0, cab.belt + height / 2 - 0.002), (x1 - x0, 2 * half, height)
 
 
 def interior_of(spec, mesh: VehicleMesh, ground_z: float = 0.0) -> Interior:

@@ -225,7 +225,7 @@ class Renderer:
             self._dust = soft_dust(self._dust, sim, self.settings)
             if self._dust is not None:
                 self._dust.splat(self.fields.buf, sim, self.settings, self.views, (eye, target, fwd, right, up),
-                                 poses, origin)
+                                 poses, origin, self.inside)
         self.hits.update(sim)
         paint_sky_and_ground(self.fields.buf, camera_basis(eye, fwd, right, up),
                              self.views.frustum(self.settings.draw_distance), self.settings, self.views.ground_z,

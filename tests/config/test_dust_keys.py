@@ -51,3 +51,36 @@ def test_the_closed_forms():
 def test_check_lists_every_effect_on_its_effects_line():
     line = lambda sc: next(x for x in summarise(sc).splitlines() if x.startswith("effects:"))
     assert line(scene()).endswith(", dust off") and line(scene(effects={"dust": True})).endswith(", dust on")
+
+
+def test_check_says_why_dust_asked_for_is_off():
+    line = lambda sc: next(x for x in summarise(sc).splitlines() if x.startswith("effects:"))
+    quiet = scene(vehicles=[{**CAR, "splash": False}], effects={"dust": True})
+    assert line(quiet).endswith(", dust off (no vehicle splashes: dust rises behind the splashing ones)")
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("rate", 1e10, "must be <= 10000"), ("height", 1e40, "must be <= 20"), ("spread", 1e40, "must be <= 50"),
+    ("wake_time", 1e-50, "must be >= 0.01"), ("fade", 1e-50, "must be >= 0.01"), ("size", 1e40, "must be <= 5"),
+    ("density", 1e40, "must be <= 25000"), ("diameter", 1e-50, "must be >= 1e-07"),
+    ("lift_speed", 1e40, "must be <= 100")])
+def test_values_past_what_the_physics_and_float32_allow_name_the_key(key, value, words):
+    (p,) = problems({"vehicle": [CAR], "effects": {"dust": True}, "dust": {key: value}})
+    assert p.startswith(f"s.toml: dust.{key}: {words}") and "\n" not in p
+
+
+def test_each_wind_component_has_a_range():
+    (p,) = problems({"vehicle": [CAR], "dust": {"wind": [0.0, 1e40]}})
+    assert p.startswith("s.toml: dust.wind[1]: must be <= 60")
+    assert scene(dust={"wind": [-60.0, 60.0]}).dust.wind == (-60.0, 60.0)
+
+
+def test_every_number_of_dust_is_bounded_on_both_sides():
+    """No key of [dust] takes a value a float32 kernel cannot hold, nor a zero it divides by: each number (each
+    wind component too) has an upper bound and a lower one (0 where 0 means "none"), in the JSON Schema."""
+    props = scene_json_schema()["$defs"]["Dust"]["properties"]
+    numbers = {k: v for k, v in props.items() if v.get("type") in ("number", "integer")}
+    numbers.update({f"wind[{i}]": v for i, v in enumerate(props["wind"]["prefixItems"])})
+    assert len(numbers) == len(props)  # all keys but the colour and the wind, and the wind's two components
+    for key, p in numbers.items():
+        assert ("maximum" in p or "exclusiveMaximum" in p) and ("minimum" in p or "exclusiveMinimum" in p), key

@@ -96,6 +96,30 @@ def test_round_trip_and_overrides():
     assert "no such item" in problems_of(scene_with, scene, {"vehicle[5].name": "x"})[0]
 
 
+@pytest.mark.parametrize("overrides, words", [
+    ([("sim.dt", 0.01)], "overrides must be a dict of dotted keys and values"),
+    ("sim.dt=0.01", "overrides must be a dict"), (None, "overrides must be a dict"),
+    ({5: 0.01}, "overrides: each key must be a dotted key path .* got 5"),
+    ({("sim", "dt"): 0.01}, "overrides: each key must be a dotted key path")])
+def test_overrides_that_are_not_a_dict_of_dotted_keys_are_a_type_error(overrides, words):
+    scene = load_scene(ROOT / "scenes/minimal.toml")
+    with pytest.raises(TypeError, match=words):
+        scene_with(scene, overrides)
+
+
+def test_overrides_take_numpy_numbers_and_arrays_as_toml_values():
+    import numpy as np
+
+    scene = load_scene(ROOT / "scenes/minimal.toml")
+    changed = scene_with(scene, {"bed.rocks": np.int64(100), "sim.dt": np.float32(0.005), "effects.dust": np.True_,
+                                 "dust.wind": np.array([1.5, -2.0]), "vehicle[0].path.points": np.array(
+                                     [[0.0, 0.0], [50.0, 0.0]])})
+    assert changed.bed.rocks == 100 and type(changed.bed.rocks) is int
+    assert changed.sim.dt == pytest.approx(0.005) and changed.effects.dust is True
+    assert changed.dust.wind == (1.5, -2.0) and len(changed.vehicles[0].path.points) == 2
+    assert "expected an integer" in problems_of(scene_with, scene, {"bed.rocks": np.float64(1.5)})[0]
+
+
 def test_json_schema():
     schema = json.loads(json.dumps(scene_json_schema()))
     assert schema["$schema"].endswith("2020-12/schema") and schema["title"] and schema["description"]

@@ -133,11 +133,11 @@ def test_the_ring_keeps_a_constant_count_of_the_newest():
 
 def test_random_walk_variance_is_2_k_t():
     K = 0.5
-    sc = dust_scene(rate=1e6, lift_speed=0.0, capacity=20000, diffusion=K, carry=0.0, lift=0.0, spread=0.0,
+    sc = dust_scene(rate=1e4, lift_speed=0.0, capacity=20000, diffusion=K, carry=0.0, lift=0.0, spread=0.0,
                     height=0.0, life=100.0, fade=100.0, diameter=1e-6)
     origin = np.zeros(3)
     d2 = Dust(sc, ti.f32)
-    d2.after_step([pose(0.0, 0.4, z=100.0)], origin, 1, DT)  # 1e6 0.4^2 dt: 1600 particles at once, 100 m up
+    d2.after_step([pose(0.0, 4.0, z=100.0)], origin, 1, DT)  # 1e4 4^2 dt: 1600 particles at once, 100 m up
     for k in range(100):
         d2.after_step([pose(0.0, 0.0)], origin, k + 2, DT)
     p2 = d2.arrays(origin)["positions"]
@@ -169,7 +169,7 @@ def test_off_allocates_nothing_and_on_counts_the_pool():
     assert sim.effect_arrays() == {}
 
 
-def test_a_simulation_with_dust_emits_behind_the_car_and_restore_clears_it():
+def test_a_simulation_with_dust_emits_behind_the_car_and_a_restore_to_the_start_clears_it():
     sim = Simulation(scene(rocks=200, effects={"dust": True}, dust={"rate": 1.0}))  # its own step: 1/60 s
     saved = sim.checkpoint()
     sim.advance_to(0.5)
@@ -178,6 +178,83 @@ def test_a_simulation_with_dust_emits_behind_the_car_and_restore_clears_it():
     assert len(d["positions"]) > 10 and np.all(d["positions"][:, 0] < car[0])
     sim.restore(saved)
     assert len(sim.effect_arrays()["dust"]["positions"]) == 0
+
+
+def test_checkpoints_carry_the_dust_and_a_restored_run_goes_on_bit_identically():
+    """The dust's ring, its carried fractions, particle count and pending time travel in a checkpoint (through a
+    file too): a fresh simulation restored from it, and the same one sent back to it, reach the same dust bits
+    as the run that went on. Its own step (1/60 s) is not a whole number of steps (4 ms): a step is pending."""
+    import io
+
+    sc = scene(rocks=200, effects={"dust": True}, dust={"rate": 3.0, "diffusion": 0.5})
+    sim = Simulation(sc)
+    sim.advance_to(0.45)
+    cp = sim.checkpoint()
+    assert cp["dust_pending"] > 0 and cp["dust_emitted"] > 50 and cp["dust_pos"].shape == (sc.dust.capacity, 3)
+    buf = io.BytesIO()
+    np.savez(buf, **cp)
+    sim.advance_to(0.9)
+    want = sim.effect_arrays()["dust"]
+    again = Simulation(sc)
+    again.restore(np.load(io.BytesIO(buf.getvalue())))
+    assert again.effect_arrays()["dust"]["positions"].tobytes() == _live_positions(cp, sim)
+    again.advance_to(0.9)
+    sim.restore(cp)
+    sim.advance_to(0.9)
+    for other in (again, sim):
+        got = other.effect_arrays()["dust"]
+        assert len(got["positions"]) == len(want["positions"]) > 100
+        assert got["positions"].tobytes() == want["positions"].tobytes()
+        assert got["opacity"].tobytes() == want["opacity"].tobytes()
+
+
+def _live_positions(cp, sim) -> bytes:
+    """The live particles' world positions of checkpoint ``cp`` (its ring: age in [0, life)), as bytes."""
+    age, life = cp["dust_age"], sim.scene.dust.life
+    live = (age >= 0) & (age < life)
+    return (cp["dust_pos"][live].astype(np.float64) + cp["origin"]).tobytes()
+
+
+def test_a_checkpoint_with_bad_dust_is_refused_and_changes_nothing():
+    sim = Simulation(scene(rocks=200, effects={"dust": True}, dust={"rate": 3.0}))
+    sim.advance_to(0.3)
+    cp = sim.checkpoint()
+    sim.advance_to(0.4)
+    before = sim.effect_arrays()["dust"]["positions"].tobytes(), sim.time
+    for key, bad in (("dust_pos", cp["dust_pos"][:10]), ("dust_age", np.full_like(cp["dust_age"], np.nan)),
+                     ("dust_carried", np.array([2.0]))):
+        with pytest.raises(ValueError, match=f"checkpoint: {key}"):
+            sim.restore({**cp, key: bad})
+    with pytest.raises(ValueError, match="checkpoint: no dust_emitted"):
+        sim.restore({k: v for k, v in cp.items() if k != "dust_emitted"})
+    assert (sim.effect_arrays()["dust"]["positions"].tobytes(), sim.time) == before
+
+
+def test_more_particles_than_the_ring_holds_in_a_step_places_the_newest_in_their_own_slots():
+    """10^10 particles in one step (rate 10^4 at 10^4 m/s): past an int32, and 10^10 times the ring. The ring
+    gets exactly the newest ``capacity`` (particle k in slot k mod capacity, from k's random draws), at once."""
+    sc = dust_scene(rate=1e4, lift_speed=0.0, capacity=64, life=100.0, fade=100.0, spread=1.0, height=0.4)
+    d = Dust(sc, ti.f32)
+    d.after_step([pose(0.0, 1e4)], np.zeros(3), 1, DT)
+    n = 10 ** 10
+    assert d.emitted == n
+    got = d.arrays(np.zeros(3))["positions"]  # slot order: slot k holds particle number n - 64 + ... = k mod 64
+    car, seed = sc.vehicles[0], sc.seed
+    want = np.zeros((64, 3))
+    for number in range(n - 64, n):
+        pid = number % 2 ** 32
+        u = [float(uniform01_np(seed, pid, 1, s)) for s in (decl.S_ACROSS, decl.S_ALONG, decl.S_UP)]
+        want[number % 64] = (-(car.length / 2 + 1.0 * u[1]), car.width / 2 * (2 * u[0] - 1), 0.4 * u[2])
+    np.testing.assert_allclose(got, want, atol=1e-4)
+
+
+def test_newest_leaves_out_the_oldest_particles_of_a_step():
+    from taichi_rocks.engine.effects.dust import newest
+
+    assert newest(np.array([3, 4]), 10).tolist() == [3, 4]  # all fit
+    assert newest(np.array([3, 4]), 5).tolist() == [1, 4]  # the first source's 2 oldest left out
+    assert newest(np.array([3, 4, 2]), 2).tolist() == [0, 0, 2]
+    assert newest(np.array([0, 10 ** 12]), 8).tolist() == [0, 8]
 
 
 def test_dust_drifts_on_while_the_rocks_coast():

@@ -74,7 +74,8 @@ def test_checkpoint_lists_its_rock_fields_first_and_restores_from_a_file():
     rock_keys = [k for k in keys if k.startswith("rock_")]
     assert keys[:len(rock_keys)] == rock_keys and "rock_pos" in rock_keys and "rock_fields" not in keys
     assert keys[len(rock_keys):] == ["step_count", "time", "origin", "origin_anchor", "origin_shift", "bed_center",
-                                     "bed_rel", "lead", "launches", "recycles", "scene", "seed", "rocks"]
+                                     "bed_rel", "lead", "launches", "recycles", "impacts_dropped", "scene", "seed",
+                                     "rocks"]
     assert cp["rock_pos"] is cp.rock_fields["pos"]
     with pytest.raises(KeyError):
         cp["rock_fields"]

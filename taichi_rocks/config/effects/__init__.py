@@ -16,6 +16,7 @@ Each module declares:
     EXPORTS   the keys it adds to an exported frame (its writer function in output/)
     capacity(table)    the slots of its fields
     runs(scene)        whether it runs in this scene (its switch and what it needs)
+    idle(scene)        why it does not run although the scene asks for it (words for ``check``), else None
 
 Its kernels are the engine's (engine/effects/: one module of the same NAME). A new effect is a module here,
 its line in :data:`EFFECTS`, a module in engine/effects/ and its line there, and its stream in

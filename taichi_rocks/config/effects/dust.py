@@ -39,10 +39,12 @@ from __future__ import annotations
 
 import math
 
-from pydantic import ConfigDict
+from typing import Annotated
+
+from pydantic import ConfigDict, Field, Strict
 
 from ..streams import DUST
-from ..values import Color, Float, Int, Vec2, _f, _Table
+from ..values import Color, Float, Int, _f, _Table
 
 NAME = "dust"
 SWITCH = "fines lifted by the wake behind each splashing vehicle drift, settle and fade ([dust])"
@@ -57,30 +59,40 @@ DRAWS = "render/dust.py: soft translucent puffs composited over the frame, growi
 EXPORTS = ("dust",)  # frame["dust"] = {"positions": (K, 3) world m, "opacity": (K,)}: output/dust.py
 
 
+# The ranges of the keys below are what the physics allows (a dust cloud of a road vehicle, in air) with room to
+# spare; past them a float32 kernel would overflow (a box 1e40 m high), divide by zero (wake_time 1e-50 s) or
+# work to no end (a rate whose particles no ring holds: the kernels place at most ``capacity`` a step anyway).
+RATE_MAX = 1.0e4  # particles/s per (m/s)^2: 2.9 million a second at 20 m/s, a thousand times the default's look
+WIND_MAX = 60.0  # m/s: beyond hurricane force (33 m/s)
+WindSpeed = Annotated[float, Strict(), Field(ge=-WIND_MAX, le=WIND_MAX)]
+
+
 class Dust(_Table):
     """Dust lifted by the wake behind each splashing vehicle."""
     model_config = ConfigDict(title="Dust")
     capacity: Int = _f(8192, "particles alive at most: a ring, the oldest replaced first, in [1, 1048576]", ge=1,
                        le=1 << 20)
-    rate: Float = _f(2.0, "particles/s per (m/s)^2 of speed above lift_speed: N' = rate (v - lift_speed)^2", ge=0)
-    lift_speed: Float = _f(3.0, "m/s: slower vehicles lift no dust", ge=0)
+    rate: Float = _f(2.0, "particles/s per (m/s)^2 of speed above lift_speed: N' = rate (v - lift_speed)^2, in "
+                          "[0, 10000]", ge=0, le=RATE_MAX)
+    lift_speed: Float = _f(3.0, "m/s: slower vehicles lift no dust, in [0, 100]", ge=0, le=100)
     carry: Float = _f(0.3, "share of the vehicle's velocity the wake gives the air behind it, in [0, 1]", ge=0,
                       le=1)
     lift: Float = _f(0.08, "the wake's updraft as a share of the speed (times 0.5 to 1.5)", ge=0, le=1)
-    wake_time: Float = _f(1.0, "s, time constant of the wake's decay behind the vehicle", gt=0)
-    wind: Vec2 = _f((0.0, 0.0), "m/s, [x, y] wind the dust drifts with")
+    wake_time: Float = _f(1.0, "s, time constant of the wake's decay behind the vehicle, in [0.01, 60]", ge=0.01,
+                          le=60)
+    wind: tuple[WindSpeed, WindSpeed] = _f((0.0, 0.0), "m/s, [x, y] wind the dust drifts with, each in [-60, 60]")
     diffusion: Float = _f(0.3, "m^2/s, turbulent diffusivity K of the random walk", ge=0, le=100)
-    diameter: Float = _f(2.0e-5, "m, particle diameter d (Stokes settling), in (0, 1e-3]", gt=0, le=1e-3)
-    density: Float = _f(2600.0, "kg/m^3, particle density rho_p", gt=0)
-    fade: Float = _f(1.5, "s, time constant of the opacity's decay", gt=0)
+    diameter: Float = _f(2.0e-5, "m, particle diameter d (Stokes settling), in [1e-7, 1e-3]", ge=1e-7, le=1e-3)
+    density: Float = _f(2600.0, "kg/m^3, particle density rho_p, in [100, 25000]", ge=100, le=25000)
+    fade: Float = _f(1.5, "s, time constant of the opacity's decay, in [0.01, 600]", ge=0.01, le=600)
     life: Float = _f(4.0, "s, age at which a particle is gone", gt=0, le=600)
     opacity: Float = _f(0.6, "opacity at emission, in (0, 1]", gt=0, le=1)
-    spread: Float = _f(1.0, "m, length of the emission box behind the rear bumper", ge=0)
-    height: Float = _f(0.4, "m, height of the emission box", ge=0)
+    spread: Float = _f(1.0, "m, length of the emission box behind the rear bumper, in [0, 50]", ge=0, le=50)
+    height: Float = _f(0.4, "m, height of the emission box, in [0, 20]", ge=0, le=20)
     step: Float = _f(1.0 / 60.0, "s, the dust's own time step: it moves once the simulation's steps since its last "
                                  "move add up to this (0: every step); its motion is exact for any step", ge=0, le=1)
-    size: Float = _f(0.04, "m, drawn radius of a fresh particle; it grows as sqrt(2 diffusion age) (drawing only)",
-                     gt=0)
+    size: Float = _f(0.04, "m, drawn radius of a fresh particle, in (0, 5]; it grows as sqrt(2 diffusion age) "
+                           "(drawing only)", gt=0, le=5)
     color: Color = _f((0.55, 0.48, 0.38), 'RGB in [0, 1], or "#rrggbb" (drawing only)')
 
 
@@ -95,6 +107,13 @@ def capacity(table: Dust) -> int:
 def runs(scene) -> bool:
     """Dust runs when the scene asks for it and some vehicle splashes (rocks or not: it is the air's)."""
     return bool(scene.effects.dust and any(v.splash for v in scene.vehicles))
+
+
+def idle(scene):
+    """Why dust that the scene asks for does not run (words for ``check``), or None."""
+    if scene.effects.dust and not runs(scene):
+        return "no vehicle splashes: dust rises behind the splashing ones"
+    return None
 
 
 def emission_rate(speed, table: Dust):

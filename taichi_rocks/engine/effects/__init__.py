@@ -5,8 +5,10 @@ each with
     specs(table)              its fields (engine/world.py FieldSpec), from the declaration's FIELDS
     <Class>(scene, real)      named in :data:`RUNTIMES`: its pool (leased; allocated only when the effect runs)
                               and its hooks: ``after_step(poses, origin, step, dt)`` (HOOK "after_step"),
-                              ``coast(...)`` (steps taken as one), ``reset(origin)`` (start, restore),
-                              ``arrays(origin)`` (what is drawn and exported)
+                              ``coast(...)`` (steps taken as one), ``reset(origin)`` (start),
+                              ``arrays(origin)`` (what is drawn and exported); its checkpoint part:
+                              ``saved()`` (keys "<name>_..."), ``problem(data)`` (one line or None),
+                              ``load(data, origin)`` (restore; without its keys it starts again)
 
 :class:`Effects` is what a Simulation holds: the runtimes of ``plan.effects``, nothing when none runs.
 """
@@ -45,6 +47,18 @@ class Effects:
     def reset(self, host) -> None:
         for e in self.on.values():
             e.reset(host.origin)
+
+    def saved(self) -> dict:
+        """What a checkpoint holds of the effects that run, by key (each key starts with its effect's name)."""
+        return {k: v for e in self.on.values() for k, v in e.saved().items()}
+
+    def problem(self, data: dict):
+        """The first thing wrong with the effects' part of checkpoint ``data``, or None."""
+        return next((p for p in (e.problem(data) for e in self.on.values()) if p), None)
+
+    def load(self, data: dict, host) -> None:
+        for e in self.on.values():
+            e.load(data, host.origin)
 
     def arrays(self, origin) -> dict:
         return {name: e.arrays(origin) for name, e in self.on.items()}

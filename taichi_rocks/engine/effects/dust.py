@@ -146,7 +146,7 @@ class Dust:
         self.reset()
 
     def reset(self, origin=None) -> None:
-        """No particle, nothing carried (the start, and a restore: dust is not in checkpoints)."""
+        """No particle, nothing carried (the start, and a restore of a checkpoint saved without dust)."""
         _clear(self.fields)
         self.carried = np.zeros(len(self.sources))  # fractions of a particle, per source
         self.emitted = 0  # particles since the start (particle numbers 0 .. emitted - 1)
@@ -172,7 +172,8 @@ class Dust:
         self.origin = origin.copy()
         ps = [poses[i] for i in self.sources]
         n = self.counts([p.speed for p in ps], dt)
-        keep = np.flatnonzero(n)
+        placed = newest(n, self.capacity)
+        keep = np.flatnonzero(placed)
         src = np.zeros((max(len(keep), 1), N_SRC), np.float32)
         srci = np.zeros((max(len(keep), 1), 4), np.int32)
         start = 0
@@ -183,18 +184,76 @@ class Dust:
             src[r, [FX, FY]] = (math.cos(p.heading), math.sin(p.heading))
             src[r, [HALF_W, HALF_L]] = self.half[s]
             src[r, SPEED] = abs(p.speed)
-            number = self.emitted + start
-            srci[r] = (start, n[s], number % self.capacity, np.uint32(number & 0xFFFFFFFF).view(np.int32))
-            start += int(n[s])
+            number = self.emitted + int(n[:s + 1].sum()) - int(placed[s])  # its first placed particle's number
+            srci[r] = (start, placed[s], number % self.capacity, np.uint32(number & 0xFFFFFFFF).view(np.int32))
+            start += int(placed[s])
         par = self.params(origin)
         dust_step(self.fields, par, src, srci, len(keep), start, ti.Vector([float(x) for x in shift]),
                   float(dt), self.seed, int(step))
-        self.emitted += start
+        self.emitted += int(n.sum())
 
     def coast(self, poses, origin, step: int, dt: float) -> None:
         """Steps taken as one (coasting: every vehicle that matters has stopped, so none emits): one step of
         the whole interval (exact for the settling; the wake's decay is taken at its start)."""
         self.after_step(poses, origin, step, dt)
+
+    def saved(self) -> dict:
+        """What a checkpoint holds of the dust (engine/records.py Checkpoint ``effects``): every slot's fields
+        (the declaration's FIELDS, by their names), the carried fractions, the particles emitted so far, the time
+        since the dust last moved and the origin its positions are relative to (NaN: not moved yet)."""
+        out = {name: getattr(self.fields, name).to_numpy() for name, _, _ in decl.FIELDS}
+        out.update(dust_carried=self.carried.copy(), dust_emitted=np.int64(self.emitted),
+                   dust_pending=np.float64(self.pending),
+                   dust_origin=np.full(3, np.nan) if self.origin is None else self.origin.copy())
+        return out
+
+    def problem(self, data: dict):
+        """What is wrong with the dust of checkpoint ``data`` for this dust (its keys are :meth:`saved`'s), or
+        None; a checkpoint without them (saved before dust was in checkpoints) is fine."""
+        keys = self.saved_keys()
+        there = [k for k in keys if k in data]
+        if not there:
+            return None
+        if len(there) < len(keys):
+            return f"checkpoint: no {next(k for k in keys if k not in data)}"
+        age = np.asarray(data["dust_age"])
+        for name, _, width in decl.FIELDS:
+            a = np.asarray(data[name])
+            shape = (self.capacity,) + ((width,) if width > 1 else ())
+            if a.shape != shape or a.dtype.kind != "f":
+                return f"checkpoint: {name} must be {shape} numbers (one row per slot of [dust] capacity)"
+            if not np.isfinite(a if name == "dust_age" else a[age >= 0]).all():  # a free slot's are never read
+                return f"checkpoint: {name} must be finite"
+        carried = np.asarray(data["dust_carried"])
+        if carried.shape != self.carried.shape or not ((carried >= 0) & (carried < 1)).all():
+            return f"checkpoint: dust_carried must be {len(self.carried)} fractions in [0, 1)"
+        emitted = np.asarray(data["dust_emitted"])
+        if emitted.shape != () or emitted.dtype.kind not in "iu" or int(emitted) < 0:
+            return "checkpoint: dust_emitted must be a whole number >= 0"
+        if not 0 <= float(data["dust_pending"]) < 1e6:
+            return "checkpoint: dust_pending must be a time >= 0"
+        if np.asarray(data["dust_origin"]).shape != (3,):
+            return "checkpoint: dust_origin must be 3 numbers"
+        return None
+
+    @staticmethod
+    def saved_keys() -> tuple:
+        return tuple(name for name, _, _ in decl.FIELDS) + ("dust_carried", "dust_emitted", "dust_pending",
+                                                           "dust_origin")
+
+    def load(self, data: dict, origin) -> None:
+        """The dust of checkpoint ``data`` back (checked by :meth:`problem`); none saved: it starts empty."""
+        if self.saved_keys()[0] not in data:
+            self.reset(origin)
+            return
+        for name, _, _ in decl.FIELDS:
+            f = getattr(self.fields, name)
+            f.from_numpy(np.asarray(data[name]).astype(np.float64 if f.dtype == ti.f64 else np.float32))
+        self.carried = np.array(data["dust_carried"], np.float64)
+        self.emitted = int(data["dust_emitted"])
+        self.pending = float(data["dust_pending"])
+        o = np.asarray(data["dust_origin"], np.float64)
+        self.origin = None if np.isnan(o).any() else o.copy()
 
     def params(self, origin) -> np.ndarray:
         w = self.scene.world
@@ -208,6 +267,16 @@ class Dust:
         live = self._out[:, 3] > 0.0
         return {"positions": self._out[live, :3].astype(np.float64) + origin,
                 "opacity": self._out[live, 3].copy()}
+
+
+def newest(n: np.ndarray, capacity: int) -> np.ndarray:
+    """Of ``n[s]`` particles each source emits in a dust step (numbered in source order), how many to place: the
+    newest ``capacity`` of them in all (a ring of ``capacity`` slots keeps only those), the older ones of the
+    first sources left out. The kernel then places at most ``capacity`` particles, each in a slot of its own
+    (two in one slot would race), whatever the rate."""
+    n = np.asarray(n, np.int64)
+    after = np.cumsum(n[::-1])[::-1] - n  # particles of the sources after each one
+    return np.clip(capacity - after, 0, n)
 
 
 def _clear(fields) -> None:
