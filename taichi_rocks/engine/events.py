@@ -2,8 +2,9 @@
 device buffer appended atomically from kernels (:class:`EventBuffer`), and its drain to a structured array.
 
 The device layout derives from the declaration: integer fields are columns of one int32 matrix, float fields
-(vectors: one column per component) columns of one matrix in the simulation's precision, placed in trees of one
-element size each (engine/trees.py, FieldTrees: Vulkan packs a tree without alignment). A kernel builds an
+(vectors: one column per component) columns of one matrix in the simulation's precision: in a World, fields of
+its ndarray groups (engine/view.py); a buffer of its own places them in trees of one element size each
+(engine/trees.py, FieldTrees: Vulkan packs a tree without alignment). A kernel builds an
 :meth:`EventBuffer.record` struct by field name and appends it with :func:`append`: a slot from an atomic
 counter; past the capacity the counter still counts, so an overflow is counted and reported by the drain
 (``dropped``), never lost silently. Which events an overflow drops depends on thread timing.

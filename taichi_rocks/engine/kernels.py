@@ -3,8 +3,8 @@
 Every kernel takes the World ``w`` and, where it has compile-time switches, the Plan's switches it reads
 (``plan``: a :class:`Switches`, one ``ti.template()`` argument) as ``ti.static(plan.flight)``: passes a plan
 leaves out are not compiled. The Plan is the one switch mechanism: the World holds fields and their layout
-only, so scenes that differ in a switch (an integrator, the launch model, the fenders, ...) share a World from
-the pool and compile only the kernels that read it.
+only, so scenes that differ in a switch (an integrator, the launch model, the fenders, ...) have one World
+layout and compile only the kernels that read it.
 Points and displacements in the bed's local frame (world = origin + local) come as 2-vectors of float64, cast
 to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
 ``rock_pass``, launched every step, which takes its four as one array of 2-vectors (``frame``, rows CENTRE,

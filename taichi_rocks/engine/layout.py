@@ -1,7 +1,7 @@
 """The World a scene needs: its layout (sizes of the hash, the tire mask, the rays and the tile store; the rock
 fields of its Plan and stepping mode) and what that costs in memory, from one list of fields.
 
-:func:`world_layout` is what Simulation allocates with (engine/world.py ``acquire``); :func:`estimate_memory`
+:func:`world_layout` is what Simulation allocates with (engine/world.py ``acquire``: a new World); :func:`estimate_memory`
 adds up the same fields (``world.field_specs``: rock fields from engine/rockfields.py, tile store, hash, rays,
 counters, the bodies and the event buffer of impacts), so the estimate is the bytes the World's fields take and cannot go stale when a field is added.
 Only the hash's entry capacity with AABB insert depends on the rocks' radii: the estimate draws them from the

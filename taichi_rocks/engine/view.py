@@ -207,6 +207,9 @@ def world_kernel(fn=None, *, param: str = "w"):
     end = arg.annotation.end_col_offset if arg.annotation is not None else arg.end_col_offset
     text[arg.lineno - 1] = line[:arg.col_offset] + params + line[end:]
     body = fdef.body[0]
+    if hasattr(body, "body") or isinstance(body, ast.Match):  # the View's statement goes before it, on its line
+        raise SyntaxError(f"{fn.__name__}: a world kernel begins with a simple statement (its docstring), not a "
+                          f"{type(body).__name__.lower()} block")
     line = text[body.lineno - 1]
     text[body.lineno - 1] = (line[:body.col_offset] + f"{param} = ti.static(_world_view({param}__layout, "
                              f"({groups},), {plan})); " + line[body.col_offset:])

@@ -9,6 +9,7 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Optional
 
@@ -382,5 +383,5 @@ def acquire(owner, n: int, real, **layout) -> World:
     compiling."""
     layout = dict(layout, parallel_scan=scan_in_parallel(layout.get("parallel_scan")))
     w = World(n, real, **layout)
-    w.owner = owner
+    w.owner = weakref.ref(owner)
     return w

@@ -139,6 +139,10 @@ class HostField:
         self.from_numpy(np.broadcast_to(np.asarray(value, self.np_dtype), self.shape + self._entry_shape()))
 
     def _flat(self, idx) -> int:
+        if ti.lang.impl.get_runtime().compiling_callable is not None:  # else a kernel would bake the value read
+            # now into its code as a constant, and read it at every launch
+            raise TypeError(f"{self.name}: a World's field indexed inside a Taichi kernel that is not a world "
+                            "kernel: take the World as a parameter of an @world_kernel (engine/view.py)")
         if idx is None:
             idx = ()
         if not isinstance(idx, tuple):
