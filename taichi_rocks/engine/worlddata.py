@@ -7,7 +7,8 @@ them, and the host's handles on each field.
 * :class:`Placement` - the sizes: each field's offset in its group and its dimensions, the groups' lengths and the
   head of the int32 group (the table the kernels read, engine/view.py ``HEAD``).
 * :class:`HostField` - a field from Python: ``to_numpy``, ``from_numpy``, ``fill``, ``[i]`` (read and write),
-  ``shape``, as Taichi's fields had, each a copy kernel compiled once per group kind and process.
+  ``shape``, as Taichi's fields had, each a copy kernel compiled once per group kind and process (a serial one
+  for a few entries: :data:`SERIAL_COPY`).
 """
 
 import math
@@ -85,7 +86,8 @@ class Placement:
 class HostField:
     """Field ``name`` of a World from Python: its group ``arr`` (a ti.ndarray of elements of ``width``
     components), its offset (in entries), row width (0: an element per entry) and shape; NumPy dtype
-    ``np_dtype``. Reads and writes copy through one kernel per group kind (compiled once per process)."""
+    ``np_dtype``. Reads and writes copy through one kernel per group kind (compiled once per process; serial for
+    at most :data:`SERIAL_COPY` elements)."""
 
     def __init__(self, name: str, arr, offset: int, row: int, shape: tuple, np_dtype, width: int):
         self.name, self.arr, self.offset, self.row, self.shape = name, arr, offset, row, tuple(shape)
@@ -108,9 +110,9 @@ class HostField:
         out = np.empty((k, self.width) if self.width > 1 else (k,), self.np_dtype)
         if k:
             if self.width > 1:
-                _read_vec(self.arr, start, k, out, self.width)
+                _read_vec(self.arr, start, k, out, self.width, k <= SERIAL_COPY)
             else:
-                _read(self.arr, start, k, out)
+                _read(self.arr, start, k, out, k <= SERIAL_COPY)
         return out.reshape((count,) + self._entry_shape())
 
     def write(self, first: int, a) -> None:
@@ -121,9 +123,9 @@ class HostField:
         if k:
             flat = a.reshape((k, self.width) if self.width > 1 else (k,))
             if self.width > 1:
-                _write_vec(self.arr, start, k, flat, self.width)
+                _write_vec(self.arr, start, k, flat, self.width, k <= SERIAL_COPY)
             else:
-                _write(self.arr, start, k, flat)
+                _write(self.arr, start, k, flat, k <= SERIAL_COPY)
 
     def to_numpy(self) -> np.ndarray:
         return self.read(0, self.entries).reshape(self.shape + self._entry_shape())
@@ -168,21 +170,33 @@ class HostField:
         return self.entries * self.n * self.np_dtype.itemsize
 
 
+# copies of at most this many elements run as one serial task: one entry (``w.ipar[IPar.TABLE] = m``) or a few,
+# where a parallel loop would wake the CPU's thread pool for nothing (and the step's serial variant, engine/loops.py,
+# launches no parallel task between its kernels either)
+SERIAL_COPY = 64
+
+
 @ti.kernel
-def _read(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, out: ti.types.ndarray(ndim=1)):
+def _read(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, out: ti.types.ndarray(ndim=1), serial: ti.template()):
+    if ti.static(serial):
+        ti.loop_config(serialize=True)
     for i in range(k):
         out[i] = g[off + i]
 
 
 @ti.kernel
-def _write(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, a: ti.types.ndarray(ndim=1)):
+def _write(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, a: ti.types.ndarray(ndim=1), serial: ti.template()):
+    if ti.static(serial):
+        ti.loop_config(serialize=True)
     for i in range(k):
         g[off + i] = a[i]
 
 
 @ti.kernel
 def _read_vec(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, out: ti.types.ndarray(ndim=2),
-              width: ti.template()):
+              width: ti.template(), serial: ti.template()):
+    if ti.static(serial):
+        ti.loop_config(serialize=True)
     for i in range(k):
         for c in ti.static(range(width)):
             out[i, c] = g[off + i][c]
@@ -190,7 +204,9 @@ def _read_vec(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, out: ti.types
 
 @ti.kernel
 def _write_vec(g: ti.types.ndarray(ndim=1), off: ti.i32, k: ti.i32, a: ti.types.ndarray(ndim=2),
-               width: ti.template()):
+               width: ti.template(), serial: ti.template()):
+    if ti.static(serial):
+        ti.loop_config(serialize=True)
     for i in range(k):
         for c in ti.static(range(width)):
             g[off + i][c] = a[i, c]
