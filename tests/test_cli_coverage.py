@@ -1,6 +1,6 @@
 """The command line's options and exits not covered by tests/test_cli.py, run in this process
-(``taichi_rocks.cli.main`` returns the exit status; Taichi is started once, the minimal scene's World is compiled
-once and pooled): --seed on every command, default output paths, ``simulate --out DIR``, ``render --profile``,
+(``taichi_rocks.cli.main`` returns the exit status; Taichi is started once, the minimal scene's kernels compile
+once): --seed on every command, default output paths, ``simulate --out DIR``, ``render --profile``,
 ``view --quit-after`` / ``--record --overwrite`` (up to the window), ``bench --quick`` and ``--only``, exit status 1
 for the runtime guard and TAICHI_ROCKS_DEBUG. The window itself: tests/render/test_view_controls.py."""
 
@@ -110,7 +110,7 @@ def test_render_seed_profile_and_default_folder(taichi_cpu, capsys, in_tmp, monk
 
     seen = []
 
-    class Seen(Simulation):  # what the render simulates (only numbers kept: the World goes back to the pool)
+    class Seen(Simulation):  # what the render simulates (only numbers kept: the World goes with the render)
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             seen.append((self.scene.seed, self.state()["positions"]))

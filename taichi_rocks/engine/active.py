@@ -60,6 +60,7 @@ from .bed import outside_bed
 from .kernels import impacts_loop, rock_step
 from .loops import top_loop
 from .patch import footprint_box
+from .view import world_kernel
 from .world import A0, A1, B0, CENTRE, CLOCK, LEAD, MOVE, RAY_FIELDS, RESTING, \
     TILES, IPar, Par
 
@@ -545,7 +546,7 @@ def finish(w: ti.template(), plan: ti.template(), shift_tiles, step):
     compact(w, plan)
 
 
-@ti.kernel
+@world_kernel
 def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, check_all: ti.i32):
     """Steps 1 to 3 of active stepping (module docstring), its inputs row ``k`` of the batch on the device
     (engine/stepdata.py): tiles classified and gathered, the rock pass over the active list. ``check_all``:
@@ -575,13 +576,13 @@ def active_step(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, 
         impacts_loop(w, plan, fr, step, False, w.body_rows, 0)
 
 
-@ti.kernel
+@world_kernel
 def active_finish(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32):
     """Steps 4 to 6 (finish) of step row ``k``: no value comes back (a returned value waits for the device)."""
     finish(w, plan, ti.cast(w.step_frame[k, TILES], ti.i32), step)
 
 
-@ti.kernel
+@world_kernel
 def settle(w: ti.template(), tiles: vec2):
     """Steps 5 and 6 alone, after coasting."""
     reset_counts(w)

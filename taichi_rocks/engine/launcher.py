@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 from taichi._lib import core as _ti_core
 from taichi.lang import impl
+from taichi.lang._ndarray import Ndarray
 from taichi.types import ndarray_type, primitive_types
 from taichi.types.annotations import template
 
@@ -79,6 +80,8 @@ class Launcher:
 
     def __init__(self, kernel):
         self.kernel = kernel
+        # a world kernel (engine/view.py) takes the World as its layout and groups: expanded before the launch
+        self._expand = getattr(kernel, "expand", None)
         self._primal = getattr(kernel, "_primal", None)  # None: not a Taichi kernel (a wrapper): called as it is
         self._plan = None  # per argument: its kind (None: template), built at the first call
         self._bound: dict = {}
@@ -86,6 +89,8 @@ class Launcher:
     def __call__(self, *args):
         if self._primal is None or not on_cpu():
             return self.kernel(*args)
+        if self._expand is not None:
+            args = self._expand(args)
         if self._plan is None:
             self._plan = tuple(_kind(a.annotation) for a in self._primal.arguments)
             self._templates = tuple(i for i, k in enumerate(self._plan) if k is None)
@@ -94,14 +99,14 @@ class Launcher:
                                and self._primal.autodiff_mode == _ti_core.AutodiffMode.NONE
                                and self._ret is not _OTHER)
         if not self._supported or len(args) != len(self._plan):
-            return self.kernel(*args)
+            return self._primal_call(args)
         tkey = tuple(id(args[i]) for i in self._templates)
         b = self._bound.get(tkey)
         if b is None or self._primal.compiled_kernels.get(b.key) is not b.t_kernel \
                 or impl.get_runtime().prog is not b.prog:
             b = self._bind(args, tkey)
             if b is None:
-                return self.kernel(*args)
+                return self._primal_call(args)
         ctx = b.ctx
         slot = 0
         arrays = b.arrays
@@ -115,17 +120,26 @@ class Launcher:
                 ctx.set_arg_float((slot,), float(v))
             else:
                 want = arrays[slot]
-                if type(v) is not np.ndarray or v.dtype != want[0] or v.ndim != want[1] \
-                        or not v.flags.c_contiguous:
-                    return self.kernel(*args)
-                shape = v.shape if want[2] == 0 else v.shape[:-want[2]]
-                ctx.set_arg_external_array_with_shape((slot,), int(v.ctypes.data), v.nbytes, shape, 0)
+                if want[0] == "ndarray":  # a device array (a World's group): the one it was bound with
+                    if v is not want[1]:
+                        return self._primal_call(args)
+                    ctx.set_arg_ndarray((slot,), v.arr)
+                else:
+                    if type(v) is not np.ndarray or v.dtype != want[0] or v.ndim != want[1] \
+                            or not v.flags.c_contiguous:
+                        return self._primal_call(args)
+                    shape = v.shape if want[2] == 0 else v.shape[:-want[2]]
+                    ctx.set_arg_external_array_with_shape((slot,), int(v.ctypes.data), v.nbytes, shape, 0)
             slot += 1
         b.prog.launch_kernel(b.ckd, ctx)
         if self._ret is None:
             return None
         b.prog.synchronize()
         return self._ret(ctx, (0,))
+
+    def _primal_call(self, args):
+        """Taichi's own call (``args`` already expanded for a world kernel)."""
+        return (self.kernel.kernel if self._expand is not None else self.kernel)(*args)
 
     def _bind(self, args, tkey):
         """Compile (or find) the instance of these template arguments, as Taichi's call does, and make its
@@ -145,15 +159,19 @@ class Launcher:
                 continue
             if kind == _ARRAY:
                 v = args[i]
-                if type(v) is not np.ndarray:
+                if isinstance(v, Ndarray):
+                    arrays[slot] = ("ndarray", v)
+                elif type(v) is not np.ndarray:
                     return None
-                needed = prim.arguments[i].annotation
-                element = 0
-                if needed.dtype is not None and id(needed.dtype) not in primitive_types.type_ids:
-                    element = needed.dtype.ndim
-                arrays[slot] = (v.dtype, v.ndim, element)
+                else:
+                    needed = prim.arguments[i].annotation
+                    element = 0
+                    if needed.dtype is not None and id(needed.dtype) not in primitive_types.type_ids:
+                        element = needed.dtype.ndim
+                    arrays[slot] = (v.dtype, v.ndim, element)
             slot += 1
         b.arrays = arrays
-        b.templates = tuple(args[i] for i in self._templates)  # alive while bound: their ids stay theirs
+        # alive while bound: their ids stay theirs (and a World's groups, checked by identity)
+        b.templates = tuple(args[i] for i in self._templates)
         self._bound[tkey] = b
         return b

@@ -1,6 +1,6 @@
 """The simulation's public face: a Scene in, steps, the rocks out (``state``, ``rock_arrays``, checkpoints).
 
-``Simulation`` builds the World of the scene's layout (engine/layout.py, engine/world.py: pooled per layout),
+``Simulation`` builds the World of the scene's layout (engine/layout.py, engine/world.py: its data in a few ndarrays),
 the host state and the host side of a step (engine/host.py) and the stepper of its stepping mode
 (engine/steppers.py, chosen once), then a step is:
   1. the host side: clock, poses at t + dt, the bed following its vehicle, the floating origin, the tire rays
@@ -64,8 +64,8 @@ class Simulation:
         hits = sim.impacts()        # stones that hit a vehicle since the last call
         state = sim.state()         # every rock, world coordinates
 
-    How a step runs: the module docstring. A Simulation that is no longer referenced hands its Taichi fields
-    (and so its compiled kernels) to the next one of the same layout (engine/world.py ``acquire``).
+    How a step runs: the module docstring. Its kernels compile once per World layout and switches, not per
+    Simulation (engine/view.py): a second one of the same switches and another rock count compiles nothing.
 
     Args:
         scene: a validated ``Scene`` (``load_scene``, ``parse_scene``, ``scene_with``).
@@ -169,8 +169,8 @@ class Simulation:
             raise SceneError([problem])
 
     def _allocate(self, radius: np.ndarray) -> World:
-        """The World of this scene's layout (a released one from the pool if there is one), sized for the
-        rocks' radii ``radius``; sets the hash sizes (``_sizing``, ``table_size``)."""
+        """A new World of this scene's layout, sized for the rocks' radii ``radius``; sets the hash sizes
+        (``_sizing``, ``table_size``)."""
         p = self.plan
         layout, self._sizing = world_layout(self.scene, p, radius)
         self.table_size = self._sizing.table

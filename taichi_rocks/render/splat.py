@@ -218,7 +218,7 @@ def _draw_rock(buf, bucket, meshes, p, r, quat, ph, rid, cam, fr, size, light, s
                     _compact(bucket, buf.count, p, draw_r * size.radius_scale, _rock_color(rid, ph))
 
 
-@ti.kernel
+@drawing.world_kernel(param="world")
 def rocks_pass(world: ti.template(), buf: ti.template(), bucket: ti.template(), meshes: ti.template(),
                cam: CameraBasis, fr: Frustum, size: Sizing, light: Light, sh: Shade, vis: ti.template(),
                tiles: _vec2):
