@@ -3,7 +3,7 @@ origin's shift of the stored rocks, and the runtime guard over them (``Simulatio
 
 import taichi as ti
 
-from .active import same_key, tile_key, vec2
+from .tiles import same_key, tile_key, vec2
 from .world import Par
 from .view import world_kernel
 
