@@ -51,6 +51,12 @@ def _kind(annotation):
     return _OTHER
 
 
+def _features(v) -> tuple:
+    """What a compiled kernel is specialised on of a device array argument (Taichi's own key: its element type,
+    dimensions and element shape): another array of the same features runs the same compiled kernel."""
+    return (str(v.dtype), len(v.shape), tuple(v.element_shape), v.layout)
+
+
 def _getter(ret):
     """The launch context's reader of a kernel's one returned scalar, as Taichi reads it (None: no value;
     _OTHER: another kind of return, Taichi's own path)."""
@@ -70,7 +76,7 @@ class _Bound:
     """The compiled instance of one set of template arguments, its launch context and what the arrays it was
     built with were (dtype, rank): a call with others takes Taichi's own path."""
 
-    __slots__ = ("t_kernel", "ckd", "ctx", "prog", "arrays", "key", "templates")
+    __slots__ = ("t_kernel", "config", "caps", "ctx", "prog", "arrays", "key", "templates", "last")
 
 
 class Launcher:
@@ -120,10 +126,13 @@ class Launcher:
                 ctx.set_arg_float((slot,), float(v))
             else:
                 want = arrays[slot]
-                if want[0] == "ndarray":  # a device array (a World's group): the one it was bound with
-                    if v is not want[1]:
+                if want[0] == "ndarray":  # a device array (a World's group): one of the features compiled for
+                    if v is not b.last.get(slot) and (not isinstance(v, Ndarray) or _features(v) != want[1]):
                         return self._primal_call(args)
+                    # set at every launch: Taichi's launch turns the array's handle in the context into its
+                    # address in place, so a context launched once no longer holds the handle
                     ctx.set_arg_ndarray((slot,), v.arr)
+                    b.last[slot] = v
                 else:
                     if type(v) is not np.ndarray or v.dtype != want[0] or v.ndim != want[1] \
                             or not v.flags.c_contiguous:
@@ -131,7 +140,9 @@ class Launcher:
                     shape = v.shape if want[2] == 0 else v.shape[:-want[2]]
                     ctx.set_arg_external_array_with_shape((slot,), int(v.ctypes.data), v.nbytes, shape, 0)
             slot += 1
-        b.prog.launch_kernel(b.ckd, ctx)
+        # the compiled code asked for at every launch, as Taichi's call does (a cache lookup): Taichi hands a
+        # reference into its cache, which another kernel's compile may move, so it is never kept
+        b.prog.launch_kernel(b.prog.compile_kernel(b.config, b.caps, b.t_kernel), ctx)
         if self._ret is None:
             return None
         b.prog.synchronize()
@@ -150,8 +161,9 @@ class Launcher:
         b.key = key
         b.t_kernel = prim.compiled_kernels[key]
         b.prog = impl.get_runtime().prog
-        b.ckd = b.prog.compile_kernel(b.prog.config(), b.prog.get_device_caps(), b.t_kernel)
+        b.config, b.caps = b.prog.config(), b.prog.get_device_caps()
         b.ctx = b.t_kernel.make_launch_context()
+        b.last = {}  # slot -> the device array set there last (kept alive: the context points into it)
         arrays = {}
         slot = 0
         for i, kind in enumerate(self._plan):
@@ -160,7 +172,7 @@ class Launcher:
             if kind == _ARRAY:
                 v = args[i]
                 if isinstance(v, Ndarray):
-                    arrays[slot] = ("ndarray", v)
+                    arrays[slot] = ("ndarray", _features(v))
                 elif type(v) is not np.ndarray:
                     return None
                 else:
