@@ -51,6 +51,21 @@ def _kind(annotation):
     return _OTHER
 
 
+def _array_key(v):
+    """A cheap key of what an array argument's compiled instance depends on: a NumPy array's dtype and rank, a
+    device array's features (:func:`_features`, kept on the array once made)."""
+    if type(v) is np.ndarray:
+        return (v.dtype.num, v.ndim)
+    key = getattr(v, "_launch_key", None)
+    if key is None:
+        key = _features(v) if isinstance(v, Ndarray) else id(type(v))
+        try:
+            v._launch_key = key
+        except AttributeError:
+            pass
+    return key
+
+
 def _features(v) -> tuple:
     """What a compiled kernel is specialised on of a device array argument (Taichi's own key: its element type,
     dimensions and element shape): another array of the same features runs the same compiled kernel."""
@@ -100,13 +115,15 @@ class Launcher:
         if self._plan is None:
             self._plan = tuple(_kind(a.annotation) for a in self._primal.arguments)
             self._templates = tuple(i for i, k in enumerate(self._plan) if k is None)
+            self._arrays = tuple(i for i, k in enumerate(self._plan) if k == _ARRAY)
             self._ret = _getter(self._primal.return_type)
             self._supported = (_OTHER not in self._plan and len(self._plan) == len(args)
                                and self._primal.autodiff_mode == _ti_core.AutodiffMode.NONE
                                and self._ret is not _OTHER)
         if not self._supported or len(args) != len(self._plan):
             return self._primal_call(args)
-        tkey = tuple(id(args[i]) for i in self._templates)
+        # one compiled instance per template arguments and arrays' features (Taichi's key): one bound context each
+        tkey = tuple(id(args[i]) for i in self._templates) + tuple(_array_key(args[i]) for i in self._arrays)
         b = self._bound.get(tkey)
         if b is None or self._primal.compiled_kernels.get(b.key) is not b.t_kernel \
                 or impl.get_runtime().prog is not b.prog:
