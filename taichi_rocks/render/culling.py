@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import taichi as ti
-from taichi.ui.utils import get_field_info
 
 from ..engine import drawing
 from . import kernels as K
@@ -21,7 +20,7 @@ from .looks import AMBIENT, SUN_COLOR
 from .settings import camera_basis, vec
 from .splat import rocks_pass
 from .sunlight import shade_of
-from .tumbling import expand, host_buffer, shared_prototypes
+from .tumbling import declare_vbo, expand, host_buffer, shared_prototypes
 
 __all__ = ["RockLayer"]
 
@@ -97,6 +96,4 @@ class RockLayer:
         would (one identity instance; see render/renderer.py), minus its repacking of the whole field."""
         for lod, n in enumerate(counts):
             if n > 0:
-                vbo = meshes.vertices(lod, n)
-                scene.scene.mesh_instance(get_field_info(vbo), True, get_field_info(None), (0.5, 0.5, 0.5), False,
-                                          get_field_info(self.identity), 1, 0, len(vbo), 0, len(vbo), 0, False)
+                declare_vbo(scene, meshes.vertices(lod, n), self.identity)

@@ -45,7 +45,7 @@ their pool (:mod:`.buffers`), the rocks (:mod:`.culling`), the sun and the shado
 vehicles and their marks (:mod:`.vehicles`); the :class:`Renderer` here is the frame that calls them.
 """
 
-import time
+from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
@@ -57,8 +57,10 @@ from .camera import GL_UP, NEAR, View
 from .culling import RockLayer
 from .dust import draw_dust, soft_dust
 from .looks import AMBIENT, KEY, SUN_COLOR
+from .markmesh import Sight
 from .settings import (DEFAULT_LOD_PIXELS, ROCK_MODES, SHOTS, WINDOW_EVERY, Settings, Views, camera_basis,
                        check_rocks)
+from .stages import Stages
 from .sunlight import paint_sky_and_ground
 from .vehicles import VehicleLayer
 from .window import HiddenWindow, ggui
@@ -77,9 +79,9 @@ class Renderer:
     or "particles" (every visible rock a GGUI particle). ``lod_pixels`` ("particles" only): resting rocks whose
     projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of rock_id, drawn
     1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames between window
-    re-creations (0: never). ``timings`` accumulates seconds in ``cull`` (the rock pass: culling, splatting,
-    compaction) and ``draw`` (camera, sky and ground, vehicles, overlays, GGUI drawing and the read-back).
-    ``last_count``: rocks GGUI drew in the last frame. ``target``: the window to draw into (default: a
+    re-creations (0: never). ``stages`` (render/stages.py) accumulates the frames' seconds per stage (the
+    camera, the rock pass, the marks, sky and ground, GGUI's declaration, its drawing and read-back, the
+    merge, the dust, the window). ``last_count``: rocks GGUI drew in the last frame. ``target``: the window to draw into (default: a
     :class:`.window.HiddenWindow`, read back); a :class:`.window.ShownWindow` gets the frame declared and
     nothing read back (:meth:`render_frame` returns None; never recreated). ``flags`` (bed_edge, tire_rays,
     hash_cells, tread_patch) may change between frames.
@@ -114,7 +116,7 @@ class Renderer:
             raise ValueError(f"the window is {target.resolution}, the renderer {s.resolution}")
         self.views = Views(sim.scene, s.resolution)
         self.frames_drawn = 0
-        self.timings = {"cull": 0.0, "draw": 0.0}
+        self.stages = Stages()  # where the frames' time went (render/stages.py)
         self._ggui_camera = ggui(ti.ui.Camera)  # GGUI's camera of the 3D layer, set from the view each frame
         self._ggui_camera.up(*GL_UP)
         self._ggui_camera.fov(self.views.fov)
@@ -184,16 +186,6 @@ class Renderer:
         """Unit vector towards the sun (:func:`.camera.sun_direction`; ``heading``: the rig's)."""
         return self.views.sun_direction(heading)
 
-    # ---------------------------------------------------------------------------------------------- vehicles
-    def wheel_angles(self, t: float) -> list:
-        """Per vehicle, its wheels' angles (rad) at time ``t`` (render/vehicles.py)."""
-        return self.vehicles.wheel_angles(t)
-
-    def posed_vehicles(self, poses, origin, t: float) -> list:
-        """Per vehicle, its (vertices, normals) in the local frame at time ``t`` (float64); with
-        ``vehicles.meshes`` (triangles, owners) this is what GGUI draws."""
-        return self.vehicles.posed(poses, origin, t)
-
     # ------------------------------------------------------------------------------------------------- frame
     def cull(self, eye, fwd, right, up, sun) -> int:
         """Cull the rocks; splat the resting ones ("splat" mode) and compact those GGUI draws into a bucket.
@@ -208,36 +200,36 @@ class Renderer:
 
         The returned array is reused by the next call: copy it to keep it.
         """
-        t0 = time.perf_counter()
+        st = self.stages
+        st.start()
         sim = self.sim
-        origin = np.asarray(sim.origin, np.float64)
         eye, target, fwd, right, up, heading = self.view()
         self.inside = self.views.inside_now() if view is None else None
         if view is not None:
             eye, target, fwd, right, up = view[:5]
-        sd = self.sun_direction(heading)
-        t1 = time.perf_counter()
-        self.cull(eye, fwd, right, up, sd)
-        t2 = time.perf_counter()
-
-        poses = sim.vehicle_poses()
+        f = SimpleNamespace(eye=eye, target=target, fwd=fwd, right=right, up=up, sun=self.sun_direction(heading),
+                            origin=np.asarray(sim.origin, np.float64))
+        st.lap("camera")
+        self.cull(eye, fwd, right, up, f.sun)
+        f.poses = sim.vehicle_poses()
+        st.lap("culling")
         if not self._win.shown:  # the dust's puffs, summed while the rocks' depths are there (render/dust.py)
             self._dust = soft_dust(self._dust, sim, self.settings)
             if self._dust is not None:
                 self._dust.splat(self.fields.buf, sim, self.settings, self.views, (eye, target, fwd, right, up),
-                                 poses, origin)
+                                 f.poses, f.origin)
+            st.lap("dust")
         self.hits.update(sim)
+        st.lap("marks")
         paint_sky_and_ground(self.fields.buf, camera_basis(eye, fwd, right, up),
                              self.views.frustum(self.settings.draw_distance), self.settings, self.views.ground_z,
-                             sim.scene.vehicles, poses, origin, sd)
+                             sim.scene.vehicles, f.poses, f.origin, f.sun)
+        st.lap("sky_ground")
         if self._win.shown:  # nothing to read back: no glitch guard, no re-creation
-            self._declare_ggui(eye, target, sd, origin, poses)
+            self._declare_ggui(f)
             self.frames_drawn += 1
-            self.timings["cull"] += t2 - t1
-            self.timings["draw"] += (t1 - t0) + (time.perf_counter() - t2)
             return None
-
-        drawn = self._draw_ggui(eye, target, sd, origin, poses)
+        drawn = self._draw_ggui(f)
         for _ in range(GLITCH_RETRIES):
             # GGUI 1.7.4 on lavapipe now and then loses a whole renderable (seen: the vehicles' mesh) in one
             # frame: a collapse of the pixels GGUI drew, or a vehicle in view that hardly covers its screen box
@@ -246,31 +238,33 @@ class Renderer:
                     not self.vehicles.lost(self._raw, eye, fwd, right, up, self.views, self.settings):
                 break
             self.redraws += 1
-            drawn = self._draw_ggui(eye, target, sd, origin, poses)
+            drawn = self._draw_ggui(f)
         self._prev_drawn = drawn
         if self._dust is not None:
             self._dust.blend(self._out, self._raw, sim)
+            st.lap("dust")
         self.frames_drawn += 1
         every = self.settings.window_every
         if every > 0 and self.frames_drawn % every == 0:
             self._win.close()
             self._win.open()
-        t3 = time.perf_counter()
-        self.timings["cull"] += t2 - t1
-        self.timings["draw"] += (t1 - t0) + (t3 - t2)
+            st.lap("window")
         return self._out
 
-    def _draw_ggui(self, eye, target, sd, origin, poses) -> int:
-        """Declare the 3D layer, draw it, read it back over the background into ``self._out``; return how many
-        pixels GGUI drew."""
-        win = self._declare_ggui(eye, target, sd, origin, poses)
+    def _draw_ggui(self, f) -> int:
+        """Declare the 3D layer of frame ``f``, draw it, read it back over the background into ``self._out``;
+        return how many pixels GGUI drew."""
+        win = self._declare_ggui(f)
         raw = win.window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
+        self.stages.lap("readback")
         K.to_u8(raw, self._out, self.fields.buf)
         self._raw = raw
-        return int(self.fields.buf.drawn_px[None])
+        drawn = int(self.fields.buf.drawn_px[None])
+        self.stages.lap("merge")
+        return drawn
 
-    def _declare_ggui(self, eye, target, sd, origin, poses):
-        """Declare the frame's GGUI layer (a shown window: over the background image); return the window."""
+    def _declare_ggui(self, f):
+        """Declare frame ``f``'s GGUI layer (a shown window: over the background image); return the window."""
         win = self._win
         if not win.is_open:  # closed (or another renderer took over GGUI): reopen
             win.open()
@@ -279,24 +273,26 @@ class Renderer:
             win.canvas.set_image(self.fields.buf.sky)
         scene = win.scene
         cam = self._ggui_camera
-        cam.position(*(float(x) for x in eye))
-        cam.lookat(*(float(x) for x in target))
+        cam.position(*(float(x) for x in f.eye))
+        cam.lookat(*(float(x) for x in f.target))
         cam.up(*GL_UP)
         scene.set_camera(cam)
         scene.ambient_light(AMBIENT)
-        scene.point_light(tuple(float(x) for x in eye + 2000.0 * sd), SUN_COLOR)
-        self._draw_vehicles(scene, origin, poses)
+        scene.point_light(tuple(float(x) for x in f.eye + 2000.0 * f.sun), SUN_COLOR)
+        self.vehicles.declare(scene, f.poses, f.origin, self.sim.time, self.inside, self.settings.wireframe())
         self.rock_layer.declare(scene)
+        self.stages.lap("declare")
         w, h = self.settings.resolution
-        self.hits.draw(scene, poses, origin, eye, self.views.px_per_rad, h / w, self.inside, sd)
-        self._overlays.draw(scene, self.sim, origin, self.views.ground_z)
+        v = self.views
+        self.hits.draw(scene, f.poses, f.origin, Sight(f.eye, f.fwd, f.right, f.up, v.tan_x, v.tan_y, v.px_per_rad,
+                                                       self.inside, f.sun, self.settings.wireframe()), h / w)
+        self.stages.lap("marks")
+        self._overlays.draw(scene, self.sim, f.origin, self.views.ground_z)
         if win.shown:  # offscreen, the dust is composited over the finished frame (render_frame)
-            self._dust_gl = draw_dust(self._dust_gl, scene, self.sim, origin, self.settings.horizon)
+            self._dust_gl = draw_dust(self._dust_gl, scene, self.sim, f.origin, self.settings.horizon)
         win.canvas.scene(scene)
+        self.stages.lap("declare")
         return win
-
-    def _draw_vehicles(self, scene, origin, poses) -> None:
-        self.vehicles.declare(scene, poses, origin, self.sim.time, self.inside, self.settings.wireframe())
 
     def close(self) -> None:
         """Release the window and the imgui.ini GGUI left behind, give the buffers back to the pool (the next

@@ -28,6 +28,7 @@ is a particle, as before. A stone that lands goes from its mesh to the splat of 
 
 import numpy as np
 import taichi as ti
+from taichi.ui.utils import get_field_info
 
 from ..config.streams import LOOK_PROTOTYPE
 from ..engine.trees import FieldTrees
@@ -35,7 +36,7 @@ from ..motion.rockshapes import flat_triangles
 from .rocklook import _unit
 
 __all__ = ["MESH_PX", "FINE_PX", "PROTOTYPES", "VERTICES", "LODS", "MeshBucket", "Prototypes", "prototype_of",
-           "rotate", "expand", "host_buffer", "shared_prototypes"]
+           "rotate", "expand", "host_buffer", "declare_vbo", "shared_prototypes"]
 
 MESH_PX = 1.5  # flying rocks at least this many pixels in radius are meshes, smaller ones particles
 FINE_PX = 5.0  # from this many pixels on, the 80-triangle prototype; below it the 20-triangle one
@@ -71,11 +72,22 @@ class Prototypes:
 _HOST_BUFFERS: dict = {}
 
 
-def host_buffer(shape: tuple) -> np.ndarray:
-    """A float32 array of ``shape`` that is never freed (see above); zeroed when first made."""
-    if shape not in _HOST_BUFFERS:
-        _HOST_BUFFERS[shape] = np.zeros(shape, np.float32)
-    return _HOST_BUFFERS[shape]
+def host_buffer(shape: tuple, user: str = "rocks") -> np.ndarray:
+    """A float32 array of ``shape`` that is never freed (see above), one per ``user`` (the buffers one frame
+    fills must not be another's of the same shape); zeroed when first made."""
+    key = (user, tuple(shape))
+    if key not in _HOST_BUFFERS:
+        _HOST_BUFFERS[key] = np.zeros(shape, np.float32)
+    return _HOST_BUFFERS[key]
+
+
+def declare_vbo(scene, vbo: np.ndarray, identity: np.ndarray) -> None:
+    """Hand vertex buffer ``vbo`` (n, VBO_STRIDE: triangles in GGUI's layout, local frame) to GGUI ``scene`` as
+    its Python wrapper's ``mesh_instance`` would (one instance, ``identity``: a (1, 4, 4) host buffer), minus its
+    repacking of the vertices into a buffer of its own."""
+    n = len(vbo)
+    scene.scene.mesh_instance(get_field_info(vbo), True, get_field_info(None), (0.5, 0.5, 0.5), False,
+                              get_field_info(identity), 1, 0, n, 0, n, 0, False)
 
 
 _SHARED: dict = {}

@@ -70,7 +70,8 @@ def test_frames_written_with_the_right_size(mp4_render):
         assert img.shape == (H, W, 3) and img.dtype == np.uint8
     np.testing.assert_array_equal(iio.imread(pngs[-1]), frames[-1])
     assert not [p for p in (out / "frames").iterdir() if p.name.startswith(".")]  # no temporary files left
-    assert set(res["profile"]) >= {"simulation", "culling", "drawing", "encoding"}
+    assert set(res["profile"]) >= {"simulation", "culling", "marks", "sky_ground", "declare", "readback", "merge",
+                                   "encoding"}
     assert res["frames_per_second"] > 0
 
 
@@ -364,7 +365,7 @@ def test_a_lost_vehicle_mesh_is_drawn_again(shared):
     redraws = r.redraws
     np.testing.assert_array_equal(r.render_frame(), reference)
     assert r.redraws == redraws  # no false alarm
-    real = r._draw_vehicles
+    real = r.vehicles.declare
     calls = []
 
     def lose_first(*args):
@@ -372,12 +373,12 @@ def test_a_lost_vehicle_mesh_is_drawn_again(shared):
         if len(calls) > 1:
             real(*args)
 
-    r._draw_vehicles = lose_first
+    r.vehicles.declare = lose_first
     try:
         r._prev_drawn = 0
         img = r.render_frame()
     finally:
-        del r._draw_vehicles
+        del r.vehicles.declare
     assert len(calls) == 2 and r.redraws == redraws + 1
     np.testing.assert_array_equal(img, reference)
 
@@ -624,13 +625,13 @@ def test_wheels_turn_by_distance_over_radius(shared, minimal_scene):
     (car,) = minimal_scene.vehicles
     speed = car.path.speed
     t1, t2 = 0.5, 0.5 + 1 / 30
-    a1, a2 = np.array(r.wheel_angles(t1)[0]), np.array(r.wheel_angles(t2)[0])
+    a1, a2 = np.array(r.vehicles.wheel_angles(t1)[0]), np.array(r.vehicles.wheel_angles(t2)[0])
     mesh = r.vehicles.meshes[0]
     want = speed * (t2 - t1) / car.tire_radius * np.where(mesh.rear, 1.0 + car.slip, 1.0)
     np.testing.assert_allclose(a2 - a1, want, rtol=1e-9)
     assert mesh.rear.sum() == 2 and want.min() > 0.3  # a visible step: ~0.1 of a turn a frame
     pose = sim.vehicle_poses()[0]
-    posed = [r.posed_vehicles([pose], sim.origin, t)[0][0] for t in (t1, t2)]
+    posed = [r.vehicles.posed([pose], sim.origin, t)[0][0] for t in (t1, t2)]
     c, s = math.cos(pose.heading), math.sin(pose.heading)
     to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # inverse of the heading's rotation
     base = np.asarray(pose.position) - sim.origin
@@ -784,7 +785,7 @@ def test_view_preset_tire_pixel_is_the_tire(pipeline, scenes_dir):
         img = r.render_frame().copy()
         view = r.view()
         poses = sim.vehicle_poses()
-        posed = r.posed_vehicles(poses, sim.origin, sim.time)
+        posed = r.vehicles.posed(poses, sim.origin, sim.time)
         pose = poses[r.target]
         local = type(pose)(pose.name, pose.position - sim.origin, pose.heading, pose.speed, pose.yaw_rate,
                            pose.velocity)
