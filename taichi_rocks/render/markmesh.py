@@ -57,8 +57,9 @@ _G = len(GLASS_FRAME)
 _EYE, _SIDE, _GLASS, _CHIP = _G + 5, _G + 8, _G + 9, _G + 11
 
 _vec3 = ti.types.vector(3, ti.f32)
-#: half a ribbon's width per metre of distance (width_px / 2 / px_per_rad), the sun (unit, towards it), colours
-Look = ti.types.struct(half_per_m=ti.f32, sun=_vec3, glass_rgb=_vec3, chip_rgb=_vec3)
+#: half a ribbon's width per metre of distance (width_px / 2 / px_per_rad), the sun (unit, towards it), colours,
+#: whether the vehicles are see-through (paint chips seen from behind drawn too)
+Look = ti.types.struct(half_per_m=ti.f32, sun=_vec3, glass_rgb=_vec3, chip_rgb=_vec3, see_through=ti.i32)
 #: the rows shown (the first ``ng`` glass and ``nc`` chip rows) and the slots drawn (segments, chip triangles)
 Span = ti.types.struct(ng=ti.i32, nc=ti.i32, glass_slots=ti.i32, chip_slots=ti.i32)
 
@@ -203,7 +204,7 @@ def pose_marks(glass: ti.types.ndarray(dtype=ti.f32, ndim=2), chips: ti.types.nd
         if slot >= 0:
             n = ti.Vector([chips[j, 9], chips[j, 10], chips[j, 11]])
             eye = ti.Vector([veh[i, _EYE], veh[i, _EYE + 1], veh[i, _EYE + 2]])
-            facing = n.dot(eye - ti.Vector([chips[j, 0], chips[j, 1], chips[j, 2]])) > 0.0
+            facing = n.dot(eye - ti.Vector([chips[j, 0], chips[j, 1], chips[j, 2]])) > 0.0 or look.see_through
             for c in ti.static(range(3)):
                 p = ti.Vector([chips[j, 3 * c], chips[j, 3 * c + 1], chips[j, 3 * c + 2]])
                 if facing:
@@ -248,6 +249,7 @@ def pose_marks(glass: ti.types.ndarray(dtype=ti.f32, ndim=2), chips: ti.types.nd
 @ti.kernel
 def _put_rows(dst: ti.types.ndarray(dtype=ti.f32, ndim=2), src: ti.types.ndarray(dtype=ti.f32, ndim=2),
               start: ti.i32):
+    """Rows ``src`` into ``dst`` from row ``start`` on (from the host, or a table's rows into a larger one)."""
     for r, c in ti.ndrange(src.shape[0], src.shape[1]):
         dst[start + r, c] = src[r, c]
 
@@ -262,11 +264,12 @@ class _Device:
     def sync(self, rows: np.ndarray, changed: int) -> None:
         """Hold ``rows`` (the store's table), of which those before ``changed`` are held already."""
         start = min(self.n, changed)
-        if len(rows) > self.arr.shape[0]:  # grown: a new array, every row uploaded
+        if len(rows) > self.arr.shape[0]:  # grown: the rows held move to a larger array on the device
             cap = self.arr.shape[0]
             while cap < len(rows):
                 cap *= 2
-            self.arr, start = ti.ndarray(ti.f32, (cap, self.width)), 0
+            old, self.arr = self.arr, ti.ndarray(ti.f32, (cap, self.width))
+            _put_rows(self.arr, old, 0)
         if len(rows) > start:
             _put_rows(self.arr, np.ascontiguousarray(rows[start:], np.float32), start)
         self.n = len(rows)
@@ -305,7 +308,8 @@ class MarkMesh:
         span = Span(ng=shown.glass, nc=shown.chips, glass_slots=glass_n, chip_slots=chip_n)
         lit = np.array(MARK_COLOR) / (np.array(AMBIENT) + np.array(SUN_COLOR))  # facing the sun: MARK_COLOR
         look = Look(half_per_m=0.5 * MARK_PX / float(sight.px_per_rad), sun=ti.Vector([float(x) for x in sight.sun]),
-                    glass_rgb=ti.Vector([float(x) for x in lit]), chip_rgb=ti.Vector(PAINT_CHIP_COLOR))
+                    glass_rgb=ti.Vector([float(x) for x in lit]), chip_rgb=ti.Vector(PAINT_CHIP_COLOR),
+                    see_through=int(bool(sight.see_through)))
         n_blocks = (shown.glass + BLOCK - 1) // BLOCK
         if len(self._blocks) <= n_blocks:
             self._blocks = np.zeros(_capacity(n_blocks + 1), np.int32)

@@ -131,3 +131,40 @@ def test_a_resumed_render_keeps_the_marks_made_before_its_saved_state(taichi_cpu
     for k in (20, 23):
         np.testing.assert_array_equal(iio.imread(tmp_path / "cut" / "frames" / f"frame_{k:05d}.png"),
                                       iio.imread(tmp_path / "ref" / "frames" / f"frame_{k:05d}.png"))
+
+
+def test_the_views_scrub_hides_the_marks_and_brings_them_back(taichi_cpu):
+    """The viewer's clock (app/timeline.py) on an offscreen Renderer of a car whose windscreen cracks at frames 16
+    and 17, seen from its driver's seat: played to frame 22, scrubbed back to frame 12 (a saved state, then
+    simulated forward) and forward to 22 again (simulated again from a saved state, the marks already made):
+    each frame is the one first drawn at that time, the cracks gone at 12 and back at 22, made once."""
+    from taichi_rocks.app.timeline import Timeline
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.render.renderer import Renderer
+
+    scene = parse_scene(UNDER_FIRE, source="<test>")
+    sim = Simulation(scene, tumble=True, track_changes=False)
+    r = Renderer(sim, resolution=(320, 192), window_every=0)
+    try:
+        tl = Timeline(30.0, 24, every=5)
+        r.view()
+        tl.save(sim, r.rig)
+        first = {0: r.render_frame().copy()}
+        for k in range(1, 23):
+            tl.advance(sim, r.view)
+            tl.save(sim, r.rig)
+            first[k] = r.render_frame().copy()
+        made = r.hits.store.made
+        assert len(r.hits.hits.marks()) == made
+        assert np.abs(first[22].astype(int) - first[12]).max() > 100  # the cracks, and what moved
+        on_glass = {}
+        for k in (12, 22, 18, 3):
+            tl.seek(k, sim, r.rig, r.view)
+            np.testing.assert_array_equal(r.render_frame(), first[k])
+            marks = r.hits.hits.marks()
+            assert np.all(marks["time"] <= k / 30.0 + 1e-9)
+            on_glass[k] = int((marks["part"] == 2).sum())
+        assert on_glass[12] == on_glass[3] == 0 and on_glass[22] >= 2  # the windscreen's cracks: 16 and 17
+        assert r.hits.store.made == made  # none made again
+    finally:
+        r.close()
