@@ -20,7 +20,8 @@ from .looks import AMBIENT, SUN_COLOR
 from .settings import camera_basis, vec
 from .splat import rocks_pass
 from .sunlight import shade_of
-from .tumbling import declare_vbo, expand, host_buffer, shared_prototypes
+from .tumbling import expand, shared_prototypes
+from .vbo import declare_mesh, host_buffer
 
 __all__ = ["RockLayer"]
 
@@ -96,4 +97,4 @@ class RockLayer:
         would (one identity instance; see render/renderer.py), minus its repacking of the whole field."""
         for lod, n in enumerate(counts):
             if n > 0:
-                declare_vbo(scene, meshes.vertices(lod, n), self.identity)
+                declare_mesh(scene, meshes.vertices(lod, n), self.identity)

@@ -4,7 +4,7 @@ they are made, and posed with their vehicles each frame by one kernel into one G
 The device holds the store's two tables (``glass`` and ``chips``: float32 ndarrays, the store's rows; only the
 rows made since the last frame are uploaded, :meth:`MarkMesh.upload`). Each frame :func:`pose_marks` writes the
 marks shown (the first rows of each table, at most MAX_TRIANGLES triangles: past that the oldest are left out)
-into a vertex buffer in GGUI's layout (render/tumbling.py VBO_STRIDE: position, normal, texture coordinates,
+into a vertex buffer in GGUI's layout (render/vbo.py VBO_STRIDE: position, normal, texture coordinates,
 colour), in the local frame, which GGUI draws as one mesh (:meth:`MarkMesh.draw`):
 
 * a paint chip's triangle, p' = c + R(h) p and n' = R(h) n for its vehicle at c with heading h, lit as the face
@@ -36,7 +36,7 @@ from ..motion.bodies import body_parts
 from .glassmarks import GLASS_EDGE, GLASS_FRAME, GLASS_GAP, glass_frame
 from .looks import AMBIENT, SUN_COLOR
 from .markstore import CHIP_ROW, GLASS_ROW
-from .tumbling import VBO_STRIDE, declare_vbo, host_buffer
+from .vbo import VBO_STRIDE, declare_mesh, host_buffer
 
 __all__ = ["MarkMesh", "Sight", "pose_marks", "MARK_COLOR", "PAINT_CHIP_COLOR", "MARK_PX", "MAX_SEGMENTS",
            "MAX_CHIP_TRIANGLES", "BLOCK", "VEHICLE_ROW", "Look", "Span", "body_bounds"]
@@ -321,7 +321,7 @@ class MarkMesh:
                 break
             self._spill = max(2 * self._spill, n - 3 * chip_n - 6 * glass_n)
         self.drawn = n
-        declare_vbo(scene, vbo[:n], self.identity)
+        declare_mesh(scene, vbo[:n], self.identity)
         return n
 
     def _place(self, shown, pos, head, sight) -> tuple:

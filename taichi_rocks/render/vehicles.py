@@ -141,6 +141,5 @@ class VehicleLayer:
         return False
 
     def close(self) -> None:
-        """Give the fields back to the pool and retire the hits' buffers."""
+        """Give the fields back to the pool."""
         POOL.give_back(self.fields, self)
-        self.hits.close()

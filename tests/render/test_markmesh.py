@@ -63,7 +63,7 @@ def _hits(specs, seed=0, n=24):
 
 
 class _Scene:
-    """A GGUI scene that keeps the vertex buffers handed over (render/tumbling.py declare_vbo)."""
+    """A GGUI scene that keeps the vertex buffers handed over (render/vbo.py declare_mesh)."""
 
     def __init__(self):
         self.drawn = []
@@ -73,7 +73,7 @@ class _Scene:
 def _keep_buffers(monkeypatch):
     import taichi_rocks.render.markmesh as mm
 
-    monkeypatch.setattr(mm, "declare_vbo", lambda scene, vbo, identity: scene.drawn.append(vbo.copy()))
+    monkeypatch.setattr(mm, "declare_mesh", lambda scene, vbo, identity: scene.drawn.append(vbo.copy()))
 
 
 def _frame(specs, seed):
