@@ -4,19 +4,22 @@ Every frame is declared from scratch (GGUI is immediate mode), drawn into a hidd
 (:mod:`.window`) and read back (``render``), or declared in a window on the screen (``view``,
 app/view.py: the same code draws both). A frame is made of two layers:
 
-1. the background image, filled by Taichi kernels: the *resting* rocks splatted in software by the rock pass
-   (:mod:`.splat`, run by :mod:`.culling`), then sky and ground (:mod:`.ground`, given the sun and the
-   shadows by :mod:`.sunlight`) into the buffers of :mod:`.kernels`;
+1. the background, filled by Taichi kernels: the *resting* rocks splatted in software by the rock pass
+   (:mod:`.splat`, run by :mod:`.culling`) into the buffers of :mod:`.kernels`, then sky and ground
+   (:mod:`.ground`, given the sun and the shadows by :mod:`.sunlight`);
 2. the GGUI 3D scene: vehicles (a car, van or truck body of a few boxes, lights, four wheels that turn at
    their angular velocity; all in one mesh instance, :mod:`.bodies`, :mod:`.meshes`; from the driver's view,
    the ridden vehicle's greenhouse left out and its windscreen's frame drawn, :mod:`.interior`; all in
    :mod:`.vehicles`), the *flying* rocks as
    ``scene.particles`` from compact f32 fields (atomic-counter compaction in the same pass, ``index_count``
-   = the count, power-of-two buckets), the impacts' flashes and windscreen marks (:mod:`.hits`), debug
-   overlays (:mod:`.overlays`) as ``scene.lines``;
+   = the count, power-of-two buckets) and tumbling meshes (:mod:`.tumbling`), the impacts' flashes and marks
+   (:mod:`.hits`: each mark made once, posed each frame), debug overlays (:mod:`.overlays`) as ``scene.lines``.
 
-merged by :func:`.kernels.to_u8` wherever GGUI left its clear colour (offscreen); in a shown window the
-background image is the canvas's ``set_image`` under the 3D scene, which GGUI draws over it (same pixels).
+Offscreen, GGUI draws first and the ground pass then paints sky and ground straight into the frame, wherever
+GGUI left its clear colour, and copies GGUI's pixels elsewhere (no ground computed under a vehicle, no background
+image made and read again); in a shown window the ground pass paints the background image, the canvas's
+``set_image`` under the 3D scene, which GGUI draws over it (the same pixels). Where a frame's time goes, stage by
+stage: :mod:`.stages` (``render --profile``).
 
 Why: lavapipe shades GGUI particles at ~2 us per particle plus ~0.2 us per covered pixel, so the ~40-60k
 visible rocks of a 200k-rock bed cost 150-200 ms a frame at 720p as particles, and a full-screen ground mesh
@@ -30,8 +33,9 @@ GGUI 1.7.4 quirks handled here (see also :mod:`.window`):
 * ``mesh_instance`` lights the *untransformed* mesh (Mesh_vk.vert forwards the model-space position and
   normal to the lighting), so a yawed vehicle would keep the shading of an unrotated one: vehicles are one
   mesh whose vertices and normals are transformed on the host each frame;
-* the image comes back (W, H, 4) float and y-flipped
-  (:func:`.kernels.to_u8`); capture exactly once per frame; a 3D scene leaks ~0.3 MB per captured frame on
+* the image comes back (W, H, 4) float and y-flipped (``get_image_buffer_as_numpy``: GGUI has no 8-bit or
+  partial read-back; the ground pass turns it upright, render/ground.py); capture exactly once per frame; a 3D
+  scene leaks ~0.3 MB per captured frame on
   lavapipe: the window is recreated every ``window_every`` frames (the camera state lives in
   :class:`.camera.CameraRig` and carries over);
 * a plain ``scene.mesh`` now and then vanishes from a frame, and often again when drawn again: Mesh_vk.vert
@@ -51,7 +55,6 @@ import numpy as np
 import taichi as ti
 
 from ..engine import drawing
-from . import kernels as K
 from .buffers import POOL, lease_frame
 from .camera import GL_UP, NEAR, View
 from .culling import RockLayer
@@ -80,9 +83,9 @@ class Renderer:
     projected radius is below this many pixels are thinned (a fraction q^2 kept, chosen by a hash of rock_id, drawn
     1/q larger, q = projected radius / lod_pixels); 0 disables it. ``window_every``: frames between window
     re-creations (0: never). ``stages`` (render/stages.py) accumulates the frames' seconds per stage (the
-    camera, the rock pass, the marks, sky and ground, GGUI's declaration, its drawing and read-back, the
-    merge, the dust, the window). ``last_count``: rocks GGUI drew in the last frame. ``target``: the window to draw into (default: a
-    :class:`.window.HiddenWindow`, read back); a :class:`.window.ShownWindow` gets the frame declared and
+    camera, the rock pass, the marks, GGUI's declaration, its drawing and read-back, sky and ground, the dust,
+    the window). ``last_count``: rocks GGUI drew in the last frame. ``target``: the window to draw into (default:
+    a :class:`.window.HiddenWindow`, read back); a :class:`.window.ShownWindow` gets the frame declared and
     nothing read back (:meth:`render_frame` returns None; never recreated). ``flags`` (bed_edge, tire_rays,
     hash_cells, tread_patch) may change between frames.
 
@@ -221,11 +224,8 @@ class Renderer:
             st.lap("dust")
         self.hits.update(sim)
         st.lap("marks")
-        paint_sky_and_ground(self.fields.buf, camera_basis(eye, fwd, right, up),
-                             self.views.frustum(self.settings.draw_distance), self.settings, self.views.ground_z,
-                             sim.scene.vehicles, f.poses, f.origin, f.sun)
-        st.lap("sky_ground")
-        if self._win.shown:  # nothing to read back: no glitch guard, no re-creation
+        if self._win.shown:  # the background image under the window's 3D scene; nothing to read back
+            self._paint(f)
             self._declare_ggui(f)
             self.frames_drawn += 1
             return None
@@ -233,11 +233,14 @@ class Renderer:
         for _ in range(GLITCH_RETRIES):
             # GGUI 1.7.4 on lavapipe now and then loses a whole renderable (seen: the vehicles' mesh) in one
             # frame: a collapse of the pixels GGUI drew, or a vehicle in view that hardly covers its screen box
-            # (VehicleLayer.lost), is that, not the scene: draw the 3D layer again
+            # (VehicleLayer.lost), is that, not the scene: draw the 3D layer again (and the rock pass, whose
+            # splats the ground pass took)
             if drawn >= GLITCH_DROP * self._prev_drawn and \
                     not self.vehicles.lost(self._raw, eye, fwd, right, up, self.views, self.settings):
                 break
             self.redraws += 1
+            self.cull(eye, fwd, right, up, f.sun)
+            st.lap("culling")
             drawn = self._draw_ggui(f)
         self._prev_drawn = drawn
         if self._dust is not None:
@@ -252,23 +255,30 @@ class Renderer:
         return self._out
 
     def _draw_ggui(self, f) -> int:
-        """Declare the 3D layer of frame ``f``, draw it, read it back over the background into ``self._out``;
-        return how many pixels GGUI drew."""
+        """Declare the 3D layer of frame ``f``, draw it, read it back and paint the background under it into
+        ``self._out``; return how many pixels GGUI drew."""
         win = self._declare_ggui(f)
         raw = win.window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
         self.stages.lap("readback")
-        K.to_u8(raw, self._out, self.fields.buf)
+        self._paint(f, (raw, self._out))
         self._raw = raw
-        drawn = int(self.fields.buf.drawn_px[None])
-        self.stages.lap("merge")
-        return drawn
+        return int(self.fields.buf.drawn_px[None])
+
+    def _paint(self, f, merge=None) -> None:
+        """Sky, ground and the splatted rocks of frame ``f`` (render/sunlight.py, render/ground.py): into the
+        background image, or (``merge`` = (GGUI's read-back, the frame)) into the frame wherever GGUI drew
+        nothing."""
+        paint_sky_and_ground(self.fields.buf, camera_basis(f.eye, f.fwd, f.right, f.up),
+                             self.views.frustum(self.settings.draw_distance), self.settings, self.views.ground_z,
+                             self.sim.scene.vehicles, f.poses, f.origin, f.sun, merge)
+        self.stages.lap("sky_ground")
 
     def _declare_ggui(self, f):
         """Declare frame ``f``'s GGUI layer (a shown window: over the background image); return the window."""
         win = self._win
         if not win.is_open:  # closed (or another renderer took over GGUI): reopen
             win.open()
-        win.canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # replaced by the background in to_u8
+        win.canvas.set_background_color(tuple(k / 255.0 for k in KEY))  # where the ground pass paints (_paint)
         if win.shown:
             win.canvas.set_image(self.fields.buf.sky)
         scene = win.scene

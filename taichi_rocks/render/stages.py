@@ -17,10 +17,9 @@ STAGES = {
     "camera": "the camera and the sun",
     "culling": "the rock pass: culling, splatting the resting rocks, compacting the flying ones",
     "marks": "the hits: new impacts, their flashes, the marks made and posed",
-    "sky_ground": "sky and ground: one ray a pixel, the shadows, the splatted rocks blended in",
     "declare": "declaring GGUI's scene: vehicles, flying rocks, overlays",
     "readback": "GGUI draws (lavapipe on a CPU) and hands back the image (get_image_buffer_as_numpy)",
-    "merge": "GGUI's image over the background, to 8 bits",
+    "sky_ground": "sky and ground under what GGUI drew: one ray a pixel, the shadows, the splatted rocks blended in",
     "dust": "the dust's puffs, summed and blended over the frame",
     "window": "the hidden window opened anew (every window_every frames)",
 }

@@ -70,7 +70,7 @@ def test_frames_written_with_the_right_size(mp4_render):
         assert img.shape == (H, W, 3) and img.dtype == np.uint8
     np.testing.assert_array_equal(iio.imread(pngs[-1]), frames[-1])
     assert not [p for p in (out / "frames").iterdir() if p.name.startswith(".")]  # no temporary files left
-    assert set(res["profile"]) >= {"simulation", "culling", "marks", "sky_ground", "declare", "readback", "merge",
+    assert set(res["profile"]) >= {"simulation", "culling", "marks", "sky_ground", "declare", "readback",
                                    "encoding"}
     assert res["frames_per_second"] > 0
 
