@@ -41,7 +41,7 @@ GGUI 1.7.4 quirks handled here (see also :mod:`.window`):
 * a plain ``scene.mesh`` now and then vanishes from a frame, and often again when drawn again: Mesh_vk.vert
   takes model = I * (1 - a) + M * a with a = 0 and M read from a buffer GGUI never fills without transforms, and
   NaN or Inf left in that memory survives the ``* 0``. So the vehicles' mesh is a ``mesh_instance`` with one
-  explicit identity matrix (render/buffers.py ``VehicleFields.model``); the lost-renderable guard (a frame
+  explicit identity matrix (render/vehicles.py ``VehicleLayer.identity``); the lost-renderable guard (a frame
   whose vehicles are missing is drawn again) stays as a safety net.
 
 Its parts, one job each: the options and the camera (:mod:`.settings`: ``Settings``, ``Views``), the fields and
@@ -125,8 +125,8 @@ class Renderer:
         self._ggui_camera.fov(self.views.fov)
         self._ggui_camera.z_near(NEAR)
         self._ggui_camera.z_far(max(1000.0, 3.0 * s.draw_distance))
-        # the buffers are leased from the pool, the vehicles' fields too: given back by close() or when this
-        # renderer is garbage-collected (engine/trees.py)
+        # the buffers are leased from the pool: given back by close() or when this renderer is garbage-collected
+        # (engine/trees.py)
         w, h = s.resolution
         self.fields = lease_frame(self, w, h, s.rocks == "splat", s.shadows, drawing.slot_total(sim.world))
         # rocks: compact buckets (power-of-two capacities), allocated when first needed; flying ones of a few
@@ -306,11 +306,9 @@ class Renderer:
 
     def close(self) -> None:
         """Release the window and the imgui.ini GGUI left behind, give the buffers back to the pool (the next
-        renderer of their sizes takes them, compiled), the vehicles' fields with them. It draws no more frames
-        after this; the Simulation stays usable. Closing twice does nothing more."""
+        renderer of their sizes takes them, compiled). It draws no more frames after this; the Simulation stays usable. Closing twice does nothing more."""
         self._win.release()
         POOL.give_back(self.fields, self)
-        self.vehicles.close()
 
     def __enter__(self):
         return self

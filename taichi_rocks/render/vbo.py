@@ -20,22 +20,24 @@ VBO_STRIDE = 12  # float32 per vertex of GGUI's vertex buffers: xyz, normal, uv,
 _HOST_BUFFERS: dict = {}
 
 
-def host_buffer(shape: tuple, user: str = "rocks") -> np.ndarray:
-    """A float32 array of ``shape`` that is never freed (see the module docstring), one per ``user``; zeroed
-    when first made."""
-    key = (user, tuple(shape))
+def host_buffer(shape: tuple, user: str = "rocks", dtype=np.float32) -> np.ndarray:
+    """An array of ``shape`` (float32, or ``dtype``: int32 for indices) that is never freed (see the module
+    docstring), one per ``user``; zeroed when first made."""
+    key = (user, tuple(shape), np.dtype(dtype).str)
     if key not in _HOST_BUFFERS:
-        _HOST_BUFFERS[key] = np.zeros(shape, np.float32)
+        _HOST_BUFFERS[key] = np.zeros(shape, dtype)
     return _HOST_BUFFERS[key]
 
 
-def declare_mesh(scene, vbo: np.ndarray, identity: np.ndarray) -> None:
-    """Triangles ``vbo`` (n, VBO_STRIDE; local frame, lit with their normals, per-vertex colours) in GGUI
-    ``scene`` as the wrapper's ``mesh_instance`` would declare them with one instance (``identity``: a (1, 4, 4)
-    host buffer)."""
+def declare_mesh(scene, vbo: np.ndarray, identity: np.ndarray, indices: np.ndarray = None,
+                 wireframe: bool = False) -> None:
+    """Triangles ``vbo`` (n, VBO_STRIDE; local frame, lit with their normals, per-vertex colours; or the
+    vertices of ``indices``, a host buffer of int32 triangle corners) in GGUI ``scene`` as the wrapper's
+    ``mesh_instance`` would declare them with one instance (``identity``: a (1, 4, 4) host buffer)."""
     n = len(vbo)
-    scene.scene.mesh_instance(get_field_info(vbo), True, get_field_info(None), (0.5, 0.5, 0.5), False,
-                              get_field_info(identity), 1, 0, n, 0, n, 0, False)
+    count = n if indices is None else len(indices)
+    scene.scene.mesh_instance(get_field_info(vbo), True, get_field_info(indices), (0.5, 0.5, 0.5), False,
+                              get_field_info(identity), 1, 0, count, 0, n, 0, bool(wireframe))
 
 
 def declare_particles(scene, vbo: np.ndarray) -> None:

@@ -327,31 +327,37 @@ def test_deterministic_frames_and_window_recycling(pipeline, minimal_scene, mp4_
         r.close()
 
 
-def test_vehicle_mesh_is_declared_with_an_identity_model_matrix(shared):
+def test_vehicle_mesh_is_declared_with_an_identity_model_matrix(shared, monkeypatch):
     """GGUI 1.7.4 draws a plain ``scene.mesh`` with model = I * (1 - a) + M * a, a = 0 and M from a buffer it
     never fills: NaN or Inf left there removes the whole mesh from the frame (now and then, and often again on
-    a redraw). So the vehicles go through ``mesh_instance`` with one explicit identity matrix, and the frame is
-    the same as before."""
+    a redraw). So the vehicles go through ``mesh_instance`` with one explicit identity matrix (render/vbo.py
+    declare_mesh: its vertices, indices and that matrix handed to GGUI as they are), and the frame is the same
+    as before."""
+    import taichi_rocks.render.vehicles as vehicles
+
     sim, r = shared
     reference = r.render_frame().copy()  # (re)opens the window: r._win.scene is the one drawn below
     scene = r._win.scene
     calls = []
-    real_instance = scene.mesh_instance
+    real = vehicles.declare_mesh
 
-    def spy_instance(*args, **kw):
-        calls.append(kw.get("transforms"))
-        return real_instance(*args, **kw)
+    def spy(*args, **kw):
+        calls.append((args[1].copy(), args[2].copy(), args[3].copy()))
+        return real(*args, **kw)
 
     def plain_mesh(*args, **kw):
         raise AssertionError("the vehicles were declared as a plain mesh (GGUI reads an unfilled model matrix)")
 
-    scene.mesh_instance, scene.mesh = spy_instance, plain_mesh
+    monkeypatch.setattr(vehicles, "declare_mesh", spy)
+    scene.mesh = plain_mesh
     try:
         img = r.render_frame().copy()
     finally:
-        del scene.mesh_instance, scene.mesh
-    assert len(calls) == 1 and calls[0] is not None
-    np.testing.assert_array_equal(calls[0].to_numpy(), np.eye(4, dtype=np.float32)[None])
+        del scene.mesh
+    [(vbo, identity, idx)] = calls
+    np.testing.assert_array_equal(identity, np.eye(4, dtype=np.float32)[None])
+    np.testing.assert_array_equal(vbo[:, :3], r.vehicles.frame.astype(np.float32))  # this frame's vertices
+    assert idx.dtype == np.int32 and len(idx) % 3 == 0 and idx.max() < len(vbo)
     np.testing.assert_array_equal(img, reference)
 
 
