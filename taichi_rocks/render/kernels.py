@@ -28,7 +28,8 @@ from ..engine.trees import FieldTrees
 from .looks import KEY
 
 __all__ = ["COVERAGE_ONE", "CameraBasis", "Frustum", "Sizing", "Light", "Ground", "Palette", "Buffers", "Bucket",
-           "spread_stride", "empty_key", "key_rgb", "key_depth", "raw_rgb", "is_key", "depth_key", "clear_buffers"]
+           "spread_stride", "empty_key", "key_rgb", "key_depth", "raw_rgb", "is_key", "depth_key", "clear_buffers",
+           "cover_from"]
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 
@@ -56,8 +57,9 @@ Palette = ti.types.struct(ground_a=_vec3, ground_b=_vec3, light=_vec3, sky=_vec3
 @ti.data_oriented
 class Buffers:
     """The fields of the background layer, ``width`` x ``height``: the image (``sky``), the software buffers of
-    the splatted rocks (1 x 1 placeholders unless ``splat``), the rows they touch, the vehicles' shadows, and
-    three counters (rocks compacted for GGUI particles and for meshes, pixels GGUI drew)."""
+    the splatted rocks (1 x 1 placeholders unless ``splat``), the pixels GGUI drew over them (``cover``), the rows
+    they touch, the vehicles' shadows, and three counters (rocks compacted for GGUI particles and for meshes,
+    pixels GGUI drew)."""
 
     def __init__(self, width: int, height: int, splat: bool, max_cars: int, shadows: bool = False,
                  trees: FieldTrees = None):
@@ -78,6 +80,9 @@ class Buffers:
         # ground only: a rock does not shade itself)
         sw, sh = (width, height) if shadows else (1, 1)
         self.shade = t.image(sw, sh, (2, ti.i32))
+        # the pixels GGUI drew, offscreen (cover_from): the rock pass splats nothing there (splat.py Pass)
+        cw, ch = (width, height) if splat or shadows else (1, 1)
+        self.cover = t.image(cw, ch, (1, ti.u8))
         self.rows = t.scalar(ti.i32, 4)  # lowest and highest row a splat touched, and a shadow
         clear_buffers(self)
         # x, y, cos, sin, half length, half width, contact shadow softness, height of the top, and the centre
@@ -157,3 +162,12 @@ def clear_buffers(buf: ti.template()):
         buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
     for i, j in buf.shade:
         buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
+
+
+@ti.kernel
+def cover_from(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), buf: ti.template()):
+    """``buf.cover``: 1 where GGUI's read-back ``raw`` ((W, H, 4) floats, row 0 at the bottom) has a pixel drawn,
+    0 where it left its clear colour."""
+    for x, y in ti.ndrange(buf.cover.shape[0], buf.cover.shape[1]):
+        r, g, b = raw_rgb(raw, x, y)
+        buf.cover[x, y] = ti.u8(0) if is_key(r, g, b) else ti.u8(1)

@@ -55,6 +55,7 @@ import numpy as np
 import taichi as ti
 
 from ..engine import drawing
+from . import kernels as K
 from .buffers import POOL, lease_frame
 from .camera import GL_UP, NEAR, View
 from .culling import RockLayer
@@ -63,6 +64,7 @@ from .looks import AMBIENT, KEY, SUN_COLOR
 from .markmesh import Sight
 from .settings import (DEFAULT_LOD_PIXELS, ROCK_MODES, SHOTS, WINDOW_EVERY, Settings, Views, camera_basis,
                        check_rocks)
+from .splat import ALL, COMPACT, SPLAT
 from .stages import Stages
 from .sunlight import paint_sky_and_ground
 from .vehicles import VehicleLayer
@@ -190,11 +192,12 @@ class Renderer:
         return self.views.sun_direction(heading)
 
     # ------------------------------------------------------------------------------------------------- frame
-    def cull(self, eye, fwd, right, up, sun) -> int:
+    def cull(self, eye, fwd, right, up, sun, part: int = ALL) -> int:
         """Cull the rocks; splat the resting ones ("splat" mode) and compact those GGUI draws into a bucket.
         Return how many GGUI draws (render/culling.py; ``last_count``: as particles, ``tiles_in_view``: the
-        tiles of the store the pass visited)."""
-        return self.rock_layer.cull(self.sim, self.settings, self.views, eye, fwd, right, up, sun)
+        tiles of the store the pass visited). ``part``: all of it, or the compaction or the splats alone
+        (render/splat.py)."""
+        return self.rock_layer.cull(self.sim, self.settings, self.views, eye, fwd, right, up, sun, part)
 
     def render_frame(self, view: View = None):
         """Draw the simulation's current state; return the upright image, (H, W, 3) uint8 (None in a shown
@@ -210,10 +213,14 @@ class Renderer:
         self.inside = self.views.inside_now() if view is None else None
         if view is not None:
             eye, target, fwd, right, up = view[:5]
+        # offscreen, the rock pass splats after GGUI drew, not under what it drew (render/splat.py); with dust,
+        # all before (the dust is depth-tested against the rocks' splats, pixels GGUI drew included)
+        split = not self._win.shown and self.settings.rocks == "splat" and drawing.has_tiles(sim.world) and \
+            "dust" not in sim.plan.effects
         f = SimpleNamespace(eye=eye, target=target, fwd=fwd, right=right, up=up, sun=self.sun_direction(heading),
-                            origin=np.asarray(sim.origin, np.float64))
+                            origin=np.asarray(sim.origin, np.float64), split=split)
         st.lap("camera")
-        self.cull(eye, fwd, right, up, f.sun)
+        self.cull(eye, fwd, right, up, f.sun, COMPACT if split else ALL)
         f.poses = sim.vehicle_poses()
         st.lap("culling")
         if not self._win.shown:  # the dust's puffs, summed while the rocks' depths are there (render/dust.py)
@@ -239,7 +246,7 @@ class Renderer:
                     not self.vehicles.lost(self._raw, eye, fwd, right, up, self.views, self.settings):
                 break
             self.redraws += 1
-            self.cull(eye, fwd, right, up, f.sun)
+            self.cull(eye, fwd, right, up, f.sun, COMPACT if split else ALL)
             st.lap("culling")
             drawn = self._draw_ggui(f)
         self._prev_drawn = drawn
@@ -260,6 +267,10 @@ class Renderer:
         win = self._declare_ggui(f)
         raw = win.window.get_image_buffer_as_numpy()  # (W, H, 4) float32, y up; consumes the frame
         self.stages.lap("readback")
+        if f.split:  # the resting rocks and the shadows, where GGUI drew nothing
+            K.cover_from(raw, self.fields.buf)
+            self.cull(f.eye, f.fwd, f.right, f.up, f.sun, SPLAT)
+            self.stages.lap("culling")
         self._paint(f, (raw, self._out))
         self._raw = raw
         return int(self.fields.buf.drawn_px[None])
