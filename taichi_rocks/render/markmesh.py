@@ -24,7 +24,8 @@ Slots: chip triangle t takes vertices 3t .. 3t+2; after the chips, glass segment
 or the first two of its clipped fan; a fan of fewer is padded with empty triangles); the rare third and further
 triangles of fans clipped at the glass's edges follow all of those, in the segments' order (blocks of BLOCK
 segments count theirs, a serial pass over the blocks adds the counts up: the same buffer however the threads
-run). A segment of a vehicle not drawn (``show`` 0) gives empty triangles.
+run; each segment's clipped ribbon is kept between the two passes). Vehicles out of view and marks seen from
+behind their face (the body hides them) are left out (:meth:`MarkMesh._place`; for chips, empty triangles).
 """
 
 from typing import NamedTuple
@@ -140,6 +141,22 @@ def _clip(poly, m, a, b, c):
 
 
 @ti.func
+def _edge(veh: ti.template(), i, e):
+    """Edge ``e`` (0-3: foot, top, left, right) of vehicle ``i``'s glass, GLASS_EDGE inside, as the half-plane
+    (a, b, c): a y + b v <= c (render/glassmarks.py glass_edges)."""
+    top, base_half, slope = veh[i, 6], veh[i, 7], veh[i, 8]
+    h = ti.sqrt(1.0 + slope * slope)
+    a, b, c = 0.0, -1.0, -GLASS_EDGE
+    if e == 1:
+        a, b, c = 0.0, 1.0, top - GLASS_EDGE
+    elif e == 2:
+        a, b, c = 1.0 / h, -slope / h, base_half / h - GLASS_EDGE
+    elif e == 3:
+        a, b, c = -1.0 / h, -slope / h, base_half / h - GLASS_EDGE
+    return a, b, c
+
+
+@ti.func
 def _ribbon(glass: ti.template(), veh: ti.template(), j, i, look):
     """The ribbon of glass row ``j`` (of vehicle ``i``) clipped to its glass: (corners (8, 2) in glass
     coordinates, how many)."""
@@ -156,12 +173,9 @@ def _ribbon(glass: ti.template(), veh: ti.template(), j, i, look):
         for a in ti.static(range(2)):
             poly[k, a] = corners[k, a]
     m = 4
-    top, base_half, slope = veh[i, 6], veh[i, 7], veh[i, 8]  # glass_edges, GLASS_EDGE inside
-    h = ti.sqrt(1.0 + slope * slope)
-    poly, m = _clip(poly, m, 0.0, -1.0, -GLASS_EDGE)
-    poly, m = _clip(poly, m, 0.0, 1.0, top - GLASS_EDGE)
-    poly, m = _clip(poly, m, 1.0 / h, -slope / h, base_half / h - GLASS_EDGE)
-    poly, m = _clip(poly, m, -1.0 / h, -slope / h, base_half / h - GLASS_EDGE)
+    for e in range(4):  # a loop, not four copies: the kernel compiles in a fraction of the time
+        a, b, c = _edge(veh, i, e)
+        poly, m = _clip(poly, m, a, b, c)
     return poly, m
 
 
@@ -178,54 +192,51 @@ def _slot(rows: ti.template(), veh: ti.template(), j, col, first):
 
 
 @ti.func
-def _fan(vbo: ti.template(), row, poly, t, veh: ti.template(), i, look):
-    """Triangle ``t`` of the fan of ``poly`` (glass coordinates of vehicle ``i``'s windscreen) at vertex ``row``."""
+def _fan(vbo: ti.template(), row, poly, m, t, veh: ti.template(), i, look):
+    """Triangle ``t`` of the fan of ``poly`` (its first ``m`` corners, glass coordinates of vehicle ``i``'s
+    windscreen) at vertex ``row``: an empty triangle if the fan has fewer."""
     side = veh[i, _SIDE] * ti.Vector([veh[i, 4], 0.0, veh[i, 5]])
     for c in ti.static(range(3)):
         k = 0 if c == 0 else t + c
-        _put(vbo, row + c, _place(veh, i, _on_glass(veh, i, poly[k, 0], poly[k, 1]) + side), look.sun,
-             look.glass_rgb)
-
-
-@ti.func
-def _empty(vbo: ti.template(), row, look):
-    for c in ti.static(range(3)):
-        _put(vbo, row + c, ti.Vector([0.0, 0.0, 0.0]), look.sun, look.glass_rgb)
+        p = ti.Vector([0.0, 0.0, 0.0])
+        if t < m - 2:
+            p = _place(veh, i, _on_glass(veh, i, poly[k, 0], poly[k, 1]) + side)
+        _put(vbo, row + c, p, look.sun, look.glass_rgb)
 
 
 @ti.kernel
 def pose_marks(glass: ti.types.ndarray(dtype=ti.f32, ndim=2), chips: ti.types.ndarray(dtype=ti.f32, ndim=2),
                veh: ti.types.ndarray(dtype=ti.f32, ndim=2), vbo: ti.types.ndarray(dtype=ti.f32, ndim=2),
-               blocks: ti.types.ndarray(dtype=ti.i32, ndim=1), span: Span, look: Look):
+               blocks: ti.types.ndarray(dtype=ti.i32, ndim=1), polys: ti.types.ndarray(dtype=ti.f32, ndim=2),
+               span: Span, look: Look):
     """The marks of ``span`` into ``vbo`` (module docstring); ``blocks[n_blocks]`` gets the count of the fans'
-    further triangles."""
+    further triangles; ``polys`` (a row per glass row: 8 corners, their count) keeps the clipped ribbons for them."""
     for j in range(span.nc):
         i, slot = _slot(chips, veh, j, 12, _CHIP)
         if slot >= 0:
             n = ti.Vector([chips[j, 9], chips[j, 10], chips[j, 11]])
             eye = ti.Vector([veh[i, _EYE], veh[i, _EYE + 1], veh[i, _EYE + 2]])
             facing = n.dot(eye - ti.Vector([chips[j, 0], chips[j, 1], chips[j, 2]])) > 0.0 or look.see_through
-            for c in ti.static(range(3)):
-                p = ti.Vector([chips[j, 3 * c], chips[j, 3 * c + 1], chips[j, 3 * c + 2]])
+            for c in range(3):
+                p = ti.Vector([0.0, 0.0, 0.0])  # seen from behind its face (the body hides it): empty
                 if facing:
-                    _put(vbo, 3 * slot + c, _place(veh, i, p), _turn(veh, i, n), look.chip_rgb)
-                else:  # seen from behind its face: the body hides it
-                    _put(vbo, 3 * slot + c, ti.Vector([0.0, 0.0, 0.0]), n, look.chip_rgb)
+                    p = _place(veh, i, ti.Vector([chips[j, 3 * c], chips[j, 3 * c + 1], chips[j, 3 * c + 2]]))
+                _put(vbo, 3 * slot + c, p, _turn(veh, i, n), look.chip_rgb)
     n_blocks = (span.ng + BLOCK - 1) // BLOCK
     base = 3 * span.chip_slots
     for b in range(n_blocks):  # each segment's first two triangles; the blocks count the others
         more = 0
         for j in range(b * BLOCK, ti.min((b + 1) * BLOCK, span.ng)):
             i, slot = _slot(glass, veh, j, 4, _GLASS)
+            m = 0
             if slot >= 0:
                 poly, m = _ribbon(glass, veh, j, i, look)
-                for t in ti.static(range(2)):
-                    row = base + 6 * slot + 3 * t
-                    if t < m - 2:
-                        _fan(vbo, row, poly, t, veh, i, look)
-                    else:
-                        _empty(vbo, row, look)
+                for k, a in ti.ndrange(8, 2):  # kept for the further triangles, below
+                    polys[j, 2 * k + a] = poly[k, a]
+                for t in range(2):
+                    _fan(vbo, base + 6 * slot + 3 * t, poly, m, t, veh, i, look)
                 more += ti.max(m - 4, 0)
+            polys[j, 16] = m
         blocks[b] = more
     ti.loop_config(serialize=True)
     for _ in range(1):  # where each block's further triangles go: the counts added up, in order
@@ -238,11 +249,14 @@ def pose_marks(glass: ti.types.ndarray(dtype=ti.f32, ndim=2), chips: ti.types.nd
     for b in range(n_blocks):
         row = base + 6 * span.glass_slots + 3 * blocks[b]
         for j in range(b * BLOCK, ti.min((b + 1) * BLOCK, span.ng)):
-            i, slot = _slot(glass, veh, j, 4, _GLASS)
-            if slot >= 0:
-                poly, m = _ribbon(glass, veh, j, i, look)
+            m = ti.cast(polys[j, 16], ti.i32)
+            if m > 4:
+                i = ti.cast(glass[j, 4], ti.i32)
+                poly = ti.Matrix.zero(ti.f32, 8, 2)
+                for k, a in ti.ndrange(8, 2):
+                    poly[k, a] = polys[j, 2 * k + a]
                 for t in range(2, m - 2):
-                    _fan(vbo, row, poly, t, veh, i, look)
+                    _fan(vbo, row, poly, m, t, veh, i, look)
                     row += 3
 
 
@@ -290,6 +304,7 @@ class MarkMesh:
         self.identity[0] = np.eye(4, dtype=np.float32)
         self._spill = 3 * BLOCK  # vertices kept for the fans' further triangles (grows with them)
         self._blocks = np.zeros(0, np.int32)  # per block of glass segments, its fans' further triangles
+        self._scratch = None  # the clipped ribbons, between the kernel's passes
         self.drawn = 0  # vertices of the last mesh drawn
 
     def upload(self, store) -> None:
@@ -315,7 +330,8 @@ class MarkMesh:
             self._blocks = np.zeros(_capacity(n_blocks + 1), np.int32)
         while True:
             vbo = host_buffer((_capacity(3 * chip_n + 6 * glass_n + self._spill), VBO_STRIDE), "marks")
-            pose_marks(self.glass.arr, self.chips.arr, self.veh, vbo, self._blocks, span, look)
+            pose_marks(self.glass.arr, self.chips.arr, self.veh, vbo, self._blocks, self._polys(shown.glass), span,
+                       look)
             n = 3 * chip_n + 6 * glass_n + 3 * int(self._blocks[n_blocks])
             if n <= len(vbo):
                 break
@@ -323,6 +339,12 @@ class MarkMesh:
         self.drawn = n
         declare_mesh(scene, vbo[:n], self.identity)
         return n
+
+    def _polys(self, n: int):
+        """The kernel's room for ``n`` clipped ribbons (a device array as large as the glass table's)."""
+        if self._scratch is None or self._scratch.shape[0] < max(n, 1):
+            self._scratch = ti.ndarray(ti.f32, (self.glass.arr.shape[0], 17))
+        return self._scratch
 
     def _place(self, shown, pos, head, sight) -> tuple:
         """Fill the vehicles' rows (VEHICLE_ROW) for this frame: their poses, the eye in each one's body frame,
