@@ -5,9 +5,10 @@ Each frame the renderer hands this layer the simulation (:meth:`HitLayer.update`
 last frame, into :class:`.marks.Hits`, whose time going back hides the hits after it) and then has it declare
 its renderables (:meth:`HitLayer.draw`): the flashes' cores as GGUI particles (lit spheres, in hot colours) and
 their sparks as GGUI lines (unlit, SPARK_PX pixels wide), made anew each frame (render/flashes.py: a flash
-lasts a few frames) straight into GGUI's vertex buffers (render/vbo.py), and the marks: each windscreen mark and paint chip made once, when its hit first shows
-(render/markstore.py), uploaded once (render/markmesh.py) and posed with its vehicle each frame by a kernel, all
-in one mesh. What a frame costs here is what is new, and a parallel pass over the marks shown.
+lasts a few frames) straight into GGUI's vertex buffers (render/vbo.py), and the marks: each windscreen mark and
+paint chip made once, when its hit first shows (render/markstore.py), uploaded once (render/markmesh.py) and
+posed with its vehicle each frame by a kernel, all in one mesh. What a frame costs here is what is new, and a
+parallel pass over the marks shown.
 
 Nothing is allocated or declared before a first hit: a run without impacts draws what it drew before.
 """

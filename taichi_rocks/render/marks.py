@@ -15,7 +15,8 @@ The hits that leave a mark (:meth:`Hits.marks`): chips and cracks on the windscr
 on the painted parts, the bonnet and the front (:data:`PAINTED`; render/paintchips.py). New hits come after the
 ones held (the simulation reports them as it steps), so the state grows at its end; every other change (a hit
 older than the newest sorted in, hits forgotten) is logged in ``changes``: the first of the hits leaving a mark
-that it changed, from which on the marks made of them (render/markstore.py) are made again. Every query of the time shown is a binary search: a frame costs what is new.
+that it changed, from which on the marks made of them (render/markstore.py) are made again. Every query of the
+time shown is a binary search: a frame costs what is new.
 
 A mark's shape is drawn from a hash of (rock, step) (:func:`mark_rng`), so it is the same in every run, and sized
 by its severity s in [0, 1] (:func:`severity`): where the hit's measure (normal energy 1/2 m u_n^2 or normal

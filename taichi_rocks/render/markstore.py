@@ -9,12 +9,12 @@ A mark is rows of one of two tables, in the hit vehicle's body frame, which only
 * ``chips``: the triangles of a paint chip (render/paintchips.py ``paint_chip``), a row each: three corners and
   the face's outward normal, body frame, the vehicle and the rank (:data:`CHIP_ROW`).
 
-The hits are in time order, so the marks shown at time t are the first marks of the store, and their rows the
-first rows of each table (:meth:`MarkStore.shown`, with how many of them each vehicle has): a scrub back shows
-fewer of them and a scrub forward more, with nothing made again. :meth:`MarkStore.sync` makes the marks of the hits shown that it does not hold; when the
-hits changed otherwise (hits forgotten, one older than the newest sorted in: ``Hits.changes``), it keeps its
-marks before the first hit changed and makes the rest again. :meth:`MarkStore.changed_from` tells the
-device's copy (render/markmesh.py) from which rows on to upload.
+The hits are in time order, so the marks shown at time t are the first marks of the store, and their rows the first
+rows of each table (:meth:`MarkStore.shown`, with how many of them each vehicle has): a scrub back shows fewer of
+them and a scrub forward more, with nothing made again. :meth:`MarkStore.sync` makes the marks of the hits shown
+that it does not hold; when the hits changed otherwise (hits forgotten, one older than the newest sorted in:
+``Hits.changes``), it keeps its marks before the first hit changed and makes the rest again.
+:meth:`MarkStore.changed_from` tells the device's copy (render/markmesh.py) from which rows on to upload.
 """
 
 from __future__ import annotations

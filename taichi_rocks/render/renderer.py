@@ -317,7 +317,8 @@ class Renderer:
 
     def close(self) -> None:
         """Release the window and the imgui.ini GGUI left behind, give the buffers back to the pool (the next
-        renderer of their sizes takes them, compiled). It draws no more frames after this; the Simulation stays usable. Closing twice does nothing more."""
+        renderer of their sizes takes them, compiled). It draws no more frames after this; the Simulation stays
+        usable. Closing twice does nothing more."""
         self._win.release()
         POOL.give_back(self.fields, self)
 
