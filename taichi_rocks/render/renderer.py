@@ -35,9 +35,8 @@ GGUI 1.7.4 quirks handled here (see also :mod:`.window`):
   mesh whose vertices and normals are transformed on the host each frame;
 * the image comes back (W, H, 4) float and y-flipped (``get_image_buffer_as_numpy``: GGUI has no 8-bit or
   partial read-back; the ground pass turns it upright, render/ground.py); capture exactly once per frame; a 3D
-  scene leaks ~0.3 MB per captured frame on
-  lavapipe: the window is recreated every ``window_every`` frames (the camera state lives in
-  :class:`.camera.CameraRig` and carries over);
+  scene leaks ~0.3 MB per captured frame on lavapipe: the window is recreated every ``window_every`` frames
+  (the camera state lives in :class:`.camera.CameraRig` and carries over);
 * a plain ``scene.mesh`` now and then vanishes from a frame, and often again when drawn again: Mesh_vk.vert
   takes model = I * (1 - a) + M * a with a = 0 and M read from a buffer GGUI never fills without transforms, and
   NaN or Inf left in that memory survives the ``* 0``. So the vehicles' mesh is a ``mesh_instance`` with one
