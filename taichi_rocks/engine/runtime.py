@@ -14,7 +14,8 @@ import sys
 import taichi as ti
 
 from ..config.arches import ARCHES
-from ..config.environment import PARALLEL_SCAN, THREADS, loops_wanted, parallel_scan_wanted, threads_wanted  # noqa: F401
+from ..config.environment import (PARALLEL_SCAN, THREADS, loops_wanted, parallel_scan_wanted,  # noqa: F401
+                                  threads_wanted)
 from . import frontend
 
 _state: dict = {"arch": None}
@@ -33,7 +34,8 @@ def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
     """
     if arch not in ARCHES:
         raise ValueError(f"arch must be one of {', '.join(ARCHES)}, got {arch!r}")
-    threads_wanted(), parallel_scan_wanted(), loops_wanted()  # a bad value is refused at every start, not only the first
+    # a bad value is refused at every start, not only the first
+    threads_wanted(), parallel_scan_wanted(), loops_wanted()
     warn = warn or (lambda msg: print(f"taichi-rocks: warning: {msg}", file=sys.stderr))
     if _state["arch"] is not None:
         return _state["arch"]
