@@ -27,7 +27,7 @@ game-frames: setup
 	$(PY) examples/panda3d_game.py --offscreen --frames $(GAME_FRAMES) --out $(GAME_OUT) --overwrite
 
 # the suite on TEST_WORKERS processes (pytest-xdist), a test file per process at a time (its module fixtures and
-# pooled Worlds stay together), the slowest files first (tests/conftest.py SLOW_FILES, kept in that order by
+# compiled kernels stay together), the slowest files first (tests/conftest.py SLOW_FILES, kept in that order by
 # --no-loadscope-reorder); each process holds one Taichi runtime. 2 suits a 2-core machine.
 TEST_WORKERS ?= 2
 

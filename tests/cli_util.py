@@ -25,7 +25,7 @@ def cli(*args, cwd=None, timeout=300):
 
 def cli_here(capsys, *args):
     """Run ``taichi-rocks ARGS`` in this process (``taichi_rocks.cli.main``; Taichi already started on the CPU by
-    the ``taichi_cpu`` fixture, pooled Worlds reused): like :func:`cli`, an object with ``returncode``, ``stdout``
+    the ``taichi_cpu`` fixture, kernels compiled once per layout): like :func:`cli`, an object with ``returncode``, ``stdout``
     and ``stderr`` (text), read from ``capsys``, or with ``capsys=None`` (module fixtures) from the redirected
     ``sys.stdout`` and ``sys.stderr``. argparse's own refusals (it exits) give their status too."""
     from taichi_rocks.cli import main

@@ -62,6 +62,6 @@ def scenes_dir():
 @pytest.fixture(scope="module", autouse=True)
 def _release_worlds():
     """After each test module, collect what its tests and fixtures left in reference cycles: their Simulations'
-    Worlds go back to the pool (engine/world.py ``acquire``) for the next modules instead of a new compile."""
+    Worlds and Renderers' buffers are freed (or go back to their pools) before the next modules."""
     yield
     gc.collect()

@@ -45,8 +45,8 @@ def tire_switches(center=True, swept=False, patch=False, ground="bounce", throw=
 
 
 def canonical(k: int, least: int = 64) -> int:
-    """The smallest power of two >= max(k, least): a probe's World sizes, so that probes of nearby sizes share
-    a layout (the World pool then hands one's World, compiled, to the next)."""
+    """The smallest power of two >= max(k, least): a probe's World sizes; its tire count is compile-time (in the
+    World's layout), so that probes of nearby counts share the kernels compiled for one."""
     c = least
     while c < k:
         c *= 2
@@ -96,7 +96,7 @@ class Probe:
         self.swept = swept
         ray_len = float(np.max(np.linalg.norm(rays[:, 1] - rays[:, 0], axis=1))) if len(rays) else 1.0
         n_tires = canonical(len(rays), 4) if len(rays) else 0
-        # from the World pool: a released probe's World of the same layout, zeroed, runs its compiled kernels
+        # a new World, zeroed; the kernels compiled for a probe of the same layout serve it
         self.w = w = acquire(self, cap, real, hash_table=self.table, hash_entries=entries, n_tires=n_tires,
                              ray_capacity=canonical(hashgrid.ray_capacity(ray_len, cell) + 8, 16))
         self.switches = tire_switches(self.center, swept, patch, "bounce", throw, fenders)

@@ -296,7 +296,7 @@ class Viewer:
             self.pending, self.notice, self._notice_shown = None, str(e).splitlines()[0][-80:], False
             return
         keep = rebuilder(self.sim, {})
-        self.sim = self.renderer.sim = None  # the old World goes back to the pool
+        self.sim = self.renderer.sim = None  # the old World goes before the new one is built
         try:
             self.sim = self.renderer.sim = make()
         except (SceneError, ValueError) as e:  # refused by the engine (a body stones would hit, ...): as before

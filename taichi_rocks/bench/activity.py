@@ -38,7 +38,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
-from taichi.lang.util import to_numpy_type
 
 from ..config.presets import PRESETS
 from ..engine import probes
@@ -134,12 +133,8 @@ def proc_memory() -> dict:
 
 
 def field_bytes(world) -> int:
-    """Bytes of every Taichi field of a World (shape x components x element size)."""
-    total = 0
-    for f in world.fields():
-        comps = getattr(f, "n", 1) * getattr(f, "m", 1)
-        total += int(np.prod(f.shape)) * comps * np.dtype(to_numpy_type(f.dtype)).itemsize
-    return total
+    """Bytes of a World's data on the device (its ndarray groups: engine/worlddata.py)."""
+    return world.nbytes()
 
 
 def _memory(sim, base: dict) -> dict:

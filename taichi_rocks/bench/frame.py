@@ -406,7 +406,7 @@ def task_table(res: dict) -> list:
             share = f"{100 * r['share']:.0f} %" if "share" in r else ""
             L.append(f"| {name} | {r['kernel']} | {r['task']} | {r['what']} | {r['kind']} | {r['per_step']:.3g} | "
                      f"{1e3 * r['median_ms']:.3g} | {share} |")
-        if "device_ms_per_step" in v:  # (runs made before the variants have no totals)
+        if "device_ms_per_step" in v:  # (not in results written before the variants existed)
             L.append(f"| {name} | | | device time per step: **{1e3 * v['device_ms_per_step']:.0f} µs**, "
                      f"{v['tasks_per_step']:.3g} tasks ({v.get('parallel_tasks_per_step', 0):.3g} parallel), "
                      f"{v.get('active', 0):,} rocks active | | | | |")

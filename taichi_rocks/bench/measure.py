@@ -4,8 +4,9 @@ Every timing: warm-up (compile) first, then repeated calls with ``ti.sync()`` be
 summarised by the median. Passes inside a real step are timed by the step itself (the engine's timing hook,
 engine/timing.py ``PassTimer``); passes on their own are called through engine/probes.py. A simulation's
 settings change by building a new Simulation from the changed Scene that carries on from a checkpoint of the
-old one (:meth:`Built.rebuild`): the old one is released first, so the World pool gives its fields, and the
-kernels compiled for them, to the new one.
+old one (:meth:`Built.rebuild`): the old one is released first (its World is not held beside the new one), and
+kernels compile once per World layout and switches, so switching back and forth compiles nothing after the
+first time.
 """
 
 from __future__ import annotations
@@ -71,11 +72,11 @@ class Built:
 
     def rebuild(self, scene) -> None:
         """Carry on under a changed scene: a new Simulation of ``scene`` continues from a checkpoint of the
-        current one (same rocks, clock and origin). The current one is released first so that the new one
-        gets its World back from the pool, with the kernels compiled for it. A scene needing other fields
-        (another World layout: with active stepping, switching recycling off changes the tile store's layout)
-        gets a World of that layout, new the first time (allocated and compiled), from the pool after: A/B
-        switches between two layouts compile each once."""
+        current one (same rocks, clock and origin). The current one is released first, so that two Worlds are
+        never held at once (RuntimeError if something else still holds it). Kernels compile once per World
+        layout and switches: a scene needing other fields (another layout: with active stepping, switching
+        recycling off changes the tile store's layout, counted in ``layout_switches``) compiles its kernels
+        the first time, and A/B switches compile each side once."""
         state = self.sim.checkpoint()
         world, timer = self.sim.world, self.sim.timer
         gone = weakref.ref(self.sim)
@@ -83,9 +84,10 @@ class Built:
         if gone() is not None:
             gc.collect()
         if gone() is not None:
-            raise RuntimeError(f"{self.label}: the simulation is still referenced elsewhere; its World is not free")
+            raise RuntimeError(f"{self.label}: the simulation is still referenced elsewhere; its World would stay "
+                               "beside the new one")
         sim = Simulation(scene, arch=self.arch, timer=timer)
-        self.layout_switches = getattr(self, "layout_switches", 0) + (sim.world is not world)
+        self.layout_switches = getattr(self, "layout_switches", 0) + (sim.world.layout != world.layout)
         sim.restore(state)
         self.sim = sim
 

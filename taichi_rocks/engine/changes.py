@@ -32,6 +32,7 @@ import taichi as ti
 
 from .loops import top_loop
 from .params import IPar
+from .view import world_kernel
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -86,7 +87,7 @@ def note(w: ti.template(), i):
                 _list(w, rid)
 
 
-@ti.kernel
+@world_kernel
 def note_listed(w: ti.template(), plan: ti.template()):
     """:func:`note` for every rock of the rock arrays (full stepping, after a step or a coast), in the step's
     variant (``plan``: Switches of ``serial``, engine/loops.py)."""
@@ -95,7 +96,7 @@ def note_listed(w: ti.template(), plan: ti.template()):
         note(w, i)
 
 
-@ti.kernel
+@world_kernel
 def shift_drawn(w: ti.template(), d: vec2, before: vec2, after: vec2, exact: ti.template()):
     """The floating origin moved by ``d`` (XY) from ``before`` to ``after`` (float64, world): every mirror
     position moves as its rock does (kernels.shift_origin, tilestore.shift_store: p - d in the World's precision),
@@ -117,7 +118,7 @@ def shift_drawn(w: ti.template(), d: vec2, before: vec2, after: vec2, exact: ti.
         w.drawn_pos[rid] = q
 
 
-@ti.kernel
+@world_kernel
 def sync_drawn(w: ti.template()):
     """Every rock is in the rock arrays (just loaded): the mirror from them, every id listed."""
     for i in range(w.ipar[IPar.N_ROCKS]):
@@ -127,7 +128,7 @@ def sync_drawn(w: ti.template()):
         _list(w, rid)
 
 
-@ti.kernel
+@world_kernel
 def listed_count(w: ti.template()) -> ti.i32:
     return w.drawn_count[None]
 
@@ -145,7 +146,7 @@ def _packed_row(w: ti.template(), out: ti.template(), j, rid):
             out[j, 5 + c] = ti.cast(q[c], ti.f64)
 
 
-@ti.kernel
+@world_kernel
 def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2)) -> ti.i32:
     """Rows (id, phase, position in the local frame, orientation x, y, z, w with tumbling) of every listed id
     into ``out`` (float64), the flags and the count cleared; returns the count. If ``out`` has fewer rows than
@@ -164,7 +165,7 @@ def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2))
     return k
 
 
-@ti.kernel
+@world_kernel
 def gather(w: ti.template(), k: ti.i32, ints: ti.types.ndarray(ndim=2), reals: ti.types.ndarray(ndim=2)):
     """The first ``k`` listed ids' rows: ``ints[j]`` = (id, phase), ``reals[j]`` = (position in the local frame,
     then the orientation x, y, z, w with tumbling); their flags and the count cleared."""

@@ -8,7 +8,8 @@ Taichi functions over the rocks wherever they are, so that nothing outside engin
   :func:`slot_rocks` rocks in slot t, :func:`slot_bounds` the box every rock of slot t lies in (local frame),
   :func:`slot_rock` its k-th rock.
 
-A rock is (centre, radius) in the kernels' local frame as f32, its phase (engine/rockfields.py codes) and its
+A renderer's kernel over a World is a world kernel (:func:`world_kernel`, engine/view.py: the World's data are
+ndarrays, passed as its arguments). A rock is (centre, radius) in the kernels' local frame as f32, its phase (engine/rockfields.py codes) and its
 id; a listed rock also has an orientation (:func:`listed_orientation`: the engine's with tumbling, the identity
 without; :func:`has_orientations`). Flying rocks are always listed. The tiles' boxes need the floating origin's
 shift in tiles, ``Simulation.tile_shift()`` (zeros without tiles), as an f32 2-vector. :func:`slot_total`
@@ -18,9 +19,10 @@ shift in tiles, ``Simulation.tile_shift()`` (zeros without tiles), as an f32 2-v
 import taichi as ti
 
 from .rockfields import RESTING
+from .view import world_kernel  # noqa: F401 - a renderer's kernels over a World take it as engine/view.py says
 from .world import IPar, Par
 
-__all__ = ["has_tiles", "has_orientations", "slot_total", "listed_count", "listed_rock", "listed_orientation",
+__all__ = ["world_kernel", "has_tiles", "has_orientations", "slot_total", "listed_count", "listed_rock", "listed_orientation",
            "slot_count", "slot_capacity", "slot_rocks", "slot_bounds", "slot_rock"]
 
 
@@ -63,12 +65,12 @@ def listed_orientation(w: ti.template(), i):
 
 @ti.func
 def slot_count(w: ti.template()):
-    return ti.static(w.store_grid * w.store_grid)
+    return w.store_grid * w.store_grid
 
 
 @ti.func
 def slot_capacity(w: ti.template()):
-    return ti.static(w.store_capacity)
+    return w.store_capacity
 
 
 @ti.func
@@ -82,7 +84,7 @@ def slot_bounds(w: ti.template(), t, tiles):
     """Where the rocks of an occupied slot t lie (``tiles``: the origin's shift in tiles, f32 2-vector): their
     centres in the XY box lo .. lo + s (local frame, f32) and, at rest, z in ground .. ground + 2 r_max, radii
     <= r_max. Returns (lo, s, ground, r_max)."""
-    s = ti.static(w.store_tile)
+    s = ti.cast(w.store_tile, ti.f32)
     key = w.ts_key[t]
     lo = (ti.Vector([ti.cast(key[0], ti.f32), ti.cast(key[1], ti.f32)]) - tiles) * s
     return lo, s, ti.cast(w.par[Par.GROUND_Z], ti.f32), ti.cast(w.par[Par.R_MAX], ti.f32)
@@ -91,5 +93,5 @@ def slot_bounds(w: ti.template(), t, tiles):
 @ti.func
 def slot_rock(w: ti.template(), t, k):
     """Rock k (< slot_rocks) of slot t: local centre and radius (f32), phase (resting), id."""
-    j = t * ti.static(w.store_capacity) + k
+    j = t * w.store_capacity + k
     return ti.cast(w.ts_pos[j], ti.f32), ti.cast(w.ts_radius[j], ti.f32), RESTING, w.ts_rock_id[j]

@@ -2,8 +2,9 @@
 device buffer appended atomically from kernels (:class:`EventBuffer`), and its drain to a structured array.
 
 The device layout derives from the declaration: integer fields are columns of one int32 matrix, float fields
-(vectors: one column per component) columns of one matrix in the simulation's precision, placed in trees of one
-element size each (engine/trees.py, FieldTrees: Vulkan packs a tree without alignment). A kernel builds an
+(vectors: one column per component) columns of one matrix in the simulation's precision: in a World, fields of
+its ndarray groups (engine/view.py); a buffer of its own places them in trees of one element size each
+(engine/trees.py, FieldTrees: Vulkan packs a tree without alignment). A kernel builds an
 :meth:`EventBuffer.record` struct by field name and appends it with :func:`append`: a slot from an atomic
 counter; past the capacity the counter still counts, so an overflow is counted and reported by the drain
 (``dropped``), never lost silently. Which events an overflow drops depends on thread timing.
@@ -21,6 +22,7 @@ import taichi as ti
 from ..config.impacts import DAMAGE_CLASSES
 from ..motion.bodies import LABELS
 from .launcher import Launcher
+from .view import world_kernel
 from .runtime import on_cpu
 from .trees import FieldTrees
 
@@ -65,19 +67,34 @@ COLUMNS, N_INT, N_REAL = _columns()
 REF_SPAN = 1.0  # s: the reference time moves at an empty drain only when it lags more than this (float32: 1e-7 s)
 
 
+_RECORDS: dict = {}
+
+
+def record_type(real):
+    """The event as a Taichi struct in precision ``real``, one object per precision: build one in a kernel by
+    keyword and append() it."""
+    key = str(real)
+    if key not in _RECORDS:
+        vec3 = ti.types.vector(3, real)
+        _RECORDS[key] = ti.types.struct(**{name: (vec3 if vector else (ti.i32 if is_int else real))
+                                           for name, is_int, _, _, vector in COLUMNS})
+    return _RECORDS[key]
+
+
 @ti.data_oriented
 class EventBuffer:
     """``capacity`` events on the device, in precision ``real``; ``trees``: the FieldTrees to place the fields in
-    (finalized by their owner), or None for trees of its own; ``fields``: (ints, reals, count), fields already
-    allocated for it (a World's ``ev_ints``, ``ev_reals``, ``ev_count``: engine/world.py field_specs)."""
+    (finalized by their owner), or None for trees of its own; or ``world``: the World whose ``ev_ints``,
+    ``ev_reals``, ``ev_count`` hold them (engine/world.py field_specs; kernels then see them as ``w.events``)."""
 
-    def __init__(self, capacity: int, real, trees=None, fields=None):
+    def __init__(self, capacity: int, real, trees=None, world=None):
         if int(capacity) < 1:
             raise ValueError(f"an event buffer holds at least one event, got capacity {capacity}")
         self.capacity = int(capacity)
         self.real = real
-        if fields is not None:
-            self.ints, self.reals, self.count = fields
+        self.world = world
+        if world is not None:
+            self.ints, self.reals, self.count = world.ev_ints, world.ev_reals, world.ev_count
         else:
             own = trees is None
             trees = FieldTrees() if own else trees
@@ -87,10 +104,7 @@ class EventBuffer:
             if own:
                 trees.finalize()
         self.np_real = np.float64 if real == ti.f64 else np.float32
-        vec3 = ti.types.vector(3, real)
-        members = {name: (vec3 if vector else (ti.i32 if is_int else real))
-                   for name, is_int, _, _, vector in COLUMNS}
-        self.record = ti.types.struct(**members)  # build one in a kernel by keyword and append() it
+        self.record = record_type(real)  # build one in a kernel by keyword and append() it
         self.dropped = 0  # events lost to overflow, over all drains
         self.t_ref = 0.0  # s: device times are relative to this
 
@@ -102,22 +116,27 @@ class EventBuffer:
         if on_cpu():
             host = self.__dict__.get("_host")  # (a data-oriented object: each attribute read costs a microsecond)
             if host is None:
-                host = self._host = (Launcher(_take_all), np.empty((self.capacity, N_INT), np.int32),
+                host = self._host = (Launcher(_take_all if self.world is None else _take_all_world),
+                                     self if self.world is None else self.world,
+                                     np.empty((self.capacity, N_INT), np.int32),
                                      np.empty((self.capacity, N_REAL), self.np_real))
-            appended = int(host[0](self, host[1], host[2]))
+            appended = int(host[0](host[1], host[2], host[3]))
             if appended == 0:  # most drains of a game's frames: nothing to convert or sort, the reference stays
                 if t_now is not None and abs(float(t_now) - self.t_ref) > REF_SPAN:
                     self.t_ref = float(t_now)
                 return np.empty(0, EVENT_DTYPE)
             n = min(appended, self.capacity)
-            ints, reals = host[1][:n], host[2][:n]
+            ints, reals = host[2][:n], host[3][:n]
         else:
             appended = int(self.count[None])
             n = min(appended, self.capacity)
             ints = np.empty((n, N_INT), np.int32)
             reals = np.empty((n, N_REAL), self.np_real)
             if appended:
-                _gather(self, n, ints, reals)
+                if self.world is None:
+                    _gather(self, n, ints, reals)
+                else:
+                    _gather_world(self.world, n, ints, reals)
         self.dropped += appended - n
         if n == 0:  # most drains of a game's frames: nothing to convert or sort, and the reference time stays
             self._move_ref(t_now, False)
@@ -139,12 +158,16 @@ class EventBuffer:
 
     def reset(self, t_now: float = 0.0) -> None:
         """Forget every event and the overflow count (a restart, a restore)."""
-        _clear(self)
+        if self.world is None:
+            _clear(self)
+        else:
+            self.count[None] = 0
         self.dropped, self.t_ref = 0, float(t_now)
 
 
-@ti.kernel
-def _gather(buf: ti.template(), n: ti.i32, ints: ti.types.ndarray(), reals: ti.types.ndarray()):
+@ti.func
+def _rows(buf: ti.template(), n, ints: ti.template(), reals: ti.template()):
+    """Events 0 .. n - 1 of ``buf`` into the host's arrays, the count cleared."""
     for k in range(n):
         for c in ti.static(range(N_INT)):
             ints[k, c] = buf.ints[k, c]
@@ -153,12 +176,13 @@ def _gather(buf: ti.template(), n: ti.i32, ints: ti.types.ndarray(), reals: ti.t
     buf.count[None] = 0
 
 
-@ti.kernel
-def _take_all(buf: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndarray()) -> ti.i32:
+@ti.func
+def _all_rows(buf: ti.template(), ints: ti.template(), reals: ti.template()):
     """Every event kept (at most the capacity) into ``ints`` and ``reals`` (capacity rows each), the count
-    cleared; returns the count appended since the last drain (kept or not)."""
+    cleared; returns the count appended since the last drain (kept or not). One serial task: a frame's few
+    events are less work than a parallel task's start-up."""
     appended = buf.count[None]
-    ti.loop_config(serialize=True)  # a frame's few events: less work than a parallel task's start-up
+    ti.loop_config(serialize=True)
     for k in range(ti.min(appended, buf.capacity)):
         for c in ti.static(range(N_INT)):
             ints[k, c] = buf.ints[k, c]
@@ -166,6 +190,28 @@ def _take_all(buf: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndar
             reals[k, c] = buf.reals[k, c]
     buf.count[None] = 0
     return appended
+
+
+@ti.kernel
+def _gather(buf: ti.template(), n: ti.i32, ints: ti.types.ndarray(), reals: ti.types.ndarray()):
+    _rows(buf, n, ints, reals)
+
+
+@world_kernel
+def _gather_world(w: ti.template(), n: ti.i32, ints: ti.types.ndarray(), reals: ti.types.ndarray()):
+    """A World's events (``w.events``), as :func:`_gather`."""
+    _rows(w.events, n, ints, reals)
+
+
+@ti.kernel
+def _take_all(buf: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndarray()) -> ti.i32:
+    return _all_rows(buf, ints, reals)
+
+
+@world_kernel
+def _take_all_world(w: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndarray()) -> ti.i32:
+    """A World's events (``w.events``), as :func:`_take_all`."""
+    return _all_rows(w.events, ints, reals)
 
 
 @ti.kernel

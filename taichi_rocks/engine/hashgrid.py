@@ -22,6 +22,7 @@ import taichi as ti
 from . import tirerow
 from .loops import top_loop
 from .world import FLYING, MAX_OCC, SCAN_BLOCK, IPar, P1, P2, P3, Par
+from .view import world_kernel
 
 
 @ti.func
@@ -73,7 +74,7 @@ def near_a_tire(w: ti.template(), p, grid_origin):
 def mark_tire_tiles(w: ti.template(), grid_origin):
     """Scope "tires": clear the tile mask, then mark the tiles of every active tire's query region (the XY
     box of its ray at the previous and the current step, grown by the query's reach)."""
-    for tx, ty in w.tile_mask:
+    for tx, ty in ti.ndrange(w.tiles[0], w.tiles[1]):
         w.tile_mask[tx, ty] = 0
     margin = w.par[Par.MARGIN]
     ti.loop_config(serialize=True)
@@ -121,12 +122,12 @@ def clear_all(w: ti.template(), plan: ti.template()):
         w.n_listed[None] = 0
 
 
-@ti.kernel
+@world_kernel
 def clear_counts(w: ti.template()):
     clear_all(w, None)
 
 
-@ti.kernel
+@world_kernel
 def count_all(w: ti.template(), center: ti.template(), gx: ti.f64, gy: ti.f64):
     """Count pass alone (the simulation fuses it into the rock pass; kept for tests and profiling)."""
     g = ti.Vector([ti.cast(gx, w.real), ti.cast(gy, w.real)])
@@ -216,7 +217,7 @@ def block_scan(w: ti.template(), plan: ti.template()):
     w.cell_start[n] = w.cell_start[n - 1]
 
 
-@ti.kernel
+@world_kernel
 def inclusive_scan(w: ti.template()) -> ti.i32:
     """The scan alone; returns the number of (rock, cell) entries."""
     scan_counts(w, None)
@@ -268,7 +269,7 @@ def scatter_item(w: ti.template(), k, center: ti.template()):
         scatter_rock(w, k, center)
 
 
-@ti.kernel
+@world_kernel
 def scatter(w: ti.template(), center: ti.template()):
     scatter_all(w, center)
 

@@ -54,7 +54,7 @@ from ..config.plan import Plan
 from ..config.scene import SceneError
 from ..motion.bodies import body_parts, hexahedron_planes, label_table
 from .events import EVENT_DTYPE, append
-from . import transfer, tumble
+from . import tumble
 from .impacts import bounce, damage_class, stone_mass, surface_velocity, swept_sphere_hull
 from .rockfields import FLYING
 from .world import POSE_ROWS, Par
@@ -161,8 +161,9 @@ def write_bodies(world, bodies: Bodies, tire_vehicle) -> None:
     named = (("tire_vehicle", tv), ("target_vehicle", bodies.vehicle), ("target_parts", bodies.parts),
              ("target_box", bodies.box), ("part_box", bodies.part_box), ("part_planes", bodies.planes),
              ("part_corners", bodies.corners), ("part_labels", bodies.labels), ("part_split", bodies.split))
-    # one launch for the nine fields (engine/transfer.py), in their dtypes: the bits of from_numpy
-    transfer.put_whole([getattr(world, name) for name, _ in named], [a for _, a in named], world.np_real())
+    for name, a in named:  # in their dtypes: the bits of from_numpy
+        f = getattr(world, name)
+        f.from_numpy(np.asarray(a).astype(f.np_dtype).reshape(f.shape + ((f.n,) if f.n > 1 else ())))
 
 
 def pose_rows(prev, cur, targets, shift) -> np.ndarray:

@@ -3,8 +3,8 @@
 Every kernel takes the World ``w`` and, where it has compile-time switches, the Plan's switches it reads
 (``plan``: a :class:`Switches`, one ``ti.template()`` argument) as ``ti.static(plan.flight)``: passes a plan
 leaves out are not compiled. The Plan is the one switch mechanism: the World holds fields and their layout
-only, so scenes that differ in a switch (an integrator, the launch model, the fenders, ...) share a World from
-the pool and compile only the kernels that read it.
+only, so scenes that differ in a switch (an integrator, the launch model, the fenders, ...) have one World
+layout and compile only the kernels that read it.
 Points and displacements in the bed's local frame (world = origin + local) come as 2-vectors of float64, cast
 to the World's precision: ``ti.types.vector(2, ti.f64)`` arguments, except in
 ``rock_pass``, launched every step, which takes its four as one array of 2-vectors (``frame``, rows CENTRE,
@@ -22,6 +22,7 @@ from .flight import fly
 from .impact_pass import hit_bodies
 from .loops import top_loop
 from .world import FLYING, RAY_FIELDS, RESTING, IPar, Par, tmp_name
+from .view import world_kernel
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -176,7 +177,7 @@ def impacts_loop(w: ti.template(), plan: ti.template(), fr, step, hash_flying: t
         rock_tail(w, plan, i, FLYING, fr, step, hash_flying)
 
 
-@ti.kernel
+@world_kernel
 def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
               frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32):
     """Pass 1 fused: flight, recycling, counting for the hash (``plan.splash``), one read of each rock per step;
@@ -201,7 +202,7 @@ def rock_pass(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtyp
         impacts_loop(w, plan, fr, step, True, frame, BODIES)
 
 
-@ti.kernel
+@world_kernel
 def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, centre: vec2, lead: vec2,
                step0: ti.i32):
     """``n`` steps of pass 1 in one launch, for when nothing outside a rock can change it: every vehicle that
@@ -229,7 +230,7 @@ def coast_pass(w: ti.template(), plan: ti.template(), n: ti.i32, dt: ti.f64, cen
                     break
 
 
-@ti.kernel
+@world_kernel
 def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
     """Passes after the rock pass, in one launch: scan, scatter, the tire pass (its ray cells, claims and
     launches; the rocks launched stay on the device, ``tire_counts[LAUNCHED]``), and clearing the counts for
@@ -239,7 +240,7 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
     hashgrid.clear_all(w, plan)
 
 
-@ti.kernel
+@world_kernel
 def shift_origin(w: ti.template(), shift: vec2):
     """Move the local frame's origin by ``shift`` (XY): every rock's local position moves by -shift."""
     d = ti.Vector([ti.cast(shift[0], w.real), ti.cast(shift[1], w.real), 0.0])
@@ -247,7 +248,7 @@ def shift_origin(w: ti.template(), shift: vec2):
         w.pos[i] -= d
 
 
-@ti.kernel
+@world_kernel
 def reorder_rocks(w: ti.template()):
     """Re-sort the rocks in memory by hash slot after a scatter of every rock (centre insert: ``entries[k]`` is
     the rock at place k): every carried rock field (engine/rockfields.py) through its buffer, then ``entries``
@@ -264,7 +265,7 @@ def reorder_rocks(w: ti.template()):
         w.entries[k] = k
 
 
-@ti.kernel
+@world_kernel
 def count_flying(w: ti.template()) -> ti.i32:
     """Rocks of the rock arrays (the active list with active stepping: rocks in the tiles rest) in flight."""
     n = 0
@@ -274,7 +275,7 @@ def count_flying(w: ti.template()) -> ti.i32:
     return n
 
 
-@ti.kernel
+@world_kernel
 def health(w: ti.template(), plan: ti.template(), centre: vec2, slack: ti.f64):
     """Count bad rocks into ``w.health_out``: non-finite state [0], outside the bed [1] (checked with
     recycling), below the ground [2] (checked with ground contact); the smallest index of a bad rock of each

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 from taichi._lib import core as _ti_core
 from taichi.lang import impl
+from taichi.lang._ndarray import Ndarray
 from taichi.types import ndarray_type, primitive_types
 from taichi.types.annotations import template
 
@@ -50,6 +51,27 @@ def _kind(annotation):
     return _OTHER
 
 
+def _array_key(v):
+    """A cheap key of what an array argument's compiled instance depends on: a NumPy array's dtype and rank, a
+    device array's features (:func:`_features`, kept on the array once made)."""
+    if type(v) is np.ndarray:
+        return (v.dtype.num, v.ndim)
+    key = getattr(v, "_launch_key", None)
+    if key is None:
+        key = _features(v) if isinstance(v, Ndarray) else id(type(v))
+        try:
+            v._launch_key = key
+        except AttributeError:
+            pass
+    return key
+
+
+def _features(v) -> tuple:
+    """What a compiled kernel is specialised on of a device array argument (Taichi's own key: its element type,
+    dimensions and element shape): another array of the same features runs the same compiled kernel."""
+    return (str(v.dtype), len(v.shape), tuple(v.element_shape), v.layout)
+
+
 def _getter(ret):
     """The launch context's reader of a kernel's one returned scalar, as Taichi reads it (None: no value;
     _OTHER: another kind of return, Taichi's own path)."""
@@ -69,7 +91,7 @@ class _Bound:
     """The compiled instance of one set of template arguments, its launch context and what the arrays it was
     built with were (dtype, rank): a call with others takes Taichi's own path."""
 
-    __slots__ = ("t_kernel", "ckd", "ctx", "prog", "arrays", "key", "templates")
+    __slots__ = ("t_kernel", "config", "caps", "ctx", "prog", "arrays", "key", "templates", "last")
 
 
 class Launcher:
@@ -79,6 +101,8 @@ class Launcher:
 
     def __init__(self, kernel):
         self.kernel = kernel
+        # a world kernel (engine/view.py) takes the World as its layout and groups: expanded before the launch
+        self._expand = getattr(kernel, "expand", None)
         self._primal = getattr(kernel, "_primal", None)  # None: not a Taichi kernel (a wrapper): called as it is
         self._plan = None  # per argument: its kind (None: template), built at the first call
         self._bound: dict = {}
@@ -86,22 +110,26 @@ class Launcher:
     def __call__(self, *args):
         if self._primal is None or not on_cpu():
             return self.kernel(*args)
+        if self._expand is not None:
+            args = self._expand(args)
         if self._plan is None:
             self._plan = tuple(_kind(a.annotation) for a in self._primal.arguments)
             self._templates = tuple(i for i, k in enumerate(self._plan) if k is None)
+            self._arrays = tuple(i for i, k in enumerate(self._plan) if k == _ARRAY)
             self._ret = _getter(self._primal.return_type)
             self._supported = (_OTHER not in self._plan and len(self._plan) == len(args)
                                and self._primal.autodiff_mode == _ti_core.AutodiffMode.NONE
                                and self._ret is not _OTHER)
         if not self._supported or len(args) != len(self._plan):
-            return self.kernel(*args)
-        tkey = tuple(id(args[i]) for i in self._templates)
+            return self._primal_call(args)
+        # one compiled instance per template arguments and arrays' features (Taichi's key): one bound context each
+        tkey = tuple(id(args[i]) for i in self._templates) + tuple(_array_key(args[i]) for i in self._arrays)
         b = self._bound.get(tkey)
         if b is None or self._primal.compiled_kernels.get(b.key) is not b.t_kernel \
                 or impl.get_runtime().prog is not b.prog:
             b = self._bind(args, tkey)
             if b is None:
-                return self.kernel(*args)
+                return self._primal_call(args)
         ctx = b.ctx
         slot = 0
         arrays = b.arrays
@@ -115,17 +143,31 @@ class Launcher:
                 ctx.set_arg_float((slot,), float(v))
             else:
                 want = arrays[slot]
-                if type(v) is not np.ndarray or v.dtype != want[0] or v.ndim != want[1] \
-                        or not v.flags.c_contiguous:
-                    return self.kernel(*args)
-                shape = v.shape if want[2] == 0 else v.shape[:-want[2]]
-                ctx.set_arg_external_array_with_shape((slot,), int(v.ctypes.data), v.nbytes, shape, 0)
+                if want[0] == "ndarray":  # a device array (a World's group): one of the features compiled for
+                    if v is not b.last.get(slot) and (not isinstance(v, Ndarray) or _features(v) != want[1]):
+                        return self._primal_call(args)
+                    # set at every launch: Taichi's launch turns the array's handle in the context into its
+                    # address in place, so a context launched once no longer holds the handle
+                    ctx.set_arg_ndarray((slot,), v.arr)
+                    b.last[slot] = v
+                else:
+                    if type(v) is not np.ndarray or v.dtype != want[0] or v.ndim != want[1] \
+                            or not v.flags.c_contiguous:
+                        return self._primal_call(args)
+                    shape = v.shape if want[2] == 0 else v.shape[:-want[2]]
+                    ctx.set_arg_external_array_with_shape((slot,), int(v.ctypes.data), v.nbytes, shape, 0)
             slot += 1
-        b.prog.launch_kernel(b.ckd, ctx)
+        # the compiled code asked for at every launch, as Taichi's call does (a cache lookup): Taichi hands a
+        # reference into its cache, which another kernel's compile may move, so it is never kept
+        b.prog.launch_kernel(b.prog.compile_kernel(b.config, b.caps, b.t_kernel), ctx)
         if self._ret is None:
             return None
         b.prog.synchronize()
         return self._ret(ctx, (0,))
+
+    def _primal_call(self, args):
+        """Taichi's own call (``args`` already expanded for a world kernel)."""
+        return (self.kernel.kernel if self._expand is not None else self.kernel)(*args)
 
     def _bind(self, args, tkey):
         """Compile (or find) the instance of these template arguments, as Taichi's call does, and make its
@@ -136,8 +178,9 @@ class Launcher:
         b.key = key
         b.t_kernel = prim.compiled_kernels[key]
         b.prog = impl.get_runtime().prog
-        b.ckd = b.prog.compile_kernel(b.prog.config(), b.prog.get_device_caps(), b.t_kernel)
+        b.config, b.caps = b.prog.config(), b.prog.get_device_caps()
         b.ctx = b.t_kernel.make_launch_context()
+        b.last = {}  # slot -> the device array set there last (kept alive: the context points into it)
         arrays = {}
         slot = 0
         for i, kind in enumerate(self._plan):
@@ -145,15 +188,19 @@ class Launcher:
                 continue
             if kind == _ARRAY:
                 v = args[i]
-                if type(v) is not np.ndarray:
+                if isinstance(v, Ndarray):
+                    arrays[slot] = ("ndarray", _features(v))
+                elif type(v) is not np.ndarray:
                     return None
-                needed = prim.arguments[i].annotation
-                element = 0
-                if needed.dtype is not None and id(needed.dtype) not in primitive_types.type_ids:
-                    element = needed.dtype.ndim
-                arrays[slot] = (v.dtype, v.ndim, element)
+                else:
+                    needed = prim.arguments[i].annotation
+                    element = 0
+                    if needed.dtype is not None and id(needed.dtype) not in primitive_types.type_ids:
+                        element = needed.dtype.ndim
+                    arrays[slot] = (v.dtype, v.ndim, element)
             slot += 1
         b.arrays = arrays
-        b.templates = tuple(args[i] for i in self._templates)  # alive while bound: their ids stay theirs
+        # alive while bound: their ids stay theirs (and a World's groups, checked by identity)
+        b.templates = tuple(args[i] for i in self._templates)
         self._bound[tkey] = b
         return b

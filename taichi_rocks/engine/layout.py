@@ -1,7 +1,7 @@
 """The World a scene needs: its layout (sizes of the hash, the tire mask, the rays and the tile store; the rock
 fields of its Plan and stepping mode) and what that costs in memory, from one list of fields.
 
-:func:`world_layout` is what Simulation allocates with (engine/world.py ``acquire``); :func:`estimate_memory`
+:func:`world_layout` is what Simulation allocates with (engine/world.py ``acquire``: a new World); :func:`estimate_memory`
 adds up the same fields (``world.field_specs``: rock fields from engine/rockfields.py, tile store, hash, rays,
 counters, the bodies and the event buffer of impacts), so the estimate is the bytes the World's fields take and cannot go stale when a field is added.
 Only the hash's entry capacity with AABB insert depends on the rocks' radii: the estimate draws them from the
@@ -26,12 +26,13 @@ import numpy as np
 from ..config.plan import Plan
 from ..config.scene import SceneError
 from . import hashgrid
-from .active import store_sizing
+from .tiles import store_sizing
 from .effects import effect_specs
 from .impact_pass import body_table, event_capacity
 from .rockfields import present
 from .setup import hash_sizing, initial_rocks
 from .world import field_specs, scan_in_parallel
+from .worlddata import Placement
 
 __all__ = ["world_layout", "estimate_memory", "memory_problem", "check_fits", "physical_memory", "n_tires_of",
            "demand_key", "frame_bytes", "frame_problem", "check_machine"]
@@ -64,12 +65,21 @@ def world_layout(scene, plan, radius) -> tuple[dict, object]:
 
 
 def estimate_memory(scene) -> int:
-    """Bytes of every Taichi field of the scene's World (see the module docstring)."""
-    return sum(_field_bytes(scene).values())
+    """Bytes of the scene's World on the device (see the module docstring): its groups as the World allocates
+    them (engine/worlddata.py Placement: the fields, their table, row alignment) and the optional effects'
+    fields."""
+    world, effects, real = _specs(scene)
+    return Placement(world, {}, {}).nbytes(real) + sum(s.nbytes(real) for s in effects)
 
 
 def _field_bytes(scene) -> dict:
-    """Bytes of each Taichi field of the scene's World, by field name."""
+    """Bytes of each field of the scene's World, by field name."""
+    world, effects, real = _specs(scene)
+    return {s.name: s.nbytes(real) for s in world + effects}
+
+
+def _specs(scene) -> tuple:
+    """The fields of the scene's World (world.field_specs), its effects' and its precision."""
     plan = Plan.from_scene(scene)
     n = int(scene.bed.rocks)
     if plan.splash and not plan.center and n > EXACT_UP_TO:  # AABB entries: extrapolated from evenly spaced radii
@@ -85,8 +95,7 @@ def _field_bytes(scene) -> dict:
         layout, _ = world_layout(scene, plan, radius)
     real = "f64" if scene.sim.precision == "f64" else "f32"
     # the optional effects' pools (engine/effects/); the scan's block sums where it runs in parallel (off the CPU)
-    specs = field_specs(n, real, parallel_scan=scan_in_parallel(), **layout) + effect_specs(scene, plan)
-    return {s.name: s.nbytes(real) for s in specs}
+    return field_specs(n, real, parallel_scan=scan_in_parallel(), **layout), effect_specs(scene, plan), real
 
 
 STORE_PER_ROCK = 16  # tile-store slots per rock beyond which the bed's size, not the rock count, is to blame

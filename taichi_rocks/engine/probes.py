@@ -19,7 +19,8 @@ or reaches into a Simulation.
 The pass-level probes take the rocks from the World's rock arrays: they need ``[sim] stepping = "full"``
 (every rock in those arrays) and raise ValueError otherwise; :func:`set_flying` works in both modes.
 Whole steps are timed by the step itself (engine/timing.py); settings change by building a Simulation from a
-changed Scene (the World pool, engine/world.py ``acquire``, hands a released World back without recompiling).
+changed Scene (kernels compile once per World layout and switches: a Simulation of a layout and switches seen
+before compiles nothing).
 """
 
 from __future__ import annotations

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import transfer
 from .rockfields import ID
 
 __all__ = ["initial_arrays", "read_listed", "read_stored", "in_id_order", "write", "checkpoint_fields",
@@ -43,21 +42,9 @@ def initial_arrays(w, n: int, given: dict) -> dict:
     return out
 
 
-def _group(w, stored: bool) -> tuple:
-    """The saved rock fields of ``w`` (of its tile store if ``stored``: the stored ones) as one transfer group
-    (engine/transfer.py: one launch each way, one compile per World), made once per World."""
-    groups = w.__dict__.setdefault("_transfer_groups", {})
-    if stored not in groups:
-        fs = [f for f in saved_fields(w) if f.stored or not stored]
-        fields = [getattr(w, f.store_name if stored else f.name) for f in fs]
-        groups[stored] = (fs, transfer.Group(fields, [f.dtype == "real" for f in fs], w.np_real()))
-    return groups[stored]
-
-
 def read_listed(w, m: int) -> dict:
     """The saved rock fields of the first ``m`` entries of the World's rock arrays (memory order)."""
-    fs, g = _group(w, False)
-    return {f.name: a for f, a in zip(fs, transfer.take(g, m))}
+    return {f.name: getattr(w, f.name).read(0, m) for f in saved_fields(w)}
 
 
 def read_stored(w) -> dict:
@@ -67,12 +54,10 @@ def read_stored(w) -> dict:
     cap = w.store_capacity
     taken = (np.arange(cap)[None, :] < counts[:, None]).ravel()
     k = int(taken.sum())
-    fs, g = _group(w, True)
-    got = dict(zip((f.name for f in fs), transfer.take(g, len(taken))))
     out = {}
     for f in saved_fields(w):
         if f.stored:
-            out[f.name] = got[f.name][taken]
+            out[f.name] = getattr(w, f.store_name).read(0, len(taken))[taken]
         else:
             out[f.name] = np.full((k,) + ((f.n,) if f.n > 1 else ()), f.rest, w.np_dtype(f))
     return out
@@ -96,15 +81,13 @@ def in_id_order(n: int, *pieces: dict) -> dict:
 def write(w, arrays: dict, n: int) -> None:
     """Rocks 0 .. n-1 (``arrays``: saved field name -> id-ordered array, the id included) into the World's rock
     arrays, each padded to the World's capacity with its field's padding value."""
-    fs, g = _group(w, False)
-    cap = getattr(w, fs[0].name).shape[0]
-    out = []
-    for f in fs:
+    for f in saved_fields(w):
+        field = getattr(w, f.name)
+        cap = field.shape[0]
         a = np.asarray(arrays[f.name])[:n]
         if len(a) < cap:  # an empty World has one padding slot
             a = np.concatenate([a, np.full((cap - len(a),) + a.shape[1:], f.pad, a.dtype)])
-        out.append(a.astype(w.np_dtype(f)))
-    transfer.put(g, out, cap)
+        field.write(0, a.astype(w.np_dtype(f)))
 
 
 def checkpoint_fields(w, rock_arrays: dict, n: int) -> dict:

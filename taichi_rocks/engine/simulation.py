@@ -1,6 +1,6 @@
 """The simulation's public face: a Scene in, steps, the rocks out (``state``, ``rock_arrays``, checkpoints).
 
-``Simulation`` builds the World of the scene's layout (engine/layout.py, engine/world.py: pooled per layout),
+``Simulation`` builds the World of the scene's layout (engine/layout.py, engine/world.py: its data in a few ndarrays),
 the host state and the host side of a step (engine/host.py) and the stepper of its stepping mode
 (engine/steppers.py, chosen once), then a step is:
   1. the host side: clock, poses at t + dt, the bed following its vehicle, the floating origin, the tire rays
@@ -30,18 +30,16 @@ from ..config.scene import SceneError, load_scene, scene_with
 from ..motion.live import drive_pose
 from ..motion.vehicles import Fleet
 from . import arguments, changes, drives, rocks
-from .records import Changes, Checkpoint, State
-from .rocks import state_arrays
 from .effects import Effects
-from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
 from .livesteps import LiveHostSide
 from .kernels import count_flying, shift_origin
 from .launcher import Launcher
 from .layout import check_fits, world_layout
-from .rockfields import ID
-from .runtime import init_taichi, on_cpu
+from .runtime import init_taichi
+from .simreads import Reads
+from .simsaves import HealthError, Saves
 from .setup import initial_orientations, initial_rocks, scene_params
 from .steppers import stepper_for
 from .timing import NO_TIMER
@@ -50,11 +48,7 @@ from .world import Par, World, acquire
 __all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "LOOKAHEAD", "HealthError", "Simulation", "shift_origin"]
 
 
-class HealthError(RuntimeError):
-    """The runtime guard found a rock in an impossible state."""
-
-
-class Simulation:
+class Simulation(Reads, Saves):
     """A bed of rocks following a vehicle, with the rear tires of the splashing vehicles throwing rocks.
 
     Build one from a scene, move it forward in time, read what happened::
@@ -64,8 +58,8 @@ class Simulation:
         hits = sim.impacts()        # stones that hit a vehicle since the last call
         state = sim.state()         # every rock, world coordinates
 
-    How a step runs: the module docstring. A Simulation that is no longer referenced hands its Taichi fields
-    (and so its compiled kernels) to the next one of the same layout (engine/world.py ``acquire``).
+    How a step runs: the module docstring. Its kernels compile once per World layout and switches, not per
+    Simulation (engine/view.py): a second one of the same switches and another rock count compiles nothing.
 
     Args:
         scene: a validated ``Scene`` (``load_scene``, ``parse_scene``, ``scene_with``).
@@ -169,8 +163,8 @@ class Simulation:
             raise SceneError([problem])
 
     def _allocate(self, radius: np.ndarray) -> World:
-        """The World of this scene's layout (a released one from the pool if there is one), sized for the
-        rocks' radii ``radius``; sets the hash sizes (``_sizing``, ``table_size``)."""
+        """A new World of this scene's layout, sized for the rocks' radii ``radius``; sets the hash sizes
+        (``_sizing``, ``table_size``)."""
         p = self.plan
         layout, self._sizing = world_layout(self.scene, p, radius)
         self.table_size = self._sizing.table
@@ -406,256 +400,3 @@ class Simulation:
         if self._impacts is not None:
             self._impacts.after_step(self._host.step_count, self._host.time)
         self._effects.after_step(self._host, self.dt if dt is None else float(dt))
-
-    # ------------------------------------------------------------------------------------------ impacts
-    def impacts(self) -> np.ndarray:
-        """The impact events since the last call (all of them the first time), a structured array of
-        engine/events.py ``EVENT_DTYPE`` in (step, rock, vehicle) order: time, step, vehicle, part (an index into
-        ``motion.bodies.LABELS``), damage (into ``DAMAGE_CLASSES``), point and normal (the hit vehicle's frame),
-        speed, normal_speed, normal_momentum, energy, radius, rock, thrower. A game loop calls it every frame.
-
-        Returns:
-            The events as a structured NumPy array (empty without ``[effects] impacts``). Events lost to a full
-            buffer are counted in ``impacts_dropped``.
-        """
-        if self._impacts is None:
-            return np.empty(0, EVENT_DTYPE)
-        return self._impacts.take(self.time)
-
-    @property
-    def impacts_dropped(self) -> int:
-        """Events lost so far: more between two drains than the device buffer holds ([impacts] capacity), or more
-        than the host keeps waiting for ``impacts()`` (engine/impact_pass.py KEEP)."""
-        return 0 if self._impacts is None else self._impacts.dropped
-
-    def effect_arrays(self) -> dict:
-        """What the optional effects that run ([effects], config/effects/) hold now, by effect name: dust's
-        "positions" (K, 3) world m and "opacity" (K,) in (0, 1]. Empty when none runs.
-
-        Returns:
-            A dict of dicts of NumPy arrays.
-        """
-        return self._effects.arrays(self.origin)
-
-    # ------------------------------------------------------------------------------------------ rocks
-    def rock_arrays(self) -> dict:
-        """Every rock's fields in id order, wherever the rock is (active list or tiles): every rock field the
-        checkpoints carry (engine/rockfields.py) but the id: "pos" (local frame), "vel", "radius", "friction"
-        (the World's precision), "phase", "hit_step" (splashing scenes: the step it was last launched at,
-        -1 if never), and with tumbling (``tumble``) "spin" (rad/s) and "orient" (quaternions x, y, z, w).
-
-        Returns:
-            A dict of NumPy arrays, one row per rock (N rows), by rock id.
-        """
-        return self._stepper.rock_arrays()
-
-    def set_rocks(self, ids, positions=None, velocities=None, phase=None, **fields) -> None:
-        """Set rocks ``ids``' positions (world coordinates, m), velocities (m/s) and phases (engine/world.py
-        codes), or any rock field by its name (``fields``; "pos" in the local frame), whichever are given, in
-        either stepping mode (tests and probes put rocks in flight this way; O(N): every rock is reloaded).
-
-        Args:
-            ids: rock ids (an int or an array of them).
-            positions: (len(ids), 3) world coordinates, m, or None.
-            velocities: (len(ids), 3) m/s, or None.
-            phase: phase codes (0 resting, 1 flying, 2 sliding), or None.
-            **fields: any rock field of ``rock_arrays()`` by its name, one value per id or one for all.
-
-        Raises:
-            TypeError: ids that are not whole numbers, values that are not numbers, a field this simulation has not.
-            ValueError: an id outside 0 .. N-1 or given twice, values of the wrong shape, or values no rock can
-                have (not finite, a radius <= 0, a phase code that is none, ...; engine/arguments.py). Nothing is
-                set then.
-        """
-        r = self.rock_arrays()
-        given = {name: (name, value) for name, value in fields.items()}
-        for name, field, value in (("positions", "pos", positions), ("velocities", "vel", velocities),
-                                   ("phase", "phase", phase)):
-            if value is not None:
-                given[name] = (field, value)
-        ids, values = arguments.rock_values(r, self.n_rocks, ids, given, self.origin, len(self.scene.vehicles))
-        for field, v in values.items():
-            r[field][ids] = v
-        r[ID] = np.arange(self.n_rocks, dtype=np.int32)
-        self._stepper.load(r)
-        self._stepper.sync_drawn()
-
-    def state(self, rocks: bool = True) -> dict:
-        """The current state of every rock and vehicle, rocks in their original order (by rock id). It reads the
-        whole bed from the device: for a check or a save, not for every frame of a game.
-
-        Args:
-            rocks: False leaves out the rocks' arrays (nothing is read from the device): the clock, the bed and
-                the vehicles alone, for a reader that takes the rocks from ``changes()``.
-
-        Returns:
-            A :class:`~taichi_rocks.engine.records.State` (its fields and their units: docs/records.md): "time"
-            (s), "step", "positions" (N, 3) float64 world m, "velocities" (N, 3) m/s, "radii" (N,) m, "phase" (N,)
-            int8 (0 resting, 1 flying, 2 sliding), with tumbling "angular_velocities" and "orientations"
-            (quaternions x, y, z, w), "bed_center" (3,), "vehicle_positions" (V, 3), "vehicle_headings" (V,) rad,
-            "vehicle_names" (V,), "launches_total", "recycles_total". Read as attributes (``st.positions``) or
-            as a dict (``st["positions"]``, ``st.as_dict()``).
-        """
-        poses = self._host.poses
-        return State.with_rocks(
-            state_arrays(self.world, self.rock_arrays(), self.origin) if rocks else {},
-            time=self.time, step=self.step_count, bed_center=self.bed_center.copy(),
-            vehicle_positions=np.array([p.position for p in poses]).reshape(-1, 3),
-            vehicle_headings=np.array([p.heading for p in poses]),
-            vehicle_names=np.array(self.fleet.names),
-            launches_total=self.launches_total, recycles_total=self.recycles_total)
-
-    def changes(self, velocities: bool = False) -> dict:
-        """The rocks whose drawn state changed since the previous call (every rock the first time, and after
-        ``restore`` or ``set_rocks``), one row per rock, in no particular order.
-
-        Args:
-            velocities: also give each row's velocity ("velocities", m/s, as ``state()``), read from the rocks
-                that move (the active list: O(rocks in it); every rock with full stepping).
-
-        Returns:
-            A :class:`~taichi_rocks.engine.records.Changes`, arrays with one row per rock: "ids" (int32), "positions" (float64, world coordinates: the
-            numbers ``state()`` gives), "phase" (int8) and, when the simulation tumbles, "orientations"
-            (quaternions x, y, z, w, as ``rock_arrays()["orient"]``). Applied to a mirror of the bed
-            (``mirror[ids] = positions``), the rows reproduce ``state()`` exactly at every call.
-
-        Its cost follows the rows it returns, not the bed (engine/changes.py). Needs ``track_changes`` (the
-        default). Example::
-
-            sim = Simulation.from_scene("scenes/convoy.toml")
-            for f in range(600):
-                sim.advance_to(f / 60)
-                rows = sim.changes()
-                positions[rows["ids"]] = rows["positions"]
-        """
-        if not self.plan.drawn:
-            if self.n_rocks:
-                raise RuntimeError("changes() needs a Simulation made with track_changes=True")
-            return self._rows(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 4)))
-        w = self.world
-        if not on_cpu():  # a device: the count, then exactly its rows back to the host
-            k = int(changes.listed_count(w))
-            ints = np.empty((k, 2), np.int32)
-            reals = np.empty((k, 7 if self.plan.spin else 3), w.np_real())
-            if k:
-                changes.gather(w, k, ints, reals)
-            return self._rows(ints[:, 0], ints[:, 1], reals[:, :3], reals[:, 3:], velocities)
-        buf = self._changes_buf  # the CPU: one launch writing into this array in place
-        k = int(self._gather(w, buf))
-        if k > len(buf):
-            buf = self._changes_buf = np.empty((max(k, 2 * len(buf)), buf.shape[1]))
-            self._gather(w, buf)
-        return self._rows(buf[:k, 0], buf[:k, 1], buf[:k, 2:5], buf[:k, 5:9], velocities)
-
-    def _rows(self, ids, phase, local, orient, velocities: bool = False) -> Changes:
-        ids = ids.astype(np.int32)
-        return Changes(ids=ids, positions=np.add(local, self.origin, dtype=np.float64), phase=phase.astype(np.int8),
-                       orientations=orient.astype(self.world.np_real()) if self.plan.spin else None,
-                       velocities=self._stepper.velocities_of(ids) if velocities else None)
-
-    # ------------------------------------------------------------------------------------------ checkpoints
-    def checkpoint(self) -> dict:
-        """Everything needed to continue bit-identically: every rock's fields in id order (the same for both
-        stepping modes: a checkpoint of one restores into the other), clock, origin. The events recorded so far
-        are drained first (a checkpoint holds none: a restore records the steps after it again).
-
-        Returns:
-            A :class:`~taichi_rocks.engine.records.Checkpoint` for ``restore``: NumPy arrays and scalars that
-            read as a dict (``np.savez(path, **cp)`` stores it; ``restore`` takes it or the file's ``np.load``).
-        """
-        if self._impacts is not None:
-            self._impacts.drain(self.time)
-        return Checkpoint(rock_fields=rocks.checkpoint_fields(self.world, self.rock_arrays(), self.n_rocks),
-                          **self._host.saved(), launches=np.int64(self.launches_total),
-                          recycles=np.int64(self.recycles_total), impacts_dropped=np.int64(self.impacts_dropped),
-                          scene=np.array(self.scene.name), seed=np.int64(self.scene.seed),
-                          rocks=np.int64(self.n_rocks), effects=self._effects.saved() or None,
-                          drives=drives.saved(self.fleet, self.time))
-
-    def restore(self, data: dict) -> None:
-        """Continue from a checkpoint() of a simulation of the same scene (either stepping mode; a checkpoint
-        without orientations, of a simulation without tumbling, restores them as they were at the start).
-
-        Args:
-            data: what ``checkpoint()`` returned (or its ``np.load``).
-
-        Raises:
-            ValueError: the checkpoint belongs to another scene (rock count or seed differ), or a key is missing or
-                holds what no checkpoint of this simulation can hold (the message names it). Nothing changes then.
-        """
-        data = self._checked(data)
-        self._host_side.ahead.clear()
-        w, h = self.world, self._host
-        h.load(data)
-        w.launches[None] = int(data["launches"])
-        w.recycles[None] = int(data["recycles"]) if "recycles" in data else 0
-        par = self._par.copy()
-        par[Par.GROUND_Z] = self.scene.world.ground_z - self.origin[2]
-        w.set_params(par)
-        self._stepper.load(rocks.from_checkpoint(w, data))  # after the origin: the tiles are keyed by its shift
-        self._stepper.sync_drawn()
-        drives.load(self.fleet, data, h.time)  # the live vehicles' keyframes, before their poses are asked
-        self._host_side.resume(h)
-        if self.plan.splash:
-            self._put_rays()
-        if self._impacts is not None:  # the events of the steps after the checkpoint come again
-            self._impacts.restore(h.step_count, h.time, int(data.get("impacts_dropped", 0)))
-        self._effects.load(data, h)  # a checkpoint saved before the effects were in them: they start again, empty
-
-    def _checked(self, data) -> dict:
-        """Checkpoint ``data`` as a dict that fits this simulation (engine/arguments.py), or ValueError."""
-        orient = (lambda: initial_orientations(self.scene.seed, self.n_rocks)) if self.plan.spin else None
-        data = arguments.checkpoint_data(data, self.n_rocks, self.scene.seed, orient)
-        problem = arguments.host_problem(data) or self._effects.problem(data)
-        if problem:
-            raise ValueError(problem)
-        arguments.checked_rock_fields(rocks.saved_fields(self.world), data, self.n_rocks, len(self.scene.vehicles))
-        return data
-
-    # ------------------------------------------------------------------------------------------ guard, probes
-    def check_health(self) -> None:
-        """The runtime guard: raise HealthError naming the step, the rock and the value when a rock is
-        non-finite, outside the bed (with recycling) or below the ground (with ground contact).
-
-        Raises:
-            HealthError: a rock in an impossible state (the message is one line).
-        """
-        if not self.n_rocks:
-            return
-        lc = self._host.local_centre()
-        # 1 mm, or a few float spacings at the bed's distance from the kernel origin ("world" origin, f32)
-        eps = float(np.finfo(self.world.np_real()).eps)
-        slack = 1e-3 + 8.0 * eps * (float(np.max(np.abs(lc))) + self.scene.bed.radius)
-        out = self._stepper.health(lc, slack)
-        if not out[:3].any():
-            return
-        kind = int(np.flatnonzero(out[:3])[0])
-        rid, p, v = self._stepper.locate(int(out[3 + kind]))
-        p = p.astype(np.float64) + self.origin
-        what = ("non-finite state", "outside the bed", "below the ground")[kind]
-        raise HealthError(
-            f"step {self.step_count} (t = {self.time:.4f} s): {int(out[kind])} rock(s) {what}; "
-            f"first: rock {rid} at position {np.array2string(p, precision=4)} m, velocity "
-            f"{np.array2string(v, precision=4)} m/s")
-
-    def tire_rays(self) -> np.ndarray:
-        """The rear tires' rays now.
-
-        Returns:
-            (T, 2, 3) float64: each splashing rear tire's centre and bottom, world coordinates, m.
-        """
-        t = self._host.tires_prev
-        return np.stack([t.center, t.bottom], axis=1) + self.anchor if len(t.spin) else np.zeros((0, 2, 3))
-
-    def queried_cells(self) -> np.ndarray:
-        """The hash cells the tire rays visited in the last step (the renderer's overlay).
-
-        Returns:
-            (K, 3) int64 cell indices; empty without splashing tires or with swept detection.
-        """
-        w = self.world
-        if not self.plan.splash or self.plan.swept:
-            return np.zeros((0, 3), np.int64)
-        counts = w.ray_cell_count.to_numpy()
-        cells = w.ray_cells.to_numpy()
-        return np.concatenate([cells[r, :counts[r]] for r in range(len(counts))]).astype(np.int64)

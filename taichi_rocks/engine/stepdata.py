@@ -30,6 +30,7 @@ import taichi as ti
 
 from .loops import top_loop
 from .world import BATCH_ROWS, CLOCK, FRAME_ROWS, RAY_FIELDS, IPar
+from .view import world_kernel
 
 vec2 = ti.types.vector(2, ti.f64)
 
@@ -77,7 +78,7 @@ TASKS = {"load_batch": ("(serial: bounds)", "batch upload: frames, tire rays, po
 SERIAL_TASKS = {"load_batch": ("serial variant: batch upload: frames, tire rays, pose rows",)}  # engine/loops.py
 
 
-@ti.kernel
+@world_kernel
 def load_batch(w: ti.template(), plan: ti.template(), data: ti.types.ndarray(dtype=ti.f64, ndim=2)):
     """A batch's rows (:func:`packed`) into ``step_frame``, ``step_rays`` and ``step_bodies`` (one launch per
     batch): one loop over the batch's steps, each copying its rows (a loop per field would be a task per field to
@@ -132,12 +133,12 @@ def launch_empty():
     pass
 
 
-@ti.kernel
+@world_kernel
 def launch_ints(w: ti.template(), plan: ti.template(), k: ti.i32, step: ti.i32, check_all: ti.i32):
     w.ipar[IPar.N_ROCKS] += 0 * (k + step + check_all)
 
 
-@ti.kernel
+@world_kernel
 def launch_arrays(w: ti.template(), plan: ti.template(), rays: ti.types.ndarray(dtype=ti.f64, ndim=2),
                   frame: ti.types.ndarray(dtype=vec2, ndim=1), dt: ti.f64, step: ti.i32, check_all: ti.i32):
     w.ipar[IPar.N_ROCKS] += 0 * (step + check_all)

@@ -175,7 +175,7 @@ class Stepper:
     def locate(self, i: int):
         """Rock (id, local position, velocity) at index ``i`` of the guard's report."""
         w = self.world
-        return int(w.rock_id[i]), w.pos[i].to_numpy(), w.vel[i].to_numpy()
+        return int(w.rock_id[i]), np.asarray(w.pos[i]), np.asarray(w.vel[i])
 
 
 class FullStepper(Stepper):
@@ -342,7 +342,7 @@ class ActiveStepper(Stepper):
             return super().locate(i)
         j = -1 - i  # a rock in the tiles (engine/tilestore.py: store_health)
         w = self.world
-        return int(w.ts_rock_id[j]), w.ts_pos[j].to_numpy(), np.zeros(3)
+        return int(w.ts_rock_id[j]), np.asarray(w.ts_pos[j]), np.zeros(3)
 
 
 def stepper_for(plan):

@@ -3,13 +3,14 @@ origin's shift of the stored rocks, and the runtime guard over them (``Simulatio
 
 import taichi as ti
 
-from .active import same_key, tile_key, vec2
+from .tiles import same_key, tile_key, vec2
 from .world import Par
+from .view import world_kernel
 
 __all__ = ["shift_store", "store_health"]
 
 
-@ti.kernel
+@world_kernel
 def shift_store(w: ti.template(), shift: vec2):
     """The floating origin moved by ``shift`` (whole multiples of 64 m): stored rocks' local positions move by
     -shift (keys are anchor-relative and stay)."""
@@ -20,7 +21,7 @@ def shift_store(w: ti.template(), shift: vec2):
             w.ts_pos[t * cap + k] -= dv
 
 
-@ti.kernel
+@world_kernel
 def store_health(w: ti.template(), centre: vec2, slack: ti.f64, tiles: vec2):
     """The runtime guard over the stored rocks, into ``w.health_out`` after kernels.health: non-finite [0],
     outside the bed [1], below the ground or off its tile [2]; a bad stored rock's index goes to [3..5] as

@@ -35,6 +35,7 @@ from .geometry import closest_on_segment
 from .hashgrid import cell_of, hash_cell, segment_cells, table_n
 from .launch import MODELS
 from .loops import top_loop
+from .view import world_kernel
 from .world import A0, A1, B0, B1, FLYING, LAUNCHED, MAX_OCC, SLIDING, SPAN_A, \
     SPAN_B, SPAN_C, IPar, Par
 
@@ -68,7 +69,7 @@ def parallelogram_dist2(o, e1, e2, c):
     return best
 
 
-@ti.kernel
+@world_kernel
 def trace_rays(w: ti.template()):
     trace_all(w)
 
@@ -297,7 +298,7 @@ def launch_if_claimed(w: ti.template(), plan: ti.template(), i, step):
         launch_rock(w, plan, i, w.n_tires - code, step)
 
 
-@ti.kernel
+@world_kernel
 def tire_pass(w: ti.template(), plan: ti.template(), step: ti.i32):
     """The tire pass alone (``plan``: the switches of kernels.hash_and_tires), after the hash's scan (its
     ``MAX_OCC``) and scatter."""

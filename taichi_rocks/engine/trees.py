@@ -1,5 +1,6 @@
-"""SNode trees for every field the package allocates (World, event buffers, the renderer's buffers), each tree
-owned by a :class:`FieldTrees` that gives it back when its owner is done.
+"""SNode trees for the Taichi fields the package allocates (the renderer's buffers, the effects' pools, event
+buffers of their own; a World holds its data in ndarrays, engine/worlddata.py), each tree owned by a
+:class:`FieldTrees` that gives it back when its owner is done.
 
 Two limits of Taichi 1.7.4 shape this module:
 
@@ -9,7 +10,7 @@ Two limits of Taichi 1.7.4 shape this module:
   tree ever finalized that was not destroyed: ``ti.field(..., shape=...)`` declared between kernel launches
   makes a tree of its own at the next launch. Past the limit the next kernel launch writes outside the
   runtime's table of roots and the process dies of a segfault, with no error (measured here: the 501st
-  ``ti.field`` + ``from_numpy`` pair crashed). Long-lived processes build many Worlds and Renderers: a sweep
+  ``ti.field`` + ``from_numpy`` pair crashed). Long-lived processes build many Renderers and effects: a sweep
   worker (runner/tasks.py), the viewer's rebuilds, a notebook, the test suite.
 - **Destroying a tree throws away every compiled kernel of the process** (``SNodeTree.destroy`` calls
   ``clear_compiled_functions``: fields hold pointers into their tree), so each kernel used afterwards compiles
@@ -23,8 +24,8 @@ So every tree is owned, and trees are destroyed rarely and together:
 - given an ``owner``, its trees are retired when the owner is garbage-collected;
 - retired trees are destroyed only when the package's live trees pass :data:`SOFT_LIMIT` at an allocation (a
   safe point: never from inside a garbage collection that may run during a kernel launch), all in one go and
-  with the registered evictors (the World pool, engine/world.py, destroys the Worlds no Simulation holds); a
-  render, a simulation or the viewer never get there, a long sweep worker seldom. Past :data:`HARD_LIMIT` an
+  with the registered evictors (a :class:`Pool` destroys the objects no owner holds); a render, a simulation
+  or the viewer never get there, a long sweep worker seldom. Past :data:`HARD_LIMIT` an
   allocation fails with a clear error instead of a crash.
 """
 
@@ -108,7 +109,7 @@ class FieldTrees:
 
     Two ways to allocate:
 
-    - **batched** (a World's fields): :meth:`place` / :meth:`field` put each field in a tree of its element
+    - **batched** (dust's fields): :meth:`place` / :meth:`field` put each field in a tree of its element
       size, and :meth:`finalize` builds those trees at once;
     - **at once** (a renderer's buffers, made when first needed): :meth:`scalar`, :meth:`vector`,
       :meth:`matrix` and :meth:`image` build a tree per call, ready to use.
@@ -151,11 +152,11 @@ class FieldTrees:
         return f
 
     def field(self, dtype, shape):
-        """A scalar field of a Taichi ``dtype`` over ``shape`` (fields outside a World's layout: test buffers)."""
+        """A scalar field of a Taichi ``dtype`` over ``shape`` (an event buffer of its own, test buffers)."""
         return self._place(lambda: ti.field(dtype), dtype, shape)
 
     def place(self, spec, real):
-        """The field of a :class:`FieldSpec` (``real``: the World's Taichi precision)."""
+        """The field of a :class:`FieldSpec` (``real``: the simulation's Taichi precision)."""
         dtype = real if spec.dtype == "real" else {"i32": ti.i32, "i64": ti.i64, "f64": ti.f64}[spec.dtype]
         make = (lambda: ti.field(dtype)) if spec.n == 1 else (lambda: ti.Vector.field(spec.n, dtype))
         return self._place(make, dtype, spec.shape)
@@ -236,8 +237,8 @@ class FieldTrees:
 
 
 class Pool:
-    """Objects that hold fields, leased by owners in turn and kept by layout: a World (engine/world.py), a
-    renderer's buffers (render/buffers.py).
+    """Objects that hold fields, leased by owners in turn and kept by layout: a renderer's buffers
+    (render/buffers.py, render/hits.py), dust's fields (engine/effects/dust.py).
 
     Every kernel compiles again for a new object of fields (its fields are template arguments: seconds), so an
     owner done with its object leaves it here, and the next owner of the same layout gets it back, reset, with

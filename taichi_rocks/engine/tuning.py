@@ -9,8 +9,7 @@ Two kinds of scene keys, by how they reach the kernels:
 * switches (:data:`SWITCH_KEYS`, their choices from the scene's types) are read by the kernels at compile time
   (config/plan.py, ``ti.static``): :func:`rebuilder` takes a checkpoint of the simulation and returns a
   function that builds a Simulation of the changed scene and restores the checkpoint into it (same rocks, clock
-  and origin; a World of the same layout comes back from the pool, engine/world.py ``acquire``, once the old
-  Simulation is gone).
+  and origin; a new World, whose kernels are compiled already for a layout and switches seen before).
 """
 
 from __future__ import annotations
@@ -63,14 +62,14 @@ def runtime_values(sim) -> dict:
 def rebuilder(sim, changes: dict):
     """Validate ``changes`` (dotted scene keys, any: switches included) and checkpoint ``sim``; return
     ``make()``, which builds the Simulation of the changed scene (same arch, timer, tumble and change tracking) continuing from the
-    checkpoint. Drop every reference to ``sim`` before calling ``make()``, so that its World goes back to the
-    pool and the new one reuses it when the layout allows (no new fields; kernels compiled once per switch
-    set). SceneError if a value is invalid."""
+    checkpoint. Drop every reference to ``sim`` before calling ``make()``, so that its World is freed before
+    the new one is allocated (kernels compile once per layout and switch set). SceneError if a value is
+    invalid."""
     scene = scene_with(sim.scene, dict(changes))
     state, arch, timer, tumble = sim.checkpoint(), sim.arch, sim.timer, sim.tumble
     coast, track = sim.coast, sim.track_changes
 
-    def make():  # the pool collects a dropped sim still in a reference cycle (engine/trees.py Pool.lease)
+    def make():
         new = Simulation(scene, arch=arch, timer=timer, tumble=tumble, track_changes=track)
         new.restore(state)
         new.coast = coast

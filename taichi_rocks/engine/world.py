@@ -9,22 +9,20 @@ estimate (engine/layout.py) adds it up.
 
 
 import math
-import warnings
+import weakref
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 import taichi as ti
-from taichi.lang.field import Field
-from taichi.lang.matrix import MatrixField
 
 from ..config.environment import PARALLEL_SCAN, parallel_scan_wanted  # noqa: F401 - PARALLEL_SCAN re-exported
 from ..config.plan import Plan
-from .events import N_INT, N_REAL, EventBuffer
-from .transfer import entries, entry_index, most_entries
-from .trees import FieldTrees, Pool  # noqa: F401 - FieldTrees also imported from here
+from .events import N_INT, N_REAL, EventBuffer, record_type
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
+from .view import GROUP_NAMES, GROUPS, REAL_SIZES, SIZES
+from .worlddata import HostField, Layout, Placement, copy_launchers, group_dtype, group_of, np_group_dtype
 
 # Hash primes of Teschner et al. 2003, "Optimized Spatial Hashing for Collision Detection of Deformable
 # Objects", VMV.
@@ -106,14 +104,20 @@ class FieldSpec:
 SCAN_BLOCK = 32  # slots per block of the parallel prefix sum (engine/hashgrid.py block_scan)
 
 
+# fields whose dimensions past the first depend on the World's sizes (the tire mask's tiles, a ray's cells): the
+# kernels read them at run time; every other field's are the layout's (tests/engine/test_world.py checks it)
+SIZED_TAILS = frozenset({"tile_mask", "ray_cells"})
+SCAN_LEVELS = 5  # the parallel scan's levels, whatever the table (32^6 slots at most): sizes stay out of a layout
+
+
 def scan_level_sizes(table: int) -> tuple:
     """The block sums of the hash's parallel prefix sum over ``table`` slots, one field per level: level k
-    holds ceil(table / 32^(k + 1)) sums, and the last level (at most 32 sums) is scanned by one thread."""
-    sizes, m = [], int(table)
-    while m > SCAN_BLOCK:
-        m = -(-m // SCAN_BLOCK)
-        sizes.append(m)
-    return tuple(sizes)
+    holds ceil(table / 32^(k + 1)) sums (at least one), SCAN_LEVELS levels, and the last (at most 32 sums) is
+    scanned by one thread; a level of one block scans as one, so levels beyond the table's need change no
+    sum."""
+    if int(table) > SCAN_BLOCK ** (SCAN_LEVELS + 1):
+        raise ValueError(f"a hash table of {table} slots: more than the parallel scan's {SCAN_LEVELS} levels hold")
+    return tuple(max(1, -(-int(table) // SCAN_BLOCK ** (k + 1))) for k in range(SCAN_LEVELS))
 
 
 def scan_in_parallel(requested: Optional[bool] = None) -> bool:
@@ -258,10 +262,13 @@ def default_rock_fields(hashed: bool, stored: bool) -> tuple:
     return present(Plan(splash=hashed), "active" if stored else "full")
 
 
-@ti.data_oriented
 class World:
-    """All fields of one simulation. ``n`` rocks; ``n_tires`` splashing rear tires. The fields are those of
-    :func:`field_specs`; ``rocks`` the rock fields (engine/rockfields.py), each an attribute of its name."""
+    """All the data of one simulation, in the ndarray groups of engine/view.py (``groups``, in its order) at the
+    places of a :class:`~taichi_rocks.engine.worlddata.Placement`; ``layout`` says how kernels read them (the
+    key they compile by: the same for every World of the same fields and switches, whatever its sizes). Each
+    field of :func:`field_specs` is an attribute of its name, a
+    :class:`~taichi_rocks.engine.worlddata.HostField` (``to_numpy``, ``from_numpy``, ``fill``, ``[i]``); ``n``
+    rocks; ``n_tires`` splashing rear tires; ``rocks`` the rock fields (engine/rockfields.py)."""
 
     def __init__(self, n: int, real, *, hash_table: int = 0, hash_entries: int = 0, n_tires: int = 0,
                  substeps: int = 1, ray_capacity: int = 0, reorder: bool = False, tiles=None,
@@ -271,64 +278,86 @@ class World:
         self.drawn = bool(drawn)  # the mirror changes() reads (engine/changes.py)
         self.stored = store is not None  # active stepping's tile store (below)
         self.real = real
-        self.vec3 = ti.types.vector(3, real)
+        self.vec3 = vector_type(3, real)
         self.frame_type = frame_type(real)  # a step's frame inside the kernels (engine/stepdata.py step_frame)
         self.hashed = hash_table > 0
         self.rocks = default_rock_fields(self.hashed, self.stored) if rocks is None else tuple(rocks)
-        if self.hashed:
-            self.table_size = hash_table
-            self.entry_capacity = max(hash_entries, 1)
-        # the hash's prefix sum: in parallel over blocks of slots (off the CPU) or serial (compile-time switch)
-        self.scan_levels = len(scan_level_sizes(hash_table)) if self.hashed and scan_in_parallel(parallel_scan) else 0
+        self.table_size = int(hash_table)
+        self.entry_capacity = max(int(hash_entries), 1) if self.hashed else 0
+        # the hash's prefix sum: in parallel over blocks of slots (off the CPU) or serial (compile-time switch);
+        # always SCAN_LEVELS levels, whatever the table (a level of one block scans as one): sizes stay out of
+        # the layout
+        self.scan_levels = SCAN_LEVELS if self.hashed and scan_in_parallel(parallel_scan) else 0
         # scope "tires": a coarse XY mask around the tires' query regions; only rocks on marked tiles are
-        # hashed, listed in `listed` (compile-time switch: `masked` is a Python attribute)
+        # hashed, listed in `listed` (compile-time switch: `masked`)
         self.masked = self.hashed and tiles is not None
-        if self.masked:
-            self.tiles = tuple(int(t) for t in tiles)
-            self.tile_size = float(tile_size)
+        self.tiles = tuple(int(t) for t in tiles) if self.masked else (0, 0)
+        self.tiles_x, self.tiles_y = self.tiles
+        self.tile_size = float(tile_size) if self.masked else 0.0
         self.n_tires = n_tires
         self.substeps = substeps
-        if n_tires > 0:
-            self.n_rays = n_tires * substeps
-            self.ray_capacity = ray_capacity
+        self.n_rays = n_tires * substeps
+        self.ray_capacity = int(ray_capacity) if n_tires > 0 else 0
         self.reorder = reorder
         # active stepping (engine/active.py): resting rocks in ground tiles; the rock arrays are the active
         # list (ipar[N_ROCKS] rocks). ``store``: (tile edge, slots per axis, rocks per slot, recycle?)
+        self.store_tile, self.store_grid, self.store_capacity, self.recycles_rocks = 0.0, 0, 0, False
         if self.stored:
             tile, grid, capacity, recycle = store
             self.store_tile, self.store_grid, self.store_capacity = float(tile), int(grid), int(capacity)
             self.recycles_rocks = bool(recycle)
         # impacts (engine/impact_pass.py): the bodies stones hit (compile-time counts) and the event buffer
         self.impacts = bodies is not None
+        self.n_targets, self.n_parts = (int(x) for x in bodies) if self.impacts else (0, 0)
+        self.event_capacity = max(int(events), 1) if self.impacts else 0
+        self.event_record = record_type(real) if self.impacts else None  # (engine/events.py, w.events.record)
+        specs = field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table, hash_entries=hash_entries,
+                            n_tires=n_tires, substeps=substeps, ray_capacity=ray_capacity, reorder=reorder,
+                            tiles=tiles, store=store, rocks=self.rocks, bodies=bodies, events=events, drawn=drawn,
+                            parallel_scan=self.scan_levels > 0)
+        self.layout = Layout(tuple((sp.name, *group_of(sp.dtype, sp.n), len(sp.shape),
+                                    None if sp.name in SIZED_TAILS else tuple(sp.shape[1:])) for sp in specs),
+                             tuple((k, getattr(self, k)) for k in STATICS))
+        sizes = {k: getattr(self, k) for k in SIZES}
+        place = Placement(specs, sizes, {k: getattr(self, k) for k in REAL_SIZES})
+        np_real = self.np_real()
+        # (Taichi fills a new ndarray with zeros: every field starts as a new Taichi field did)
+        self.groups = tuple(ti.ndarray(group_dtype(g, real), place.lengths[g]) for g in GROUP_NAMES)
+        self.placement = place
+        by_group = dict(zip(GROUP_NAMES, self.groups))
+        copies = copy_launchers()  # the fields' copies at the cost of their launch (engine/launcher.py)
+        for sp in specs:
+            group, row, offset, shape = place.at[sp.name]
+            width = GROUPS[group][1]
+            setattr(self, sp.name, HostField(sp.name, by_group[group], offset, row, shape,
+                                             np_group_dtype(group, np_real), width, copies))
+        self._head = HostField("head", by_group["i1"], 0, 0, (len(place.head),), np.int32, 1)
+        self._head.from_numpy(place.head)
+        self._real_head = HostField("real head", by_group["r1"], 0, 0, (len(place.real_head),), np_real, 1)
+        self._real_head.from_numpy(place.real_head.astype(np_real))
         if self.impacts:
-            self.n_targets, self.n_parts = (int(x) for x in bodies)
-        trees = FieldTrees()
-        for spec in field_specs(n, "f64" if real == ti.f64 else "f32", hash_table=hash_table,
-                                hash_entries=hash_entries, n_tires=n_tires, substeps=substeps,
-                                ray_capacity=ray_capacity, reorder=reorder, tiles=tiles, store=store,
-                                rocks=self.rocks, bodies=bodies, events=events, drawn=drawn,
-                                parallel_scan=self.scan_levels > 0):
-            setattr(self, spec.name, trees.place(spec, real))
-        trees.finalize()
-        self.trees = trees  # destroyed by the pool when the process runs short of trees (_evict)
-        if self.impacts:
-            self.events = EventBuffer(max(int(events), 1), real, fields=(self.ev_ints, self.ev_reals, self.ev_count))
+            self.events = EventBuffer(self.event_capacity, real, world=self)
         self.owner = None  # weak reference to the Simulation using these fields (see acquire)
 
     def fields(self) -> list:
-        """Every Taichi field of this World."""
-        return [v for v in vars(self).values() if isinstance(v, Field)]
+        """Every field of this World (HostFields)."""
+        return [v for v in vars(self).values() if isinstance(v, HostField) and not v.name.endswith("head")]
+
+    def nbytes(self) -> int:
+        """Bytes of the World's groups on the device (its fields, the table of where they lie, row alignment)."""
+        return self.placement.nbytes("f64" if self.real == ti.f64 else "f32")
 
     def set_params(self, par: np.ndarray, ipar: Optional[np.ndarray] = None) -> None:
         """The scene's parameters into ``par``, and into ``ipar`` unless None (its counts, which the kernels
-        update, then stay as they are), in one launch: one small kernel to compile per World, not the two of
-        ``from_numpy``. The values are copied in the fields' dtypes, so the bits are those of ``from_numpy``."""
+        update, then stay as they are). The values are copied in the fields' dtypes, so the bits are those of
+        ``from_numpy``."""
         n_int = 0 if ipar is None else len(ipar)
         if len(par) != self.par.shape[0] or n_int not in (0, self.ipar.shape[0]):
             raise ValueError(f"{len(par)} real and {n_int} integer parameters for fields of {self.par.shape[0]} "
                              f"and {self.ipar.shape[0]}")
-        ints = np.zeros(1, np.int32) if ipar is None else np.ascontiguousarray(ipar, np.int32)
-        _put_params(self.par, self.ipar, np.ascontiguousarray(par, self.np_real()), ints, n_int)
+        self.par.from_numpy(np.ascontiguousarray(par, self.np_real()))
+        if ipar is not None:
+            self.ipar.from_numpy(np.ascontiguousarray(ipar, np.int32))
 
     def np_real(self):
         return np.float64 if self.real == ti.f64 else np.float32
@@ -338,65 +367,22 @@ class World:
         return self.np_real() if f.dtype == "real" else np.int32
 
 
-@ti.kernel
-def _put_params(par: ti.template(), ipar: ti.template(), p: ti.types.ndarray(ndim=1), k: ti.types.ndarray(ndim=1),
-                n_int: ti.i32):
-    for i in range(p.shape[0]):
-        par[i] = p[i]
-    for i in range(n_int):
-        ipar[i] = k[i]
+# the World's attributes kernels read at compile time (its layout's statics; engine/view.py View)
+STATICS = ("real", "vec3", "frame_type", "hashed", "scan_levels", "masked", "n_tires", "substeps", "n_rays",
+           "reorder", "stored", "recycles_rocks", "impacts", "n_targets", "n_parts", "rocks", "drawn", "event_record")
+_TYPES: dict = {}
 
 
-@ti.func
-def _zero_value(f: ti.template()):
-    if ti.static(not isinstance(f, MatrixField)):
-        return ti.cast(0, f.dtype)
-    elif ti.static(f.m > 1):
-        return ti.Matrix.zero(f.dtype, f.n, f.m)
-    else:
-        return ti.Vector.zero(f.dtype, f.n)
-
-
-@ti.func
-def _zero_at(f: ti.template(), i):
-    """Element ``i`` (row-major, transfer.entry_index) of field ``f`` set to zero: a literal zero, not
-    f[I] * 0 (without fast math NaN * 0 is NaN and -x * 0 is -0.0, so a World handed on would keep what its
-    last owner left there)."""
-    if ti.static(len(f.shape) == 0):
-        if i == 0:
-            f[None] = _zero_value(f)
-    else:
-        f[entry_index(i, ti.static(tuple(f.shape)))] = _zero_value(f)
-
-
-@ti.kernel
-def _zero_fields(w: ti.template()):
-    # one parallel loop over the largest field's elements, zeroing the element of that index in every field that
-    # has one: a kernel of one task compiles in a fraction of the time of a loop per field (each loop is a task
-    # of its own, 10-20 ms of compiling apiece, 35-54 fields in a World), and it runs once per reuse of a World
-    for i in range(ti.static(most_entries(w.fields()))):
-        for f in ti.static(w.fields()):
-            if i < ti.static(entries(f)):
-                _zero_at(f, i)
-
-
-_POOL = Pool()
+def vector_type(n: int, real):
+    """One Taichi vector type object per (n, precision): a layout's statics compare equal across Worlds."""
+    return _TYPES.setdefault(("vec", n, str(real)), ti.types.vector(n, real))
 
 
 def acquire(owner, n: int, real, **layout) -> World:
-    """A World for ``owner`` (a Simulation): one of the same layout that its previous owner released (was
-    garbage-collected), with every field zeroed, or else a new one.
-
-    Every new World compiles every kernel again (its fields are template arguments: ~2-4 s on a 2-core CPU).
-    Re-using released Worlds makes the second and later Simulations of a layout start at once: notebooks
-    re-running a cell, parameter sweeps, tests. Two live Simulations never share a World. Released Worlds
-    stay until the process runs short of SNode trees (engine/trees.py :class:`Pool`)."""
-    layout = dict(layout, parallel_scan=scan_in_parallel(layout.get("parallel_scan")))  # fixed now: part of the key
-    key = (int(n), str(real), tuple(sorted((k, v if not isinstance(v, list) else tuple(v)) for k, v in layout.items())))
-    return _POOL.lease(owner, key, lambda: World(n, real, **layout), _zero)
-
-
-def _zero(w: World) -> None:
-    with warnings.catch_warnings():  # a static loop over every field: Taichi warns past 32 of them
-        warnings.simplefilter("ignore", SyntaxWarning)
-        _zero_fields(w)
+    """A World for ``owner`` (a Simulation): a new one (its ndarrays zeroed). Its kernels compile once per layout
+    and switches, not per World (engine/view.py): a second Simulation of another rock count starts without
+    compiling."""
+    layout = dict(layout, parallel_scan=scan_in_parallel(layout.get("parallel_scan")))
+    w = World(n, real, **layout)
+    w.owner = weakref.ref(owner)
+    return w

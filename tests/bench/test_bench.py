@@ -158,10 +158,13 @@ def test_passes_inside_a_step_are_timed_by_the_engine(bench_run):
 def _small_scene():
     from taichi_rocks.bench.scenes import fleet_scene
 
-    return fleet_scene(20_000, 2, 8.0)  # the tiny run's grid scene: after it, its World is free in the pool
+    return fleet_scene(20_000, 2, 8.0)  # the tiny run's grid scene: its kernels are compiled after it
 
 
-def test_rebuild_carries_on_bit_identically_on_the_same_world():
+def test_rebuild_carries_on_bit_identically_in_the_same_layout():
+    """A rebuild under another plan keeps the World's layout (the kernels compiled for it serve the new one), and
+    a rebuild back to a scene run before compiles nothing; the run carries on bit for bit."""
+    from compiles import compiled
     from taichi_rocks.bench.measure import Built
     from taichi_rocks.config.scene import scene_with
 
@@ -171,20 +174,22 @@ def test_rebuild_carries_on_bit_identically_on_the_same_world():
     straight = b.sim.state()
     del b
     b = Built(scene, "cpu", "rebuilt")
-    world = b.sim.world
+    layout = b.sim.world.layout
     b.sim.step(5)
-    b.rebuild(scene_with(scene, {"effects.drag": "none"}))  # another plan on the same fields
-    assert b.sim.world is world and b.sim.plan.drag == "none" and b.sim.step_count == 5
-    b.rebuild(scene)
-    b.sim.step(7)
-    assert b.sim.world is world and b.sim.step_count == 12
-    again = b.sim.state()
+    b.rebuild(scene_with(scene, {"effects.drag": "none"}))  # another plan, the same fields
+    assert b.sim.world.layout == layout and b.sim.plan.drag == "none" and b.sim.step_count == 5
+    with compiled() as names:
+        b.rebuild(scene)
+        b.sim.step(7)
+        again = b.sim.state()
+    assert names == [], names
+    assert b.sim.world.layout == layout and b.sim.step_count == 12 and b.layout_switches == 0
     for key in ("positions", "velocities", "phase", "launches_total"):
         np.testing.assert_array_equal(again[key], straight[key], err_msg=key)
     assert straight["launches_total"] > 0  # the comparison is not vacuous
     held = b.sim
     with pytest.raises(RuntimeError, match="still referenced"):
-        b.rebuild(scene)  # a Simulation referenced elsewhere keeps its World: refused, not recompiled
+        b.rebuild(scene)  # a Simulation referenced elsewhere keeps its World: refused, not held beside the new one
     del held
 
 
@@ -232,7 +237,7 @@ def test_separate_passes_in_step_order():
 
 def test_rebuild_across_layouts_carries_on():
     """Active stepping's tile store has a layout per recycling switch: a rebuild across it takes a World of the
-    other layout (new the first time, pooled after) and carries on from the same rocks and clock."""
+    other layout (its kernels compiled the first time) and carries on from the same rocks and clock."""
     from taichi_rocks.bench.measure import Built
     from taichi_rocks.config.scene import scene_with
 
@@ -243,7 +248,7 @@ def test_rebuild_across_layouts_carries_on():
     b.sim.step(5)
     before = b.sim.state()
     b.rebuild(off)
-    assert b.sim.world is not world and b.sim.step_count == 5 and b.layout_switches == 1
+    assert b.sim.world.layout != world.layout and b.sim.step_count == 5 and b.layout_switches == 1
     now = b.sim.state()
     for key in ("positions", "velocities", "phase"):
         np.testing.assert_array_equal(now[key], before[key], err_msg=key)

@@ -114,7 +114,7 @@ def test_active_stepping_equals_full_with_advance_to_and_restore():
     for s in (full, act):
         s.step(40)
     _assert_same(full, act)
-    del full, s  # other takes its World (engine/world.py acquire)
+    del full, s  # one simulation at a time beside act
     other = Simulation(scene_with(sc, {"sim.stepping": "full"}))  # a checkpoint of one mode restores into the other
     other.restore(saved)
     other.step(40)

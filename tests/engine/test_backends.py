@@ -227,25 +227,52 @@ def test_render_same_on_cpu_and_vulkan(runs):
 
 
 @pytest.mark.parametrize("real", ["f32", "f64"])
-def test_world_trees_hold_one_element_size(taichi_cpu, real):
-    """Each SNode tree of a World holds fields of one element size (world.FieldTrees): in a tree mixing 4- and
-    8-byte fields, Vulkan can place a 64-bit field at 4 mod 8 and read and write it over its neighbour.
-    Checked on the CPU, whose layout would hide the problem, with every optional field allocated."""
+def test_world_groups_hold_one_element_type_and_fields_do_not_overlap(taichi_cpu, real):
+    """Each ndarray group of a World holds elements of one type (engine/view.py GROUPS): no 64-bit value shares a
+    buffer with 32-bit ones, where Vulkan could place it at 4 mod 8 and read and write it over its neighbour (as
+    it did in the SNode trees the World had before). Each field lies inside its group, after the table its
+    kernels read, apart from every other field; every field written with values of its own reads them back
+    unchanged. Checked on the CPU, whose layout would hide an overlap, with every optional field allocated."""
     import taichi as ti
-    from taichi.lang.util import to_numpy_type
 
+    from taichi_rocks.engine.view import GROUP_NAMES, GROUPS
     from taichi_rocks.engine.world import World
 
     w = World(101, getattr(ti, real), hash_table=1031, hash_entries=101, n_tires=2, substeps=2, ray_capacity=5,
-              reorder=True, tiles=(3, 3))
-    sizes: dict = {}
-    for f in w.fields():
-        sizes.setdefault(f.snode.ptr.get_snode_tree_id(), set()).add(np.dtype(to_numpy_type(f.dtype)).itemsize)
-    assert all(len(s) == 1 for s in sizes.values()), sizes
-    assert sorted(s.pop() for s in sizes.values()) == [4, 8]  # the i64 counter and the rest: two trees
-    # the fields work as before: the counter, a vector field, a 0-d int
-    w.launches[None] = 2 ** 40 + 3
-    w.n_listed[None] = 7
-    w.pos.from_numpy(np.arange(303, dtype=w.np_real()).reshape(101, 3))
-    assert w.launches[None] == 2 ** 40 + 3 and w.n_listed[None] == 7
-    assert w.pos.to_numpy()[100, 2] == 302
+              reorder=True, tiles=(3, 3), tile_size=0.5, store=(0.5, 4, 8, True), bodies=(2, 3), events=16,
+              drawn=True, parallel_scan=True)
+    np_real = np.float64 if real == "f64" else np.float32
+    by_group = dict(zip(GROUP_NAMES, w.groups))
+    scalar = {"real": getattr(ti, real), "i32": ti.i32, "f64": ti.f64, "i64": ti.i64}
+    for g, arr in by_group.items():  # one element type per group, the World's precision for its reals
+        kind, width = GROUPS[g]
+        assert arr.dtype == scalar[kind] and getattr(arr, "n", 1) == width and len(arr.shape) == 1, g
+    used: dict = {g: [] for g in GROUP_NAMES}  # per group: the element ranges taken (start, end, field)
+    used["i1"].append((0, len(w.placement.head), "head"))
+    used["r1"].append((0, len(w.placement.real_head), "real head"))
+    fs = w.fields()
+    for f in fs:
+        g = next(g for g, arr in by_group.items() if arr is f.arr)
+        kind, width = GROUPS[g]
+        assert f.np_dtype == (np_real if kind == "real" else {"i32": np.int32, "f64": np.float64,
+                                                                "i64": np.int64}[kind]), f.name
+        assert f.width == width and (f.row == 0 or width == 1), f.name  # rows only of scalar groups
+        start, count = f._elements(0, f.entries)
+        used[g].append((start, start + count, f.name))
+        assert 0 <= start and start + count <= f.arr.shape[0], f.name
+    for g, spans in used.items():
+        spans.sort()
+        for (_, end, a), (start, _, b) in zip(spans, spans[1:]):
+            assert end <= start, (g, a, b)
+    rng = np.random.default_rng(7)
+    values = {}
+    for f in fs:  # values of each field's own: whole numbers from a range no other field draws from
+        shape = f.shape + ((f.n,) if f.n > 1 else ())
+        values[f.name] = (rng.integers(1, 1000, shape) + 1000 * len(values)).astype(f.np_dtype)
+        f.from_numpy(values[f.name])
+    w.launches[None] = 2 ** 40 + 3  # a 64-bit value, past 32 bits
+    values["launches"] = np.array(2 ** 40 + 3, np.int64)
+    for f in fs:
+        got = f.to_numpy()
+        assert got.dtype == f.np_dtype and got.tobytes() == values[f.name].tobytes(), f.name
+    assert w.launches[None] == 2 ** 40 + 3 and np.asarray(w.pos[100]).shape == (3,)

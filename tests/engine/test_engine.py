@@ -1,7 +1,6 @@
 """Launch rules, flight against closed forms, effect switches, reproducibility, far from the origin."""
 
 import gc
-import warnings
 
 import numpy as np
 import pytest
@@ -9,6 +8,7 @@ import taichi as ti
 
 from scenes_util import scene
 from taichi_rocks.engine.simulation import Simulation
+from taichi_rocks.engine.view import world_kernel
 from taichi_rocks.engine.world import FLYING, RESTING
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
@@ -30,8 +30,9 @@ def launch_kernel(taichi_cpu):
     mu = ti.field(ti.f32, shape=m)
     out = ti.Vector.field(3, ti.f32, shape=m)
 
-    @ti.kernel
-    def run(k: ti.i32):
+    @world_kernel
+    def run(w: ti.template(), k: ti.i32):
+        """uniform.wheel_throw over a batch."""
         for i in range(k):
             out[i] = uniform.wheel_throw(w, wheel[i], fwd[i], spin[i], mu[i], 1, i, 7)
 
@@ -45,7 +46,7 @@ def launch_kernel(taichi_cpu):
             buf = np.zeros(shape, np.float32)
             buf[:k] = v
             f.from_numpy(buf)
-        run(k)
+        run(w, k)
         return out.to_numpy()[:k].astype(np.float64)
 
     return call
@@ -204,8 +205,8 @@ def test_ground_stop_and_rest():
 
 # ------------------------------------------------------------------------------------------ effects
 def run_states(sc, steps=150):
-    """(the simulation, its state after ``steps``); ``run_states(...)[1]`` lets the simulation go at once, so that
-    the next one of the same layout takes its World from the pool."""
+    """(the simulation, its state after ``steps``); ``run_states(...)[1]`` lets the simulation go at once, before
+    the next one is built."""
     sim = Simulation(sc)
     sim.step(steps)
     return sim, sim.state()
@@ -262,7 +263,7 @@ def test_checkpoint_restore_continues_bit_identically():
     saved = a.checkpoint()
     a.step(80)
     sa = a.state()
-    del a  # b takes its World, zeroed (engine/world.py acquire): a restore into a World used before
+    del a  # one simulation at a time: b is built after a is gone
     b = Simulation(sc)
     b.restore(saved)
     b.step(80)
@@ -287,8 +288,8 @@ def test_coasting_is_bit_identical_to_stepping():
     times = (1.9, 1.95, 2.0, 2.0137, 2.5, 4.0)
 
     def run(coast):
-        """The states at ``times`` and after 777 more steps, and the steps coasted; one run after the other, so
-        that the second takes the first's World (engine/world.py acquire) instead of compiling its own."""
+        """The states at ``times`` and after 777 more steps, and the steps coasted; one run after the other (the
+        second compiles only what coasting alone runs)."""
         sim = Simulation(sc)
         sim.coast = coast
         if coast:
@@ -323,106 +324,93 @@ def test_coasting_is_bit_identical_to_stepping():
     assert np.all(a["phase"] == RESTING)
 
 
-def test_a_simulation_dropped_in_a_reference_cycle_hands_on_its_world():
-    """A dropped Simulation that a reference cycle still holds (the collector has not run) does not cost the next
-    one of its layout a new World: the pool collects before it builds one (engine/trees.py Pool.lease)."""
-    sc = scene(rocks=1700, radius=5.0, sim={"detection": "swept"})  # the layout of the test below
+def test_a_second_simulation_of_the_layout_compiles_nothing():
+    """Kernels compile once per layout and switches, not per World (engine/view.py): a Simulation of another rock
+    count and bed size (the same switches), built while the first still lives, compiles no kernel to build, step,
+    checkpoint and read its state; and it steps as a fresh one does (its rocks are its own)."""
+    from compiles import compiled
+
+    sc = scene(rocks=1700, radius=5.0, sim={"detection": "swept"})
     a = Simulation(sc)
-    a.cycle = a  # held by itself alone once dropped
-    used = a.world
-    gc.disable()  # no collection but the pool's own
-    try:
-        del a
-        b = Simulation(sc)
-    finally:
-        gc.enable()
-    assert b.world is used
+    a.step(80)
+    a.state()
+    a.checkpoint()
+    other = scene(rocks=2300, radius=6.0, sim={"detection": "swept"})
+    with compiled() as names:
+        b = Simulation(other)
+        b.step(80)
+        sb, saved = b.state(), b.checkpoint()
+    assert names == [], names
+    assert b.world.layout == a.world.layout and b.n_rocks != a.n_rocks
+    assert sb["launches_total"] > 0
+    del a
+    c = Simulation(other)
+    c.restore(saved)
+    c.step(20)
+    b.step(20)
+    for k in ("positions", "velocities", "phase", "launches_total"):
+        np.testing.assert_array_equal(b.state()[k], c.state()[k])
 
 
-def test_released_fields_are_reused_zeroed_and_never_shared():
-    """A Simulation no longer referenced hands its World (fields and compiled kernels) to the next one of the
-    same layout, zeroed (every bit: no NaN or -0.0 left): the run is bit-identical to a fresh World's; two live
-    simulations never share."""
-    import gc
-
-    sc = scene(rocks=1700, radius=5.0, sim={"detection": "swept"})  # a layout of its own in this suite
+def test_live_simulations_never_share_their_data():
+    """Two live Simulations of one scene hold groups of their own: each runs as a fresh one does, and what is
+    done to one leaves the other as it was."""
+    sc = scene(rocks=1700, radius=5.0, sim={"detection": "swept"})
     a = Simulation(sc)
     a.step(80)
     sa = a.state()
     assert sa["launches_total"] > 0
-    used = a.world
-    b = Simulation(sc)
-    assert b.world is not used  # a is alive
-    del a
-    gc.collect()
-    c = Simulation(sc)
-    assert c.world is used  # handed on
-    for sim in (b, c):
-        sim.step(80)
-        s = sim.state()
-        assert s["launches_total"] == sa["launches_total"]
-        for k in ("positions", "velocities", "phase"):
-            np.testing.assert_array_equal(s[k], sa[k])
-    # what a World is handed on with: zeros, their bits too (no NaN or -0.0 of the last owner: f * 0 keeps both),
-    # in every element of every field, whatever its shape (world._zero_fields indexes them all from one loop)
-    from taichi_rocks.engine.world import _zero
+    b = Simulation(sc)  # a is alive
+    assert all(x is not y for x, y in zip(a.world.groups, b.world.groups))
+    b.step(80)
+    sb = b.state()
+    for k in ("positions", "velocities", "phase", "launches_total"):
+        np.testing.assert_array_equal(sb[k], sa[k])
+    rng = np.random.default_rng(3)
+    ids = rng.choice(1700, 300, replace=False)
+    b.set_rocks(ids, velocities=rng.uniform(-3.0, 3.0, (300, 3)), phase=FLYING)
+    b.step(40)
+    now = a.state()
+    for k in ("positions", "velocities", "phase", "launches_total"):
+        np.testing.assert_array_equal(now[k], sa[k])
 
+
+def _every_field_world():
+    """A World with every optional field (tiles, the re-sort, the tile store with its step inputs, impacts,
+    the drawn mirror): fields of 0 to 3 dimensions in every group."""
+    from taichi_rocks.engine.world import World
+
+    return World(101, ti.f32, hash_table=1031, hash_entries=101, n_tires=2, substeps=2, ray_capacity=5,
+                 reorder=True, tiles=(3, 3), tile_size=0.5, store=(0.5, 4, 8, True), bodies=(2, 3), events=16,
+                 drawn=True, parallel_scan=True)
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    """Per component of ``a``: is any of its bits set (NaN, -0.0 and -7 are, 0 is not)?"""
+    return np.frombuffer(a.tobytes(), f"u{a.dtype.itemsize}") != 0
+
+
+def test_a_new_world_starts_zeroed():
+    """Every bit of every field of a new World is zero, also where a World dropped just before held garbage (NaN,
+    -0.0, -7: every bit set that a last owner could leave) in every element of every field: a Simulation relies
+    on it for what it does not write (counters, mirrors, buffers)."""
+    used = _every_field_world()
     fs = used.fields()
-    assert {len(f.shape) for f in fs} == {0, 1, 2, 3}  # every indexing the zeroing has: scalars to 3-D (step_rays)
-    total = sum(int(np.prod(f.shape)) for f in fs)
-    with warnings.catch_warnings():  # static loops over every field: Taichi warns past 32 of them
-        warnings.simplefilter("ignore", SyntaxWarning)
-        _soil(used)
-        assert _dirty(used) == total  # the garbage is in every element, its bits not zero
-        _zero(used)
-        assert _dirty(used) == 0
-
-
-@ti.func
-def _bits_nonzero(x, dt: ti.template()):
-    """1 if any bit of ``x`` (a scalar of type ``dt``) is set: NaN, -0.0 and -7 are, 0 is not."""
-    out = 0
-    if ti.static(dt == ti.f32):
-        out = ti.bit_cast(x, ti.i32) != 0
-    elif ti.static(dt == ti.f64):
-        out = ti.bit_cast(x, ti.i64) != 0
-    else:
-        out = x != 0
-    return out
-
-
-@ti.kernel
-def _soil(w: ti.template()):
-    """Garbage a World's last owner could leave, in every element of every field: NaN in reals, -0.0 in the
-    last component of vectors (a sign bit alone), -7 in integers. A loop per field, as world.py once zeroed."""
-    for f in ti.static(w.fields()):
-        for I in ti.grouped(f):
-            if ti.static(f.dtype in (ti.f32, ti.f64)):
-                if ti.static(isinstance(f, ti.lang.matrix.MatrixField)):
-                    v = f[I]
-                    for c in ti.static(range(f.n)):
-                        v[c] = ti.cast(-0.0, f.dtype) if ti.static(c == f.n - 1) else ti.math.nan
-                    f[I] = v
-                else:
-                    f[I] = ti.math.nan
-            else:
-                if ti.static(isinstance(f, ti.lang.matrix.MatrixField)):
-                    f[I] = ti.Vector([-7] * f.n, dt=f.dtype)
-                else:
-                    f[I] = -7
-
-
-@ti.kernel
-def _dirty(w: ti.template()) -> ti.i64:
-    """Elements of the World's fields with a bit set in any component."""
-    n = ti.i64(0)
-    for f in ti.static(w.fields()):
-        for I in ti.grouped(f):
-            bad = 0
-            if ti.static(isinstance(f, ti.lang.matrix.MatrixField)):
-                for c in ti.static(range(f.n)):
-                    bad |= _bits_nonzero(f[I][c], f.dtype)
-            else:
-                bad = _bits_nonzero(f[I], f.dtype)
-            n += bad
-    return n
+    assert {len(f.shape) for f in fs} == {0, 1, 2, 3}  # scalars to 3-D (step_rays)
+    names = sorted(f.name for f in fs)
+    for f in fs:
+        bad = np.full(f.shape + ((f.n,) if f.n > 1 else ()), -7 if f.np_dtype.kind == "i" else np.nan, f.np_dtype)
+        if f.np_dtype.kind == "f" and f.n > 1:
+            bad[..., -1] = -0.0
+        f.from_numpy(bad)
+        assert _bits(f.to_numpy()).all(), f.name  # the garbage is in every component of every element
+    del used, fs
+    gc.collect()
+    for _ in range(2):  # the second World of the same sizes in the memory the first gave back, if any
+        w = _every_field_world()
+        assert sorted(f.name for f in w.fields()) == names
+        for f in w.fields():
+            a = f.to_numpy()
+            assert a.shape == f.shape + ((f.n,) if f.n > 1 else ()) and not _bits(a).any(), f.name
+        del w
+        gc.collect()

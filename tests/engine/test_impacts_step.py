@@ -12,8 +12,8 @@
   every field of them (the scene with 4 ms steps on both: 33 hits);
 - active stepping's rows on the device, taken from its lookahead batch, have the bits full stepping is given.
 
-One World layout for every case (the pool compiles once per stepping mode): the restitution, friction and
-step are runtime parameters, the drain interval a host setting.
+One World layout for every case (its kernels compile once per stepping mode): the restitution, friction
+and step are runtime parameters, the drain interval a host setting.
 """
 
 import csv

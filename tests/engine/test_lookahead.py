@@ -103,7 +103,7 @@ def recording(monkeypatch):
     monkeypatch.setattr(steppers, "rock_pass", rock_pass)
 
     def make(sc, mode, paths=None):
-        sims.clear()  # one simulation at a time: the World is shared through the pool (which collects cycles)
+        sims.clear()  # one simulation at a time (sims maps a World to its Simulation)
         sim = _simulation(sc, mode, monkeypatch, paths)
         sims[id(sim.world)] = sim
         return sim

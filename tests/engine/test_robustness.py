@@ -175,7 +175,7 @@ def strip_distance(c, x0, x1, y):
 
 def test_high_speed_swept_misses_nothing_and_ray_misses_many():
     sim, rays, pos, r, got_swept = high_speed_run("swept")
-    del sim  # its World serves the ray run below (engine/world.py acquire)
+    del sim  # one simulation at a time
     assert np.ptp(rays[:, :, :, 1], axis=0).max() == 0 and np.all(rays[:, :, 0, 2] > rays[:, :, 1, 2])
     swept_d = np.min([strip_distance(pos, rays[0, t, 0, 0], rays[-1, t, 0, 0], rays[0, t, 0, 1])
                       for t in range(rays.shape[1])], axis=0)
@@ -316,7 +316,7 @@ def test_u_turn_and_reversing():
     headings = sim.state()["vehicle_headings"]
     assert abs(headings[0]) > 2.5, "the car came back"
     bed_uniform(sim)
-    del sim, recs  # its World serves the run below (engine/world.py acquire)
+    del sim, recs  # one simulation at a time
     # driving backwards: the nose points to -x, the car travels to +x, rocks leave towards the nose
     back = Simulation(scene(rocks=4000, radius=5.0, vehicles=[car(speed=10.0, reverse=True)]))
     recs = launch_records(back, 300)
@@ -788,7 +788,7 @@ def test_runtime_guard_names_step_rock_and_kind():
         return msg
 
     i = int(mem[17])
-    keep_p, keep_v = w.pos[i].to_numpy(), w.vel[i].to_numpy()
+    keep_p, keep_v = np.asarray(w.pos[i]), np.asarray(w.vel[i])
     w.pos[i] = [float("nan"), 0.0, 0.0]
     expect(17, "non-finite")
     w.pos[i] = keep_p.tolist()
@@ -798,7 +798,7 @@ def test_runtime_guard_names_step_rock_and_kind():
     sim.check_health()
 
     j = int(mem[23])
-    keep = w.pos[j].to_numpy()
+    keep = np.asarray(w.pos[j])
     c = sim.bed_center - sim.origin
     w.pos[j] = [float(c[0] + R + 0.5), float(c[1]), float(keep[2])]
     expect(23, "outside the bed")
@@ -806,7 +806,7 @@ def test_runtime_guard_names_step_rock_and_kind():
     sim.check_health()
 
     k = int(mem[31])
-    p = w.pos[k].to_numpy()
+    p = np.asarray(w.pos[k])
     w.pos[k] = [float(p[0]), float(p[1]), float(p[2] - 0.01)]
     expect(31, "below the ground")
     w.pos[k] = p.tolist()
@@ -822,7 +822,7 @@ def test_runtime_guard_sees_the_tiles():
     assert sim.active_count == 0  # every rock rests in a tile
     w = sim.world
     j = int(np.flatnonzero(w.ts_rock_id.to_numpy() == 23)[0])  # rock 23's place in the tiles
-    p = w.ts_pos[j].to_numpy()
+    p = np.asarray(w.ts_pos[j])
     c = sim.bed_center - sim.origin
     w.ts_pos[j] = [float(c[0] + 3.5), float(c[1]), float(p[2])]
     with pytest.raises(HealthError) as err:

@@ -23,7 +23,7 @@ pytestmark = pytest.mark.usefixtures("taichi_cpu")
 CAR = {"length": 4.0, "width": 1.8, "wheelbase": 2.6, "track": 1.5, "tire_radius": 0.33}
 VEHICLES = [{"name": "lead", **CAR, "path": {"points": [[6.0, 0.0], [406.0, 0.0]], "speed": 20.0}},
             {"name": "player", **CAR, "splash": False, "path": {"points": [[0.0, 0.0], [400.0, 0.0]], "speed": 20.0}}]
-# the scene of test_active's "straight" case: its Worlds come back from the pool
+# the scene of test_active's "straight" case: its layouts' kernels are compiled once
 BASE = scene(rocks=3000, radius=6.0, bed={"follow": "player"}, sim={"detection": "patch", "dt": 0.004},
              vehicles=VEHICLES)
 MODES = {"active": {"sim.stepping": "active"},

@@ -12,6 +12,7 @@ from scipy.optimize import brentq
 from harness import Probe
 from taichi_rocks.engine import patch
 from taichi_rocks.engine.launch import tread
+from taichi_rocks.engine.view import world_kernel
 from taichi_rocks.engine.world import (FENDER, FLAP, FWD, HALF_L, HALF_W, RAY_FIELDS, SPIN, TIRE_R, VEL, IPar,
                                        Par, World)
 from taichi_rocks.motion.vehicles import RearTires
@@ -64,8 +65,9 @@ def angle_kernel(taichi_cpu):
     inp = ti.field(ti.f64, shape=(m, 5))
     out = ti.field(ti.f64, shape=m)
 
-    @ti.kernel
-    def run(k: ti.i32):
+    @world_kernel
+    def run(w: ti.template(), k: ti.i32):
+        """tread.release_angle over a batch."""
         for i in range(k):
             out[i] = tread.release_angle(w, inp[i, 0], inp[i, 1], inp[i, 2], inp[i, 3], inp[i, 4])
 
@@ -75,7 +77,7 @@ def angle_kernel(taichi_cpu):
         buf = np.zeros((m, 5))
         buf[:k] = np.column_stack([np.broadcast_to(x, k) for x in (ap, r, mu, xi, centripetal)])
         inp.from_numpy(buf)
-        run(k)
+        run(w, k)
         return out.to_numpy()[:k]
 
     return call
@@ -145,8 +147,9 @@ def throw_world(taichi_cpu):
     v_guard = ti.Vector.field(3, ti.f64, shape=m)
     alpha = ti.field(ti.f64, shape=m)
 
-    @ti.kernel
-    def run(k: ti.i32, step: ti.i32):
+    @world_kernel
+    def run(w: ti.template(), k: ti.i32, step: ti.i32):
+        """throw_angle and throw_velocity (open and guarded) over a batch."""
         for i in range(k):
             seed = w.ipar[IPar.SEED]
             alpha[i] = tread.throw_angle(w, rock[i, 0], rock[i, 1], w.ray[i, SPIN], w.ray[i, TIRE_R],
@@ -164,7 +167,7 @@ def throw_world(taichi_cpu):
         buf = np.zeros((m, 2))
         buf[:k, 0], buf[:k, 1] = r, mu
         rock.from_numpy(buf)
-        run(k, step)
+        run(w, k, step)
         return (alpha.to_numpy()[:k], v_open.to_numpy()[:k], v_guard.to_numpy()[:k])
 
     return call
@@ -379,7 +382,7 @@ def test_patch_with_no_footprint_launches_what_swept_launches():
         set_tread_params(probe.w)
         hits = probe.hits(prev=prev, tread=tread)
         out[mode] = hits, probe.w.vel.to_numpy()[hits]
-        del probe  # released before the next is built: the next probe takes its World from the pool
+        del probe  # released before the next is built (its layout's kernels serve the next)
     np.testing.assert_array_equal(out["patch"][0], out["swept"][0])
     np.testing.assert_array_equal(out["patch"][1], out["swept"][1])
     assert len(out["swept"][0]) > 30

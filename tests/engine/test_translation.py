@@ -89,7 +89,7 @@ def test_checkpoint_restore_far_away_after_the_origin_moved(early_moves):
     legacy = {k: v for k, v in saved.items() if k not in ("origin_anchor", "origin_shift", "bed_rel")}
     sa, a_origin = a.state(), a.origin.copy()
     assert sa["launches_total"] > 5 and sa["recycles_total"] > 100
-    del a  # each b takes its World (engine/world.py acquire)
+    del a  # one simulation at a time
     for data in (saved, legacy):
         b = Simulation(sc)
         b.restore(data)

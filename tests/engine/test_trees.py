@@ -1,8 +1,8 @@
 """SNode trees are owned and given back (engine/trees.py): Taichi 1.7.4 allows 512 per process and a process past
 it dies of a segfault at its next kernel launch, so long-lived processes (sweep workers, the viewer, this suite)
-must give back what their Worlds and Renderers allocated; and destroying a tree recompiles every kernel, so
-trees are destroyed rarely and together. The cases that destroy trees run in a process of their own
-(trees_destroying.py)."""
+must give back what their Renderers and effects allocated (a World holds ndarrays, not trees); and destroying a
+tree recompiles every kernel, so trees are destroyed rarely and together. The cases that destroy trees run in a
+process of their own (trees_destroying.py)."""
 
 import os
 import subprocess

@@ -19,6 +19,7 @@ from taichi_rocks.engine.randomness import uniform01_np
 from taichi_rocks.engine.rockfields import FLYING, RESTING, SLIDING
 from taichi_rocks.engine.setup import initial_orientations
 from taichi_rocks.engine.simulation import Simulation
+from taichi_rocks.engine.view import world_kernel
 from taichi_rocks.engine.world import FWD, RAY_FIELDS, SPIN, TIRE_R, VEL, IPar, Par, World
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
@@ -129,8 +130,9 @@ def spin_world(taichi_cpu):
     out = ti.Vector.field(3, ti.f64, shape=m)
     kicked = ti.Vector.field(3, ti.f64, shape=m)
 
-    @ti.kernel
-    def run(k: ti.i32, step: ti.i32):
+    @world_kernel
+    def run(w: ti.template(), k: ti.i32, step: ti.i32):
+        """tumble.launch_spin and tumble.kick over a batch."""
         for i in range(k):
             out[i] = tumble.launch_spin(w, i, sc[i, 0], inp[i], sc[i, 1], i, step)
             kicked[i] = tumble.kick(out[i], arm[i], inp[i], sc[i, 1])
@@ -149,7 +151,7 @@ def spin_world(taichi_cpu):
         inp.from_numpy(pad(v, (3,)))
         arm.from_numpy(pad(np.zeros((k, 3)) if arms is None else arms, (3,)))
         sc.from_numpy(pad(np.column_stack([alpha, r]), (2,)))
-        run(k, step)
+        run(w, k, step)
         return out.to_numpy()[:k], kicked.to_numpy()[:k]
 
     return call

@@ -59,7 +59,7 @@ def test_set_mid_run_changes_only_what_follows_and_survives_restore(scene):
     sim.restore(saved)  # restore uploads the parameters again: the new ones
     assert runtime_values(sim)["world.gravity"] == pytest.approx(2.0)
     _same(_run(sim, 60), after)
-    del sim  # one simulation at a time: each takes the World of the one before (engine/world.py acquire)
+    del sim  # one simulation at a time
     ref = Simulation(scene_with(scene, {"world.gravity": 2.0}))
     ref.restore(saved)
     _same(after, _run(ref, 60))  # the new value acts from the next step, as if the scene had it
@@ -86,6 +86,10 @@ def test_bad_values_are_refused_and_change_nothing(scene):
 
 
 def test_rebuild_continues_from_the_checkpoint_with_the_switch(scene):
+    """The viewer's rebuild under a switch: the same layout (the kernels that do not read the switch serve the
+    new Simulation as compiled), the state of the checkpoint, then the switch's steps; a rebuild back to the
+    switches run before compiles nothing."""
+    from compiles import compiled
     from taichi_rocks.config.scene import scene_with
     from taichi_rocks.engine.simulation import Simulation
     from taichi_rocks.engine.tuning import rebuilder
@@ -93,15 +97,22 @@ def test_rebuild_continues_from_the_checkpoint_with_the_switch(scene):
     sim = Simulation(scene)
     sim.step(40)
     state = sim.state()
-    world = sim.world
+    layout = sim.world.layout
     make = rebuilder(sim, {"sim.integrator": "heun"})
     del sim
     new = make()
-    assert new.world is world  # same layout: the World came back from the pool
+    assert new.world.layout == layout
     assert new.plan.integrator == "heun" and new.step_count == 40
     _same(new.state(), state)
     a = _run(new)
-    del new  # one simulation at a time: each takes the World of the one before (engine/world.py acquire)
+    with compiled() as names:
+        back = rebuilder(new, {"sim.integrator": scene.sim.integrator})
+        del new
+        old = back()
+        assert old.plan.integrator == scene.sim.integrator and old.step_count == 40 + STEPS
+        old.step(10)
+    assert names == [], names
+    del old  # one simulation at a time
     saved = _checkpoint_of(scene, 40)
     ref = Simulation(scene_with(scene, {"sim.integrator": "heun"}))
     ref.restore(saved)
@@ -109,18 +120,18 @@ def test_rebuild_continues_from_the_checkpoint_with_the_switch(scene):
 
 
 def test_a_launch_model_is_a_switch_of_the_plan_not_of_the_world(scene):
-    """Scenes that differ only in the launch model (or the fenders) share a World from the pool; the tire
-    pass compiles per switch set: the uniform model throws differently (no stone of these reaches the fenders
-    this early, so the fenders change nothing yet)."""
+    """Scenes that differ only in the launch model (or the fenders) have one World layout; the tire pass
+    compiles per switch set: the uniform model throws differently (no stone of these reaches the fenders this
+    early, so the fenders change nothing yet)."""
     from taichi_rocks.config.scene import scene_with
     from taichi_rocks.engine.simulation import Simulation
 
     sim = Simulation(scene)
-    world, thrown = sim.world, _run(sim, 120)
+    layout, thrown = sim.world.layout, _run(sim, 120)
     del sim
     for changes in ({"launch.model": "uniform"}, {"effects.fenders": False}):
         other = Simulation(scene_with(scene, changes))
-        assert other.world is world, changes
+        assert other.world.layout == layout, changes
         state = _run(other, 120)
         assert state["launches_total"] > 0
         assert np.array_equal(state["positions"], thrown["positions"]) == ("launch.model" not in changes)

@@ -90,28 +90,42 @@ def test_allocation_past_the_hard_limit_is_an_error_not_a_crash(taichi_cpu, monk
     assert f.to_numpy().tolist() == [3, 3]
 
 
-def test_the_world_pool_gives_back_released_worlds_under_pressure(taichi_cpu, monkeypatch):
-    """Released Worlds stay pooled (no recompile for the next Simulation of their layout) until the live trees
-    pass the soft limit; then the next allocation destroys them, and a World in use is never touched."""
+class _Buffers:
+    """An object of fields leased from a Pool, as the renderer's buffers and dust's fields are (engine/trees.py)."""
+
+    def __init__(self, n: int):
+        import taichi as ti
+
+        self.trees = T.FieldTrees()
+        self.a = self.trees.field(ti.f32, (n, 3))
+        self.trees.finalize()
+        self.owner = None
+
+
+def test_a_pool_gives_back_released_objects_under_pressure(taichi_cpu, monkeypatch):
+    """Released objects stay pooled (no recompile for the next owner of their layout) until the live trees pass
+    the soft limit; then the next allocation destroys them, and an object in use is never touched."""
     import taichi as ti
 
-    from taichi_rocks.engine import world as W
-
-    layout = dict(hash_table=67, hash_entries=13, n_tires=1, substeps=1, ray_capacity=3)
+    pool = T.Pool()
     held, dropped = _Owner(), _Owner()
-    w_held = W.acquire(held, 13, ti.f32, **layout)
-    w_dropped = W.acquire(dropped, 13, ti.f32, **layout)
-    assert w_held is not w_dropped
+    b_held = pool.lease(held, 13, lambda: _Buffers(13))
+    b_dropped = pool.lease(dropped, 13, lambda: _Buffers(13))
+    assert b_held is not b_dropped
     del dropped
     gc.collect()
-    assert w_dropped.trees.count > 0  # released but kept
+    assert b_dropped.trees.count > 0  # released but kept
+    again = _Owner()
+    assert pool.lease(again, 13, lambda: _Buffers(13)) is b_dropped  # handed on
+    del again
+    gc.collect()
     monkeypatch.setattr(T, "SOFT_LIMIT", T.live_trees())
     T.FieldTrees().scalar(ti.i32)  # any allocation past the soft limit runs the evictors
-    assert w_dropped.trees.count == 0 and w_held.trees.count > 0
-    w_held.pos.from_numpy(np.ones((13, 3), np.float32))  # still usable
-    assert float(w_held.pos.to_numpy().sum()) == 39.0
-    again = _Owner()
-    w_new = W.acquire(again, 13, ti.f32, **layout)  # not the destroyed one
-    assert w_new is not w_dropped and w_new is not w_held
+    assert b_dropped.trees.count == 0 and b_held.trees.count > 0
+    b_held.a.from_numpy(np.ones((13, 3), np.float32))  # still usable
+    assert float(b_held.a.to_numpy().sum()) == 39.0
+    other = _Owner()
+    b_new = pool.lease(other, 13, lambda: _Buffers(13))  # not the destroyed one
+    assert b_new is not b_dropped and b_new is not b_held
     del held
     gc.collect()

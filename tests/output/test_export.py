@@ -46,7 +46,7 @@ def _ok(r):
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory, taichi_cpu):
     """USD exports (every rock, only the flying ones), a PLY export and the full .npz of the same frames,
-    for the minimal scene and for it 100 km away (the commands run in this process: one pooled World)."""
+    for the minimal scene and for it 100 km away (the commands run in this process: one compile)."""
     d = tmp_path_factory.mktemp("export")
     far, fast = _far_scene(d), _fast_scene(d)
     common = ("--frames", FRAMES, "--fps", FPS)
@@ -504,7 +504,7 @@ def test_a_new_format_is_one_module_and_one_registry_line(taichi_cpu, tmp_path, 
             with pytest.raises(RuntimeError, match="disk full"):
                 export_run(sim, out, 10, 30.0, fmt="landings")
             assert cls.calls == [0, 1, 2, "abort"] and not out.parent.exists()
-        del sim  # its World goes back to the pool: the second export runs on it
+        del sim  # one simulation at a time
 
 
 # ---------------------------------------------------------------------------------------------- colours

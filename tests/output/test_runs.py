@@ -18,7 +18,7 @@ def _within(run, f, radius):
 def test_load_run_gives_the_same_arrays_from_both_layouts(taichi_cpu, tmp_path):
     """The light layout (default) through load_run equals the full layout bit for bit: every array, under the
     same names; --only all too; with --crop, the same where kept and NaN / -1 (missing) elsewhere. And it is
-    the lighter file, without a raw `positions` member. (The four runs in this process: one pooled World.)"""
+    the lighter file, without a raw `positions` member. (The four runs in this process: one compile.)"""
     common = ("--frames", 30, "--fps", 15)
     names = {"full": ("--layout", "full"), "light": (), "all": ("--only", "all"), "crop": ("--crop", "4")}
     run_here(*(("simulate", MINIMAL, "--out", tmp_path / f"{k}.npz", *v, *common) for k, v in names.items()))
