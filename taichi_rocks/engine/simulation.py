@@ -37,7 +37,7 @@ from .events import EVENT_DTYPE
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
 from .livesteps import LiveHostSide
-from .kernels import count_flying, shift_origin
+from .kernels import count_flying
 from .launcher import Launcher
 from .layout import check_fits, world_layout
 from .rockfields import ID
@@ -47,7 +47,7 @@ from .steppers import stepper_for
 from .timing import NO_TIMER
 from .world import Par, World, acquire
 
-__all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "LOOKAHEAD", "HealthError", "Simulation", "shift_origin"]
+__all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "LOOKAHEAD", "HealthError", "Simulation"]
 
 
 class HealthError(RuntimeError):

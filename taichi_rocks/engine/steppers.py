@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import active, changes, hashgrid, rocks, stepdata, tilestore, tires
+from . import active, changes, hashgrid, origin, rocks, stepdata, tilestore, tires
 from .impact_pass import time_row
-from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin, switches
+from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, switches
 from .launcher import Launcher
 from .rockfields import ID
 from .runtime import current_arch, on_cpu, threads_in_use
@@ -154,17 +154,19 @@ class Stepper:
             changes.sync_drawn(self.world)
 
     def shift_origin(self, d: np.ndarray) -> None:
-        """The local frame's origin moved by ``d`` (XY, whole multiples of ORIGIN_SNAP): every rock moves by -d."""
+        """The local frame's origin moved by ``d`` (XY, whole multiples of ORIGIN_SNAP): every rock moves by -d, in
+        the rock arrays, the tiles and the mirror of changes() (engine/origin.py); the host's origin has already
+        moved by ``d``."""
         with self.timer("origin shift"):
-            shift_origin(self.world, d)
-            self._shift_drawn(d)
-
-    def _shift_drawn(self, d: np.ndarray) -> None:
-        """The mirror of changes() moves with the rocks; the host's origin has already moved by ``d``."""
-        if self.world.drawn:
             h = self.host
             before = h.anchor[:2] + (h.shift - np.asarray(d, np.float64))  # as HostState.set_shift adds them
-            changes.shift_drawn(self.world, d, before, h.origin[:2], on_cpu() or current_arch() == "cuda")
+            origin.put_move(self.world, d, before, h.origin[:2])
+            origin.move_origin(self.world, self.exact)
+
+    @property
+    def exact(self) -> bool:
+        """The backend computes the mirror's float64 sums exactly (engine/origin.py ``move_origin``)."""
+        return on_cpu() or current_arch() == "cuda"
 
     # -------------------------------------------------------------------------------------------- guard
     def health(self, centre: np.ndarray, slack: float):
@@ -325,12 +327,6 @@ class ActiveStepper(Stepper):
         super().coast(n, dt, centre, lead, step0)
         with self.timer("settle"):
             active.settle(self.world, self.tile_shift())
-
-    def shift_origin(self, d: np.ndarray) -> None:
-        with self.timer("origin shift"):
-            shift_origin(self.world, d)
-            tilestore.shift_store(self.world, d)
-            self._shift_drawn(d)
 
     def health(self, centre: np.ndarray, slack: float):
         health(self.world, self.switches["health"], centre, slack)
