@@ -29,7 +29,11 @@ from .runtime import current_arch, on_cpu, threads_in_use
 from .variant import VariantChoice, loops_from_env
 from .world import LAUNCHED, IPar, next_prime
 
-__all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for"]
+__all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for", "TABLE_EVERY", "TABLE_MIN", "TABLE_LOAD"]
+
+# active stepping fits the hash's slots in use to the active list every TABLE_EVERY steps (and after the first): a
+# prime about TABLE_LOAD times its length, at least TABLE_MIN (ActiveStepper._fit)
+TABLE_EVERY, TABLE_MIN, TABLE_LOAD = 32, 1024, 1.5
 
 
 class Stepper:
@@ -274,7 +278,7 @@ class ActiveStepper(Stepper):
         tire finds)."""
         self.variant.update(active)
         if self.plan.splash and self.table_auto:
-            want = next_prime(max(1024, int(1.5 * active)))
+            want = next_prime(max(TABLE_MIN, int(TABLE_LOAD * active)))
             self.world.ipar[IPar.TABLE] = min(want, self.world.table_size)
 
     def rock_arrays(self) -> dict:
@@ -295,7 +299,7 @@ class ActiveStepper(Stepper):
         with self.timer("active step"):
             self._launch["active_step"](self.world, self.switches["active_step"], row, s.step, int(self.check_all))
             self._launch["active_finish"](self.world, self.switches["active_finish"], row, s.step)
-        if self.check_all or s.step % 32 == 0:  # and after the first step: the loaded rocks have settled
+        if self.check_all or s.step % TABLE_EVERY == 0:  # and after the first step: the loaded rocks have settled
             self._fit(self.active_count)
         self.check_all = False
         return self.plan.splash
