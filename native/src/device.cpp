@@ -1,6 +1,10 @@
 // Taichi's C API with the module's kernels and the World's groups (device.hpp).
 #include "device.hpp"
 
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 #include "error.hpp"
@@ -156,6 +160,8 @@ void Device::check_kernel(const Json& manifest, const std::string& name, const s
 }
 
 void Device::open(const std::string& arch, const std::string& folder, const Json& manifest) {
+  const char* prof = std::getenv("ROCKS_PROFILE");
+  profile_ = prof && std::string(prof) == "1";
   if (arch == "x64") arch_ = TI_ARCH_X64;
   else if (arch == "vulkan") arch_ = TI_ARCH_VULKAN;
   else throw Error(ROCKS_ERROR_MODULE, "manifest.json: arch: \"" + arch + "\" is not x64 or vulkan");
@@ -254,6 +260,7 @@ void Device::open(const std::string& arch, const std::string& folder, const Json
 
 Device::~Device() {
   if (rt_ == TI_NULL_HANDLE) return;
+  if (profile_) report();
   if (arch_ != TI_ARCH_X64) {  // (the CPU runtime frees no memory by itself: its destruction frees it all)
     for (HostArray* a : {&batch_, &small_i32_, &small_i64_, &small_f64_, &changes_, &count_, &ev_ints_, &ev_reals_})
       free_array(*a);
@@ -298,8 +305,24 @@ static TiArgument nd_arg(const TiNdArray& nd) {
 }
 
 void Device::launch(const char* name, std::vector<TiArgument>& args) {
+  auto t0 = std::chrono::steady_clock::now();
   ti_launch_kernel(rt_, kernels_.at(name), static_cast<uint32_t>(args.size()), args.data());
   check(name);
+  if (profile_) {
+    ti_wait(rt_);
+    check("wait");
+    times_[name].push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+}
+
+void Device::report() const {
+  for (auto [name, t] : times_) {
+    std::sort(t.begin(), t.end());
+    double sum = 0;
+    for (double x : t) sum += x;
+    std::fprintf(stderr, "rocks: %-16s %7zu launches, median %.4f ms, max %.4f ms, total %.1f ms\n", name.c_str(),
+                 t.size(), t[t.size() / 2], t.back(), sum);
+  }
 }
 
 void Device::load_batch(const std::vector<double>& row) {

@@ -38,6 +38,8 @@ class Device {
   ~Device();
 
   TiRuntime runtime() const { return rt_; }
+  // with ROCKS_PROFILE=1 in the environment: each kernel waited for and timed; the means printed at close
+  void report() const;
   const Group& group(const std::string& name) const;
 
   // the step's kernels (engine/stepdata.py load_batch, engine/active.py active_step and active_finish)
@@ -62,6 +64,8 @@ class Device {
   TiAotModule module_ = TI_NULL_HANDLE;
   std::vector<Group> groups_;
   std::map<std::string, TiKernel> kernels_;
+  bool profile_ = false;
+  std::map<std::string, std::vector<double>> times_;
   TiDataType real_ = TI_DATA_TYPE_F32;
   HostArray batch_, small_i32_, small_i64_, small_f64_, changes_, count_, ev_ints_, ev_reals_;
 

@@ -46,6 +46,11 @@ ARCHES = ("x64", "vulkan")
 FORMAT = "taichi-rocks module 1"  # the manifest's format and version (a host refuses another)
 _TI_ARCH = {"x64": ti.x64, "vulkan": ti.vulkan}
 _RUNTIME = {"x64": "cpu", "vulkan": "vulkan"}  # the backend the exporting Simulation runs on
+# what a Vulkan device must have for the World's groups: 64-bit integers and floats (the i64 and f64 groups) and
+# 64-bit integer atomics (the launch and recycle counts); SPIR-V without them fails to compile ("Type u64 not
+# supported")
+_CAPS = {"vulkan": (ti.DeviceCapability.spirv_has_int64, ti.DeviceCapability.spirv_has_float64,
+                    ti.DeviceCapability.spirv_has_atomic_int64)}
 
 #: what each field of the World holds (the manifest's "meaning"; rock fields: engine/rockfields.py)
 MEANINGS = {
@@ -233,11 +238,12 @@ def export(sim, arch: str, folder) -> dict:
     ``arch`` (x64: the CPU; a Vulkan module needs Taichi on Vulkan: the World's layout differs by backend)."""
     folder = Path(folder)
     w = sim.world
-    m = ti.aot.Module(_TI_ARCH[arch])
+    m = ti.aot.Module(_TI_ARCH[arch], caps=list(_CAPS.get(arch, ())))
     kernels = {}
     for name, k, targs in _kernels(sim, arch):
         m.add_kernel(getattr(k, "kernel", k), template_args=targs, name=name)
         kernels[name] = {"args": _arguments(k, targs, w)}
+    (folder / "module").mkdir()  # (Vulkan's writer does not make it)
     m.save(str(folder / "module"))
     (folder / "buffers").mkdir()
     for g, a in zip(GROUP_NAMES, w.groups):
