@@ -127,7 +127,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--out", type=str, help="output folder (default: renders/<scene>/)")
     r.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
     r.add_argument("--format", choices=("mp4", "gif", "png"), default="mp4")
-    r.add_argument("--profile", action="store_true", help="report time shares per stage")
+    r.add_argument("--profile", action="store_true",
+                   help="report the seconds of each stage of the frame, and write them to OUT/profile.json")
     r.add_argument("--resume", action="store_true", help="continue an interrupted render")
     r.add_argument("--checkpoint-every", type=_positive_int, default=30, metavar="N",
                    help="save the simulation state every N frames, for --resume (default: 30)")

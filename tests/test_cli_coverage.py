@@ -4,6 +4,7 @@ once): --seed on every command, default output paths, ``simulate --out DIR``, ``
 ``view --quit-after`` / ``--record --overwrite`` (up to the window), ``bench --quick`` and ``--only``, exit status 1
 for the runtime guard and TAICHI_ROCKS_DEBUG. The window itself: tests/render/test_view_controls.py."""
 
+import json
 import os
 import re
 import subprocess
@@ -107,6 +108,7 @@ def test_render_seed_profile_and_default_folder(taichi_cpu, capsys, in_tmp, monk
     from taichi_rocks.app import render as app_render
     from taichi_rocks.config.scene import load_scene
     from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.render.stages import STAGES
 
     seen = []
 
@@ -122,16 +124,21 @@ def test_render_seed_profile_and_default_folder(taichi_cpu, capsys, in_tmp, monk
     folder = Path("renders") / "minimal"
     assert sorted(p.name for p in (in_tmp / folder / "frames").iterdir()) == ["frame_00000.png", "frame_00001.png"]
     assert sorted(p.name for p in in_tmp.rglob("*")) == sorted(["renders", "minimal", "frames", "frame_00000.png",
-                                                                 "frame_00001.png"])
+                                                                 "frame_00001.png", "profile.json"])
     assert out[0].startswith(f"wrote {folder / 'frames'}: 2 frames at ")
     profile = {line.split()[0]: float(line.split()[1]) for line in out[1:]}
     assert all(line.endswith(" s") for line in out[1:]), out
-    assert set(profile) == {"simulation", "culling", "drawing", "encoding", "encoding_busy", "other", "setup",
-                            "resume_replay", "first_frame"}, out
+    assert set(profile) == {"simulation", *STAGES, "encoding", "encoding_busy", "other", "setup", "resume_replay",
+                            "first_frame"}, out
     assert all(v >= 0 for v in profile.values())
-    loop = sum(profile[k] for k in ("simulation", "culling", "drawing", "encoding", "other"))
+    loop = sum(profile[k] for k in ("simulation", *STAGES, "encoding", "other"))
     assert profile["first_frame"] <= loop + 0.05  # the first frame is part of the loop the shares divide
     assert profile["resume_replay"] == 0.0
+    saved = json.loads((in_tmp / folder / "profile.json").read_text())  # the same figures, and the run's machine
+    assert saved["frames"] == 2 and saved["scene"] == "minimal" and saved["machine"]["taichi_arch"] == "cpu"
+    assert all(abs(saved["profile"][k] - v) < 0.006 for k, v in profile.items())
+    assert set(saved["profile_cpu"]) == {"simulation", *STAGES, "loop"}
+    assert 0 < sum(saved["profile_cpu"][k] for k in ("simulation", *STAGES)) <= saved["profile_cpu"]["loop"] + 0.01
     [(seed, positions)] = seen
     assert seed == 5
     # the render's Simulation is gone: its World serves the two below

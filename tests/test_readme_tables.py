@@ -114,3 +114,27 @@ def test_a_frame_run_fills_the_frame_blocks_and_its_absence_empties_them():
     assert tables.blocks(launch, without)["frame"] == "" == tables.blocks(launch, without)["frame-details"]
     text = "a\n<!-- results:frame -->\nold\n<!-- /results:frame -->\nb\n"
     assert tables.rewrite(text, {"frame": ""}) == "a\n<!-- results:frame -->\n<!-- /results:frame -->\nb\n"
+
+
+def test_a_render_profile_fills_the_frame_table_of_the_rendering_page():
+    """docs/rendering.md's table of the renderer's frame is what the script makes of a ``render --profile`` run
+    (its profile.json): a row per stage in ms per frame, its share of the frame and its CPU ms; without the run
+    the block is empty."""
+    launch, bench = tables.load()
+    stages = ("simulation", "camera", "culling", "marks", "declare", "readback", "sky_ground", "dust", "window")
+    run = {"started": "2026-12-05 02:00:00", "scene": "convoy", "frames": 100, "resolution": [1280, 720],
+           "frames_per_second": 10.0, "load_average_start": [0.1, 0.1, 0.1], "load_average_end": [1.9, 1.0, 0.5],
+           "machine": {"cpu_model": "X", "usable_cores": 2, "taichi": "1.7.4", "taichi_arch": "cpu"},
+           "profile": {**{k: 1.0 for k in stages}, "culling": 3.0, "encoding": 0.5, "other": 0.25},
+           "profile_cpu": {**{k: 2.0 for k in stages}, "loop": 25.0}}
+    got = tables.blocks(launch, dict(bench, render_run=run))["render-frame"]
+    assert "| culling | the rock pass: culling, splatting the resting rocks, compacting the flying ones | 30.0 | 30% | " \
+           "20.0 |" in got
+    assert "| simulation | the simulation stepped to the frame's time (the engine) | 10.0 | 10% | 20.0 |" in got
+    assert "| **the frame** | 100 frames at 10.00 frames/s | **100.0** | 100% | 250.0 " in got
+    assert "`convoy` at 1280x720" in got and "busy" not in got
+    assert "busy" in tables.blocks(launch, dict(bench, render_run=dict(run, load_average_start=[1.8, 1, 1])))[
+        "render-frame"]
+    without = {k: v for k, v in bench.items() if k != "render_run"}
+    assert tables.blocks(launch, without)["render-frame"] == ""
+    assert "<!-- results:render-frame -->" in (tables.DOCS / "rendering.md").read_text()

@@ -8,6 +8,8 @@
                                study's targets (its plots and impacts.md sit beside it)
     docs/results/frame.json    ``taichi-rocks bench --only frame`` (its frame.json), when present: the frame of a
                                game loop; without it the ``frame`` blocks stay empty
+    docs/results/render_profile.json  ``taichi-rocks render scenes/convoy.toml --profile`` (its profile.json): the
+                               renderer's frame stage by stage (docs/rendering.md)
 
     python tools/readme_tables.py            # rewrite the marked blocks of the pages (PAGES) from those files
     python tools/readme_tables.py --check    # exit 1 (and say which) if a page differs from them
@@ -38,6 +40,7 @@ PAGES = {README: ("headline-speed", "frame", "presets"),
          DOCS / "performance.md": ("frame", "frame-details", "activity-targets", "activity-notes", "activity-breakdown",
                                    "speed-targets", "speed-notes", "presets"),
          DOCS / "physics.md": ("launch-targets", "launch-cases"),
+         DOCS / "rendering.md": ("render-frame",),
          DOCS / "impacts.md": ("impacts-targets",)}
 
 # the per-case rows of the launch study the README shows (the study's report has all 18)
@@ -372,10 +375,43 @@ def frame_details(launch: dict, bench: dict) -> list:
         accuracy_table(res)
 
 
+def render_frame(launch: dict, bench: dict) -> list:
+    """The renderer's frame stage by stage: a run of ``taichi-rocks render --profile`` (its profile.json,
+    app/render.py; docs/results/render_profile.json), per frame drawn: the wall time of each stage, its share of
+    the frame, and the process's CPU time in it (every thread's: the kernels', lavapipe's)."""
+    res = bench.get("render_run")
+    if not res:
+        return []
+    from taichi_rocks.render.stages import STAGES
+
+    n, prof, cpu, fps = res["frames"], res["profile"], res["profile_cpu"], res["frames_per_second"]
+    frame = 1000.0 / fps
+    ms = lambda s: 1000.0 * s / n
+    rows = ["| stage | what it holds | ms per frame | share | CPU ms per frame |", "|---|---|---|---|---|"]
+    stages = {"simulation": "the simulation stepped to the frame's time (the engine)", **STAGES}
+    for k, what in stages.items():
+        if k in prof:
+            rows.append(f"| {k} | {what} | {ms(prof[k]):.1f} | {ms(prof[k]) / frame:.0%} | {ms(cpu[k]):.1f} |")
+    rows.append(f"| encoding | waiting on the frame writer (PNG frames, MP4) | {ms(prof['encoding']):.1f} | "
+                f"{ms(prof['encoding']) / frame:.0%} | |")
+    rows.append(f"| other | the rest of the frame loop | {ms(prof['other']):.1f} | {ms(prof['other']) / frame:.0%} | |")
+    rows.append(f"| **the frame** | {n} frames at {fps:.2f} frames/s | **{frame:.1f}** | 100% | {ms(cpu['loop']):.1f} "
+                "(the whole loop: the frame writer's thread too) |")
+    m = res["machine"]
+    la0, la1 = res.get("load_average_start"), res.get("load_average_end")
+    busy = la0 and la1 and was_busy(la0, la1, m["usable_cores"])
+    w, h = res["resolution"]
+    rows += ["", f"Run: {res['started'][:10]}, `{res['scene']}` at {w}x{h}, {m['cpu_model']}, {m['usable_cores']} "
+                 f"cores, Taichi {m['taichi']} ({m['taichi_arch']}), load average {la0} at the start, {la1} at the end"
+                 + (" (the machine busy with other work: wall times noisy and pessimistic, CPU times less so)"
+                    if busy else "") + "."]
+    return rows
+
+
 BLOCKS = {"headline-speed": headline_speed, "frame": frame, "frame-details": frame_details, "launch-targets": launch_targets, "launch-cases": launch_cases, "speed-targets": speed_targets,
           "speed-notes": speed_notes, "presets": presets, "activity-targets": activity_targets,
           "activity-notes": activity_notes, "activity-breakdown": activity_breakdown,
-          "impacts-targets": impacts_targets}
+          "impacts-targets": impacts_targets, "render-frame": render_frame}
 
 
 def load(results: Path = RESULTS) -> tuple:
@@ -389,6 +425,8 @@ def load(results: Path = RESULTS) -> tuple:
     bench = dict(bench, impacts_run=json.loads((results / "impacts.json").read_text()))
     if (results / "frame.json").exists():
         bench = dict(bench, frame_run=json.loads((results / "frame.json").read_text()))
+    if (results / "render_profile.json").exists():
+        bench = dict(bench, render_run=json.loads((results / "render_profile.json").read_text()))
     return launch, bench
 
 

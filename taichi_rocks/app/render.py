@@ -2,26 +2,32 @@
 resuming an interrupted render (output/resume.py), the frame loop and its profile. The drawing is
 render/renderer.py's; the frames and the video are written by output/video.py."""
 
+import json
 import os
 import sys
 import time
+from datetime import datetime
 from pathlib import Path
 from types import SimpleNamespace
 
 from tqdm import tqdm
 
+from ..bench.machine import loadavg, machine
 from ..config.resolution import check_resolution
 from ..config.scene import SceneError, load_scene
 from ..engine.layout import frame_problem
 from ..engine.runtime import init_taichi
 from ..engine.simulation import Simulation
-from ..output.atomic import check_place, new_folders
+from ..output.atomic import check_place, new_folders, write_atomically
 from ..output.resume import CHECKPOINT_EVERY, RenderCheckpoints, fingerprint, resume_dir
 from ..output.video import FrameWriter, existing_size, finished_frames, frame_name, output_paths
 from ..render.renderer import WINDOW_EVERY, Renderer, check_rocks
+from ..render.stages import cpu_seconds
 from .frames import check_steps
 
-__all__ = ["render_scene", "render_dir", "resumable"]
+__all__ = ["render_scene", "render_dir", "resumable", "PROFILE_FILE"]
+
+PROFILE_FILE = "profile.json"  # what --profile writes beside the frames (docs/results/render_profile.json)
 
 
 def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=None, fmt="mp4", arch="cpu",
@@ -39,7 +45,7 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
         arch: the Taichi backend (as for ``Simulation``).
         overwrite: replace existing outputs (else FileExistsError).
         progress: a tqdm bar on stderr (None: only on a terminal).
-        profile: also return where the time went.
+        profile: also return where the time went, and write it to ``out_dir``/profile.json.
         resume: continue an interrupted render in ``out_dir``.
         rocks: "splat" or "particles".
         window_every: frames between re-creations of the hidden window (0: never).
@@ -73,19 +79,27 @@ def render_scene(scene_or_path, out_dir=None, frames=None, resolution=None, fps=
     Returns {"scene", "out_dir", "frames_dir", "video", "frames", "resumed_from" (first frame drawn),
     "replayed_from" (first frame simulated without drawing, after a restored state), "resolution", "video_fps",
     "seconds", "frames_per_second" (frames drawn / seconds of the frame loop; also "fps_measured"), "redraws"}
-    and with ``profile`` a "profile" dict of seconds: "simulation", "culling" (rock
-    culling and splatting), "drawing" (camera, sky and ground, GGUI drawing and the read-back), "encoding"
-    (time the render loop waited on the frame writer, including the final flush) and "encoding_busy" (the
-    writer thread's own time, which overlaps the others), "other" (the rest of the frame loop), "setup"
+    and with ``profile`` a "profile" dict of seconds: "simulation", the frame's stages (render/stages.py
+    STAGES: "camera", "culling" (the rock pass), "marks", "sky_ground", "declare" (GGUI's scene), "readback"
+    (GGUI's drawing and its image handed back), "merge", "dust", "window"), "encoding" (time the render loop
+    waited on the frame writer, including the final flush) and "encoding_busy" (the writer thread's own time,
+    which overlaps the others), "other" (the rest of the frame loop), "setup"
     (before the first frame: scene, simulation and window set-up) and "first_frame" (the first frame alone,
-    mostly kernel compilation; included in the others)."""
+    mostly kernel compilation; included in the others), and a "profile_cpu" dict of the process's CPU seconds in
+    the simulation, the frame's stages and the whole loop (every thread's: steadier than wall time on a shared
+    machine). With ``profile`` the render also writes them, with its machine and load, to ``out_dir``/PROFILE_FILE
+    (profile.json, replaced if there)."""
     t_start = time.perf_counter()
     resolution = _check_arguments(resolution, fps, frames, rocks)
     job = _plan(scene_or_path, out_dir, frames, resolution, fps, fmt, overwrite, resume)
+    job.arch, job.load_start, job.started = arch, loadavg(), datetime.now().strftime("%Y-%m-%d %H:%M:%S")
     run = _start(job, arch, resolution, rocks, window_every, checkpoint_every, resume)
     times = _draw(job, run, resume, progress, on_frame)
     times.start = t_start
-    return _report(job, run, times, profile)
+    out = _report(job, run, times, profile)
+    if profile:
+        _write_profile(job, out)
+    return out
 
 
 def render_dir(scene, out_dir=None) -> Path:
@@ -224,16 +238,17 @@ def _frame_loop(job, run, progress, on_frame) -> SimpleNamespace:
     """Simulate, draw and write frames ``job.start`` ... ``job.n_frames - 1``; close the renderer and the writer
     (the video is finished only if every frame was written). Return the loop's timings."""
     sim, renderer, writer, checkpoints = run.sim, run.renderer, run.writer, run.checkpoints
-    t = SimpleNamespace(sim=0.0, first=0.0)
+    t = SimpleNamespace(sim=0.0, sim_cpu=0.0, first=0.0)
     ok = False
     bar = tqdm(total=job.n_frames, initial=job.start, unit="frame", desc=job.scene.name, file=sys.stderr,
                disable=None if progress is None else not progress, dynamic_ncols=True)
-    t.loop_start = time.perf_counter()
+    t.loop_start, t.loop_cpu = time.perf_counter(), cpu_seconds()
     try:
         for k in range(job.start, job.n_frames):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), cpu_seconds()
             sim.advance_to(k / job.video_fps)
             t.sim += time.perf_counter() - t0
+            t.sim_cpu += cpu_seconds() - c0
             img = renderer.render_frame()
             if on_frame is not None:
                 on_frame(k, img)
@@ -248,6 +263,7 @@ def _frame_loop(job, run, progress, on_frame) -> SimpleNamespace:
         bar.close()
         renderer.close()
         run.video = writer.close(ok=ok)
+    t.loop_cpu = cpu_seconds() - t.loop_cpu
     checkpoints.finish()  # complete: nothing to resume
     return t
 
@@ -274,11 +290,26 @@ def _report(job, run, t, profile: bool) -> dict:
     out["fps_measured"] = out["frames_per_second"]
     if profile:
         writer = run.writer
-        prof = {"simulation": t.sim, "culling": renderer.timings["cull"], "drawing": renderer.timings["draw"],
-                "encoding": writer.timings["encode"], "encoding_busy": writer.timings["encode_busy"]}
-        prof["other"] = max(0.0, loop - t.sim - prof["culling"] - prof["drawing"] - prof["encoding"])
+        stages = renderer.stages.seconds
+        prof = {"simulation": t.sim, **stages, "encoding": writer.timings["encode"],
+                "encoding_busy": writer.timings["encode_busy"]}
+        prof["other"] = max(0.0, loop - t.sim - sum(stages.values()) - prof["encoding"])
         prof["setup"] = t.loop_start - t.start - t.replay
         prof["resume_replay"] = t.replay  # simulating the frames kept from an interrupted render
         prof["first_frame"] = t.first  # included above; mostly kernel compilation (cached on later runs)
         out["profile"] = prof
+        out["profile_cpu"] = {"simulation": t.sim_cpu, **renderer.stages.cpu, "loop": t.loop_cpu}
     return out
+
+
+def _write_profile(job, out) -> None:
+    """The profile of a render, with its machine and load, as JSON beside its frames (PROFILE_FILE): the run
+    docs/rendering.md's table of the frame's stages is made from (docs/results/render_profile.json,
+    tools/readme_tables.py)."""
+    drawn = out["frames"] - out["resumed_from"]
+    record = {"started": job.started, "scene": job.scene.name, "frames": drawn, "resolution": out["resolution"],
+              "frames_per_second": out["frames_per_second"], "seconds": out["seconds"], "redraws": out["redraws"],
+              "profile": out["profile"], "profile_cpu": out["profile_cpu"], "machine": machine(job.arch),
+              "load_average_start": job.load_start, "load_average_end": loadavg()}
+    data = (json.dumps(record, indent=1) + "\n").encode()
+    write_atomically(job.out_dir / PROFILE_FILE, lambda f: f.write(data))

@@ -51,6 +51,27 @@ def _kind(annotation):
     return _OTHER
 
 
+def _array_key(v):
+    """A cheap key of what an array argument's compiled instance depends on: a NumPy array's dtype and rank, a
+    device array's features (:func:`_features`, kept on the array once made)."""
+    if type(v) is np.ndarray:
+        return (v.dtype.num, v.ndim)
+    key = getattr(v, "_launch_key", None)
+    if key is None:
+        key = _features(v) if isinstance(v, Ndarray) else id(type(v))
+        try:
+            v._launch_key = key
+        except AttributeError:
+            pass
+    return key
+
+
+def _features(v) -> tuple:
+    """What a compiled kernel is specialised on of a device array argument (Taichi's own key: its element type,
+    dimensions and element shape): another array of the same features runs the same compiled kernel."""
+    return (str(v.dtype), len(v.shape), tuple(v.element_shape), v.layout)
+
+
 def _getter(ret):
     """The launch context's reader of a kernel's one returned scalar, as Taichi reads it (None: no value;
     _OTHER: another kind of return, Taichi's own path)."""
@@ -70,7 +91,7 @@ class _Bound:
     """The compiled instance of one set of template arguments, its launch context and what the arrays it was
     built with were (dtype, rank): a call with others takes Taichi's own path."""
 
-    __slots__ = ("t_kernel", "ckd", "ctx", "prog", "arrays", "key", "templates")
+    __slots__ = ("t_kernel", "config", "caps", "ctx", "prog", "arrays", "key", "templates", "last")
 
 
 class Launcher:
@@ -94,13 +115,15 @@ class Launcher:
         if self._plan is None:
             self._plan = tuple(_kind(a.annotation) for a in self._primal.arguments)
             self._templates = tuple(i for i, k in enumerate(self._plan) if k is None)
+            self._arrays = tuple(i for i, k in enumerate(self._plan) if k == _ARRAY)
             self._ret = _getter(self._primal.return_type)
             self._supported = (_OTHER not in self._plan and len(self._plan) == len(args)
                                and self._primal.autodiff_mode == _ti_core.AutodiffMode.NONE
                                and self._ret is not _OTHER)
         if not self._supported or len(args) != len(self._plan):
             return self._primal_call(args)
-        tkey = tuple(id(args[i]) for i in self._templates)
+        # one compiled instance per template arguments and arrays' features (Taichi's key): one bound context each
+        tkey = tuple(id(args[i]) for i in self._templates) + tuple(_array_key(args[i]) for i in self._arrays)
         b = self._bound.get(tkey)
         if b is None or self._primal.compiled_kernels.get(b.key) is not b.t_kernel \
                 or impl.get_runtime().prog is not b.prog:
@@ -120,10 +143,13 @@ class Launcher:
                 ctx.set_arg_float((slot,), float(v))
             else:
                 want = arrays[slot]
-                if want[0] == "ndarray":  # a device array (a World's group): the one it was bound with
-                    if v is not want[1]:
+                if want[0] == "ndarray":  # a device array (a World's group): one of the features compiled for
+                    if v is not b.last.get(slot) and (not isinstance(v, Ndarray) or _features(v) != want[1]):
                         return self._primal_call(args)
+                    # set at every launch: Taichi's launch turns the array's handle in the context into its
+                    # address in place, so a context launched once no longer holds the handle
                     ctx.set_arg_ndarray((slot,), v.arr)
+                    b.last[slot] = v
                 else:
                     if type(v) is not np.ndarray or v.dtype != want[0] or v.ndim != want[1] \
                             or not v.flags.c_contiguous:
@@ -131,7 +157,9 @@ class Launcher:
                     shape = v.shape if want[2] == 0 else v.shape[:-want[2]]
                     ctx.set_arg_external_array_with_shape((slot,), int(v.ctypes.data), v.nbytes, shape, 0)
             slot += 1
-        b.prog.launch_kernel(b.ckd, ctx)
+        # the compiled code asked for at every launch, as Taichi's call does (a cache lookup): Taichi hands a
+        # reference into its cache, which another kernel's compile may move, so it is never kept
+        b.prog.launch_kernel(b.prog.compile_kernel(b.config, b.caps, b.t_kernel), ctx)
         if self._ret is None:
             return None
         b.prog.synchronize()
@@ -150,8 +178,9 @@ class Launcher:
         b.key = key
         b.t_kernel = prim.compiled_kernels[key]
         b.prog = impl.get_runtime().prog
-        b.ckd = b.prog.compile_kernel(b.prog.config(), b.prog.get_device_caps(), b.t_kernel)
+        b.config, b.caps = b.prog.config(), b.prog.get_device_caps()
         b.ctx = b.t_kernel.make_launch_context()
+        b.last = {}  # slot -> the device array set there last (kept alive: the context points into it)
         arrays = {}
         slot = 0
         for i, kind in enumerate(self._plan):
@@ -160,7 +189,7 @@ class Launcher:
             if kind == _ARRAY:
                 v = args[i]
                 if isinstance(v, Ndarray):
-                    arrays[slot] = ("ndarray", v)
+                    arrays[slot] = ("ndarray", _features(v))
                 elif type(v) is not np.ndarray:
                     return None
                 else:

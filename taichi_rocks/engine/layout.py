@@ -26,7 +26,7 @@ import numpy as np
 from ..config.plan import Plan
 from ..config.scene import SceneError
 from . import hashgrid
-from .active import store_sizing
+from .tiles import store_sizing
 from .effects import effect_specs
 from .impact_pass import body_table, event_capacity
 from .rockfields import present

@@ -14,10 +14,12 @@ import sys
 import taichi as ti
 
 from ..config.arches import ARCHES
-from ..config.environment import PARALLEL_SCAN, THREADS, parallel_scan_wanted, threads_wanted  # noqa: F401
+from ..config.environment import (PARALLEL_SCAN, THREADS, loops_wanted, parallel_scan_wanted,  # noqa: F401
+                                  threads_wanted)
 from . import frontend
 
 _state: dict = {"arch": None}
+CACHE_BYTES = 1 << 30  # the offline kernel cache's size limit (Taichi's default: 100 MB)
 QUICK_COMPILE = "TAICHI_ROCKS_QUICK_COMPILE"  # the environment variable of quick_compile()
 
 
@@ -32,14 +34,18 @@ def init_taichi(arch: str = "cpu", *, warn=None, profiler: bool = False) -> str:
     """
     if arch not in ARCHES:
         raise ValueError(f"arch must be one of {', '.join(ARCHES)}, got {arch!r}")
-    threads_wanted(), parallel_scan_wanted()  # a bad value is refused at every start, not only the first
+    # a bad value is refused at every start, not only the first
+    threads_wanted(), parallel_scan_wanted(), loops_wanted()
     warn = warn or (lambda msg: print(f"taichi-rocks: warning: {msg}", file=sys.stderr))
     if _state["arch"] is not None:
         return _state["arch"]
     frontend.install()  # the same kernels, compiled with less of the front end's repeated work
     threads = auto_threads()
-    # fast_math off: x / l must round exactly like NumPy for cells on boundaries to agree everywhere
-    opts = dict(log_level=ti.ERROR, random_seed=0, fast_math=False)
+    # fast_math off: x / l must round exactly like NumPy for cells on boundaries to agree everywhere. The offline
+    # kernel cache may hold CACHE_BYTES: Taichi's 100 MB default is less than the package's kernels (the test
+    # suite's, every scene's and the renderer's: about 140 MB), and past it Taichi drops a quarter of the files
+    # at every exit, so every run compiled again
+    opts = dict(log_level=ti.ERROR, random_seed=0, fast_math=False, offline_cache_max_size_of_files=CACHE_BYTES)
     if quick_compile():
         opts["advanced_optimization"] = False
     if profiler:

@@ -4,7 +4,7 @@ engine/origin.py)."""
 
 import taichi as ti
 
-from .active import same_key, tile_key, vec2
+from .tiles import same_key, tile_key, vec2
 from .world import Par
 from .view import world_kernel
 

@@ -22,7 +22,7 @@ from .events import N_INT, N_REAL, EventBuffer, record_type
 from .params import IPar, Par  # the indices of World.par and World.ipar (also imported from here)
 from .rockfields import FLYING, RESTING, SLIDING, present  # noqa: F401 - the phase codes, re-exported
 from .view import GROUP_NAMES, GROUPS, REAL_SIZES, SIZES
-from .worlddata import HostField, Layout, Placement, group_dtype, group_of, np_group_dtype
+from .worlddata import HostField, Layout, Placement, copy_launchers, group_dtype, group_of, np_group_dtype
 
 # Hash primes of Teschner et al. 2003, "Optimized Spatial Hashing for Collision Detection of Deformable
 # Objects", VMV.
@@ -326,11 +326,12 @@ class World:
         self.groups = tuple(ti.ndarray(group_dtype(g, real), place.lengths[g]) for g in GROUP_NAMES)
         self.placement = place
         by_group = dict(zip(GROUP_NAMES, self.groups))
+        copies = copy_launchers()  # the fields' copies at the cost of their launch (engine/launcher.py)
         for sp in specs:
             group, row, offset, shape = place.at[sp.name]
             width = GROUPS[group][1]
             setattr(self, sp.name, HostField(sp.name, by_group[group], offset, row, shape,
-                                             np_group_dtype(group, np_real), width))
+                                             np_group_dtype(group, np_real), width, copies))
         self._head = HostField("head", by_group["i1"], 0, 0, (len(place.head),), np.int32, 1)
         self._head.from_numpy(place.head)
         self._real_head = HostField("real head", by_group["r1"], 0, 0, (len(place.real_head),), np_real, 1)

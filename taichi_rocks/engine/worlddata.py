@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
+from .launcher import Launcher
 from .view import GROUP_NAMES, GROUPS, HEAD, REAL_SIZES, SIZES
 
 __all__ = ["Layout", "Placement", "HostField", "group_of", "NP_TYPES"]
@@ -89,8 +90,11 @@ class HostField:
     ``np_dtype``. Reads and writes copy through one kernel per group kind (compiled once per process; serial for
     at most :data:`SERIAL_COPY` elements)."""
 
-    def __init__(self, name: str, arr, offset: int, row: int, shape: tuple, np_dtype, width: int):
+    def __init__(self, name: str, arr, offset: int, row: int, shape: tuple, np_dtype, width: int, copies=None):
         self.name, self.arr, self.offset, self.row, self.shape = name, arr, offset, row, tuple(shape)
+        # the copy kernels, launched at the cost of their launch (engine/launcher.py: one set per World, shared by
+        # its fields), or Taichi's own call
+        self._copy = copies or COPIES
         self.np_dtype, self.width = np.dtype(np_dtype), width
         self.entries = math.prod(self.shape) if self.shape else 1
         self.n = row or width  # components per entry
@@ -110,9 +114,9 @@ class HostField:
         out = np.empty((k, self.width) if self.width > 1 else (k,), self.np_dtype)
         if k:
             if self.width > 1:
-                _read_vec(self.arr, start, k, out, self.width, k <= SERIAL_COPY)
+                self._copy["read_vec"](self.arr, start, k, out, self.width, k <= SERIAL_COPY)
             else:
-                _read(self.arr, start, k, out, k <= SERIAL_COPY)
+                self._copy["read"](self.arr, start, k, out, k <= SERIAL_COPY)
         return out.reshape((count,) + self._entry_shape())
 
     def write(self, first: int, a) -> None:
@@ -123,9 +127,9 @@ class HostField:
         if k:
             flat = a.reshape((k, self.width) if self.width > 1 else (k,))
             if self.width > 1:
-                _write_vec(self.arr, start, k, flat, self.width, k <= SERIAL_COPY)
+                self._copy["write_vec"](self.arr, start, k, flat, self.width, k <= SERIAL_COPY)
             else:
-                _write(self.arr, start, k, flat, k <= SERIAL_COPY)
+                self._copy["write"](self.arr, start, k, flat, k <= SERIAL_COPY)
 
     def to_numpy(self) -> np.ndarray:
         return self.read(0, self.entries).reshape(self.shape + self._entry_shape())
@@ -222,3 +226,11 @@ def group_dtype(group: str, real) -> object:
 def np_group_dtype(group: str, real_np):
     kind, _ = GROUPS[group]
     return real_np if kind == "real" else NP_TYPES[kind]
+
+
+COPIES = {"read": _read, "write": _write, "read_vec": _read_vec, "write_vec": _write_vec}  # Taichi's own calls
+
+
+def copy_launchers() -> dict:
+    """The copy kernels behind launchers (engine/launcher.py), for the fields of one World."""
+    return {name: Launcher(k) for name, k in COPIES.items()}

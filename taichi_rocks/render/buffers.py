@@ -3,20 +3,19 @@
 
 A new set of fields costs seconds of compiling (the rock pass, the ground pass, the uploads and GGUI's copies are
 compiled for the fields they touch): the next Renderer of the same sizes on a pooled World (engine/world.py)
-takes a free set and starts with its kernels compiled. Two kinds of set:
+takes a free set and starts with its kernels compiled.
 
-* :class:`FrameFields`, per resolution, rock mode, shadows and tile store: the background image, splat buffers
-  and shadows (:class:`.kernels.Buffers`), the tile store's slots in view (:class:`.tiles.Visible`), the compact
-  buckets of the rocks drawn as particles and as meshes (power-of-two capacities, made when first needed:
-  :func:`bucket`, :func:`mesh_bucket`), and the overlays' lines;
-* :class:`VehicleFields`, per vertex and index count: the vehicles' merged mesh.
+:class:`FrameFields`, per resolution, rock mode, shadows and tile store: the background image, splat buffers
+and shadows (:class:`.kernels.Buffers`), the tile store's slots in view (:class:`.tiles.Visible`), the compact
+buckets of the rocks drawn as particles and as meshes (power-of-two capacities, made when first needed:
+:func:`bucket`, :func:`mesh_bucket`), and the overlays' lines. (The vehicles and the marks draw from GGUI's own
+vertex buffers, render/vbo.py: no fields.)
 """
 
 from __future__ import annotations
 
 from types import SimpleNamespace
 
-import taichi as ti
 
 from ..engine.trees import FieldTrees, Pool
 from . import kernels as K
@@ -24,8 +23,7 @@ from .overlays import Overlays
 from .tiles import Visible
 from .tumbling import MeshBucket
 
-__all__ = ["MIN_BUCKET", "MIN_MESHES", "MAX_CARS", "POOL", "FrameFields", "VehicleFields", "lease_frame",
-           "lease_vehicles", "bucket", "mesh_bucket"]
+__all__ = ["MIN_BUCKET", "MIN_MESHES", "MAX_CARS", "POOL", "FrameFields", "lease_frame", "bucket", "mesh_bucket"]
 
 MIN_BUCKET = 4096
 MIN_MESHES = 1024  # rocks drawn as meshes per level of detail: the first bucket (the default scene's flying rocks
@@ -44,26 +42,7 @@ class FrameFields:
         self.overlays = Overlays(SimpleNamespace(), self.trees)
 
 
-class VehicleFields:
-    """The vehicles' merged mesh for ``nv`` vertices and ``ni`` indices: positions and normals (posed each
-    frame), colours, the triangles' indices and GGUI's model matrix. A renderer of the same vehicles uploads and
-    draws them with kernels compiled (the uploads' and GGUI's copies into its vertex buffers). Every field is
-    written before it is drawn."""
-
-    def __init__(self, nv: int, ni: int):
-        self.trees, self.owner = FieldTrees(), None
-        t = self.trees
-        self.verts, self.norms, self.cols = (t.vector(3, ti.f32, nv) for _ in range(3))
-        self.idx = t.scalar(ti.i32, ni)
-        self.model = t.matrix(4, 4, ti.f32, 1)
-
-
 POOL = Pool()
-
-
-def lease_vehicles(owner, nv: int, ni: int) -> VehicleFields:
-    """A free set of vehicle fields of these sizes, or a new one."""
-    return POOL.lease(owner, ("vehicles", nv, ni), lambda: VehicleFields(nv, ni))
 
 
 def lease_frame(owner, w, h, splat, shadows, n_slots) -> FrameFields:

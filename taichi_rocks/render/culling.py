@@ -1,5 +1,6 @@
 """The rocks of a frame, host side: the rock pass (render/splat.py :func:`.splat.rocks_pass`) run over buckets
-big enough for what it compacts, and the rocks it left for GGUI declared in the 3D layer.
+big enough for what it compacts, and the rocks it left for GGUI declared in the 3D layer; offscreen in two parts,
+the compaction before GGUI draws and the splats after (render/splat.py).
 
 The pass culls every rock to the view; in "splat" mode the resting ones go into the background layer's buffers,
 and what GGUI draws is compacted by an atomic counter into a bucket of a power-of-two capacity: flying rocks of
@@ -12,16 +13,16 @@ from __future__ import annotations
 
 import numpy as np
 import taichi as ti
-from taichi.ui.utils import get_field_info
 
 from ..engine import drawing
 from . import kernels as K
 from .buffers import bucket, mesh_bucket
 from .looks import AMBIENT, SUN_COLOR
 from .settings import camera_basis, vec
-from .splat import rocks_pass
+from .splat import ALL, SPLAT, Pass, rocks_pass
 from .sunlight import shade_of
-from .tumbling import expand, host_buffer, shared_prototypes
+from .tumbling import expand, shared_prototypes
+from .vbo import declare_mesh, host_buffer
 
 __all__ = ["RockLayer"]
 
@@ -43,41 +44,48 @@ class RockLayer:
         self.identity = host_buffer((1, 4, 4))  # one identity model matrix, as GGUI's wrapper hands it over
         self.identity[0] = np.eye(4, dtype=np.float32)
 
-    def cull(self, sim, settings, views, eye, fwd, right, up, sun) -> int:
+    def cull(self, sim, settings, views, eye, fwd, right, up, sun, part: int = ALL) -> int:
         """Cull ``sim``'s rocks to the view (``eye`` and the basis; ``sun``: towards the sun); splat the resting
-        ones ("splat" mode) and compact those GGUI draws into a bucket. Return how many GGUI draws."""
+        ones ("splat" mode) and compact those GGUI draws into a bucket. Return how many GGUI draws. ``part``
+        (render/splat.py): ALL of it, or only the compaction (COMPACT), or then only the splats (SPLAT: not into
+        the pixels GGUI drew, ``buffers.cover``; the buckets of the COMPACT part before)."""
         n = self.n_rocks
-        self.drawn = None
         if n == 0:
-            self.last_count = 0
+            self.drawn, self.last_count = None, 0
             return 0
         w, h = settings.resolution
         cam = camera_basis(eye, fwd, right, up)
         size = K.Sizing(lod_px=settings.lod_pixels, radius_scale=h / w)  # GGUI 1.7.4 draws particles w/h too large
         light = K.Light(sun=vec(sun), ambient=ti.Vector(AMBIENT), sun_color=ti.Vector(SUN_COLOR))
         shade = shade_of(sun, views.ground_z - float(sim.origin[2]))
-        tiles = ti.Vector([float(x) for x in sim.tile_shift()])
+        step = Pass(tiles=ti.Vector([float(x) for x in sim.tile_shift()]), part=part)
+        frustum, f = views.frustum(settings.draw_distance), self.fields
+        if part == SPLAT:
+            rocks, count, meshes, n_meshes = self.drawn
+            rocks_pass(sim.world, f.buf, rocks, meshes, cam, frustum, size, light, shade, f.visible, step)
+            self.tiles_in_view = int(f.visible.count[None]) if drawing.has_tiles(sim.world) else 0
+            return count + sum(n_meshes)
+        self.drawn = None
         need = max(int(self.last_count * 1.25), 1)
         need_meshes = max(self.last_meshes, 1)
-        f = self.fields
         oriented = drawing.has_orientations(sim.world)
         while True:
             rocks, meshes = bucket(f, need, n), mesh_bucket(f, need_meshes, n, oriented)
-            rocks_pass(sim.world, f.buf, rocks, meshes, cam, views.frustum(settings.draw_distance), size, light,
-                       shade, f.visible, tiles)
+            rocks_pass(sim.world, f.buf, rocks, meshes, cam, frustum, size, light, shade, f.visible, step)
             count = int(f.buf.count[None])
             n_meshes = tuple(int(c) for c in f.buf.mesh_count.to_numpy())  # per level of detail
             if count <= rocks.cap and max(n_meshes) <= meshes.cap:
                 break
             need, need_meshes = max(count, need), max(max(n_meshes), need_meshes)
-            if settings.rocks == "splat" or settings.shadows:  # splats in the buffers already: clear them first
+            if part == ALL and (settings.rocks == "splat" or settings.shadows):  # splats in the buffers: clear them
                 K.clear_buffers(f.buf)
         if any(n_meshes):
             if self.protos is None:
                 self.protos = shared_prototypes()
             expand(meshes, self.protos, *n_meshes, *meshes.vbo)
         self.last_count, self.last_meshes = count, max(n_meshes)
-        self.tiles_in_view = int(f.visible.count[None]) if drawing.has_tiles(sim.world) else 0
+        if part == ALL:
+            self.tiles_in_view = int(f.visible.count[None]) if drawing.has_tiles(sim.world) else 0
         self.drawn = (rocks, count, meshes, n_meshes)
         return count + sum(n_meshes)
 
@@ -97,6 +105,4 @@ class RockLayer:
         would (one identity instance; see render/renderer.py), minus its repacking of the whole field."""
         for lod, n in enumerate(counts):
             if n > 0:
-                vbo = meshes.vertices(lod, n)
-                scene.scene.mesh_instance(get_field_info(vbo), True, get_field_info(None), (0.5, 0.5, 0.5), False,
-                                          get_field_info(self.identity), 1, 0, len(vbo), 0, len(vbo), 0, False)
+                declare_mesh(scene, meshes.vertices(lod, n), self.identity)

@@ -1,5 +1,6 @@
 """The ground pass (a Taichi kernel): sky, ground and the splatted resting rocks, one ray per pixel, into the
-background image (render/kernels.py :class:`.kernels.Buffers` ``sky``).
+background image (render/kernels.py :class:`.kernels.Buffers` ``sky``), or (offscreen, ``merge``) under GGUI's
+image straight into the frame: a pixel GGUI drew is GGUI's, and no ground is computed under it.
 
 Ground: a plane, a box-filtered checker of world-anchored tiles (:func:`_checker`: the integrated square wave,
 so far tiles blend to the mean), lit as GGUI lights a mesh facing up, darkened in the vehicles' soft contact
@@ -10,8 +11,8 @@ horizon up. The camera has no roll, so a row of pixels shares its ray's height a
 
 import taichi as ti
 
-from .kernels import COVERAGE_ONE, CameraBasis, Frustum, Ground, Palette, empty_key, \
-    key_rgb, spread_stride
+from .kernels import COVERAGE_ONE, CameraBasis, Frustum, Ground, Palette, empty_key, is_key, key_rgb, raw_rgb, \
+    spread_stride
 from .shadows import smooth01 as _smooth01, take_shade as _take_shade, vehicle_shadows as _vehicle_shadows
 
 __all__ = ["ROW_PARTS", "paint_ground"]
@@ -47,6 +48,39 @@ def _to_rgba8(col):
 
 
 @ti.func
+def _emit(buf, out: ti.template(), i, j, px, merge: ti.template()):
+    """Pixel (i, j) (row 0 at the bottom) of colour ``px`` (rgba8): into the background image, or (``merge``)
+    into the upright frame ``out`` (H, W, 3)."""
+    if ti.static(merge):
+        H = out.shape[0]
+        for c in ti.static(range(3)):
+            out[H - 1 - j, i, c] = px[c]
+    else:
+        buf.sky[i, j] = px
+
+
+@ti.func
+def _drawn(buf, raw: ti.template(), out: ti.template(), i, j, rocks, shaded, merge: ti.template()):
+    """``merge``: did GGUI draw pixel (i, j) (``raw``: its read-back, (W, H, 4) floats, row 0 at the bottom; a
+    pixel it left has its clear colour, render/looks.py KEY)? Then its colour goes to ``out`` and the splat
+    buffers there are reset, as painting it would have."""
+    drawn = False
+    if ti.static(merge):
+        r, g, b = raw_rgb(raw, i, j)
+        if not is_key(r, g, b):
+            drawn = True
+            _emit(buf, out, i, j, ti.Vector([ti.cast(ti.min(ti.max(c, 0), 255), ti.u8) for c in (r, g, b)]), merge)
+            if ti.static(buf.splat):
+                if rocks:
+                    buf.zbuf[i, j] = empty_key()
+                    buf.acc[i, j] = ti.Vector([0, 0], ti.i64)
+            if ti.static(buf.shadows):
+                if shaded:
+                    buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
+    return drawn
+
+
+@ti.func
 def _checker(hx, hy, fx, fy, wrap, inv_tile):
     """The checker's share of its second colour at ground point (hx, hy) over a footprint fx x fy (m): box-
     filtered square waves (difference of the integrated triangle wave), so far tiles blend to the mean."""
@@ -64,11 +98,13 @@ def _checker(hx, hy, fx, fy, wrap, inv_tile):
 
 
 @ti.func
-def _ground_row(buf, j, i0, i1, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars):
+def _ground_row(buf, j, i0, i1, dr, t, rocks, shaded, cam, fr, ground, pal, n_cars, raw: ti.template(),
+                out: ti.template(), merge: ti.template()):
     """Columns i0 .. i1-1 of row j where the ground shows: ray ``dr`` through the row's centre line meets the
     plane at distance t (in units of dr). The pixel's ray is dr + right * u. With ``buf.shadows``, the light the
     sun gives is taken away in the shadows (the vehicles', and the flying rocks' splatted ones) from the ground
-    and the resting rocks alike, in the resting rocks' contact shadows from the ground only."""
+    and the resting rocks alike, in the resting rocks' contact shadows from the ground only. ``merge``: the
+    pixels GGUI drew are its (:func:`_drawn`); returns how many."""
     W, H = buf.sky.shape
     inv_tile = 1.0 / ground.tile
     right = cam.right
@@ -80,7 +116,11 @@ def _ground_row(buf, j, i0, i1, dr, t, rocks, shaded, cam, fr, ground, pal, n_ca
     bx0 = cam.eye[0] + t * dr[0]
     by0 = cam.eye[1] + t * dr[1]
     r2 = dr.norm_sqr()
+    n_drawn = 0
     for i in range(i0, i1):
+        if _drawn(buf, raw, out, i, j, rocks, shaded, merge):
+            n_drawn += 1
+            continue
         u = ((i + 0.5) / W * 2.0 - 1.0) * fr.tan_x
         hx = bx0 + t * u * right[0]
         hy = by0 + t * u * right[1]
@@ -124,36 +164,44 @@ def _ground_row(buf, j, i0, i1, dr, t, rocks, shaded, cam, fr, ground, pal, n_ca
                 g *= lit
         x = t * ti.sqrt(r2 + u * u) / ground.haze_dist  # distance / haze distance (right is a unit normal to dr)
         fog = 1.0 - 1.0 / (1.0 + x * (1.0 + 0.5 * x))  # ~ 1 - exp(-x), cheaper
-        buf.sky[i, j] = _to_rgba8(g + (pal.horizon - g) * fog)
+        _emit(buf, out, i, j, _to_rgba8(g + (pal.horizon - g) * fog), merge)
+    return n_drawn
 
 
 @ti.func
-def _sky_row(buf, j, i0, i1, dr, rocks, shaded, pal):
+def _sky_row(buf, j, i0, i1, dr, rocks, shaded, pal, raw: ti.template(), out: ti.template(), merge: ti.template()):
     """Columns i0 .. i1-1 of row j above the horizon: one colour (elevation of the row's centre), rocks only
-    when the camera is lower than they are. (A shadow splatted across the horizon is reset here.)"""
+    when the camera is lower than they are. (A shadow splatted across the horizon is reset here.) ``merge``: the
+    pixels GGUI drew are its (:func:`_drawn`); returns how many."""
     elev = dr[2] / ti.sqrt(dr.norm_sqr())
     col = pal.horizon + (pal.sky - pal.horizon) * _smooth01(elev * (1.0 / 0.12))
     px = _to_rgba8(col)
-    if ti.static(buf.shadows):
-        if shaded:
-            for i in range(i0, i1):
+    n_drawn = 0
+    for i in range(i0, i1):
+        if _drawn(buf, raw, out, i, j, rocks, shaded, merge):
+            n_drawn += 1
+            continue
+        if ti.static(buf.shadows):
+            if shaded:
                 buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
-    if ti.static(buf.splat):
-        if rocks:
-            for i in range(i0, i1):
-                buf.sky[i, j] = _to_rgba8(_composite(col, buf, i, j))
-        else:
-            for i in range(i0, i1):
-                buf.sky[i, j] = px
-    else:
-        for i in range(i0, i1):
-            buf.sky[i, j] = px
+        c = px
+        if ti.static(buf.splat):
+            if rocks:
+                c = _to_rgba8(_composite(col, buf, i, j))
+        _emit(buf, out, i, j, c, merge)
+    return n_drawn
 
 
 @ti.kernel
-def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Ground, pal: Palette, n_cars: ti.i32):
+def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Ground, pal: Palette, n_cars: ti.i32,
+                 raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3),
+                 merge: ti.template()):
     """Sky, ground and (``buf.splat``) the splatted resting rocks, one ray per pixel, into the background
-    image ``buf.sky`` (W, H), row 0 at the bottom.
+    image ``buf.sky`` (W, H), row 0 at the bottom; or (``merge``) into the upright frame ``out`` (H, W, 3)
+    wherever GGUI's read-back ``raw`` ((W, H, 4) floats in [0, 1], row 0 at the bottom) has its clear colour,
+    GGUI's pixels elsewhere (``buf.drawn_px`` counts them): the same frame as the background image merged under
+    GGUI's (GGUI draws without antialiasing, so a pixel is either cleared, exactly the key, or drawn), without
+    the ground under what GGUI drew. (Otherwise ``raw`` and ``out`` are not read: any arrays will do.)
 
     Ground: the plane z = ground.z, a checker of ``ground.tile`` metre squares whose parity is that of the
     *world* tile (``ground.wrap`` = origin mod 2 tiles), box-filtered over the pixel's footprint (no moire: far
@@ -170,6 +218,7 @@ def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Grou
     """
     W, H = buf.sky.shape
     h = cam.eye[2] - ground.z
+    buf.drawn_px[None] = 0
     for q, part in ti.ndrange(H, ti.static(ROW_PARTS)):
         j = (q * ti.static(spread_stride(buf.sky.shape[1]))) % H  # rows spread: see spread_stride
         i0 = part * W // ROW_PARTS
@@ -183,8 +232,12 @@ def paint_ground(buf: ti.template(), cam: CameraBasis, fr: Frustum, ground: Grou
             rocks = buf.rows[0] <= j <= buf.rows[1]
         if ti.static(buf.shadows):
             shaded = buf.rows[2] <= j <= buf.rows[3]
+        n_drawn = 0
         if dz < 0.0 and h > 0.0:
-            _ground_row(buf, j, i0, i1, dr, h / -dz, rocks, shaded, cam, fr, ground, pal, n_cars)
+            n_drawn = _ground_row(buf, j, i0, i1, dr, h / -dz, rocks, shaded, cam, fr, ground, pal, n_cars, raw, out,
+                                  merge)
         else:
-            _sky_row(buf, j, i0, i1, dr, rocks, shaded, pal)
+            n_drawn = _sky_row(buf, j, i0, i1, dr, rocks, shaded, pal, raw, out, merge)
+        if ti.static(merge):
+            buf.drawn_px[None] += n_drawn
 

@@ -1,6 +1,7 @@
-"""The background layer's buffers and the merge: the kernels' argument structs, the fields of a frame's
-background (:class:`Buffers`) and of the rocks compacted for GGUI (:class:`Bucket`), how the splat buffers pack a
-rock (depth key, coverage), and the kernels that clear them and merge GGUI's read-back over the background.
+"""The background layer's buffers: the kernels' argument structs, the fields of a frame's background
+(:class:`Buffers`) and of the rocks compacted for GGUI (:class:`Bucket`), how the splat buffers pack a rock
+(depth key, coverage), how a pixel of GGUI's read-back is read (:func:`raw_rgb`, :func:`is_key`), and the kernel
+that clears the buffers.
 
 A frame is made of two layers. The *background image* (W x H, row 0 at the bottom) holds the sky, the ground and
 the *resting* rocks: the rock pass (render/splat.py :func:`.splat.rocks_pass`) culls every rock to the view
@@ -12,7 +13,8 @@ box-filtered, so no moire at the horizon), soft contact shadows under the vehicl
 and the rocks (:mod:`.shadows`; splatted by the rock pass), the splatted rocks, haze. Everything GGUI draws (the
 second layer: vehicles, flying rocks as oriented rock meshes, render/tumbling.py, or particles when small,
 overlays) lies above the ground plane, so drawing the ground and what lies on it *behind* the 3D scene is exact
-(up to a rock touching a tire's contact patch). :func:`to_u8` merges the two.
+(up to a rock touching a tire's contact patch). Offscreen the ground pass paints straight into the frame,
+under GGUI's read-back, only where GGUI drew nothing.
 
 Lighting is GGUI's: colour * (ambient + sun * max(n . l, 0)). Kernel arguments are grouped in the structs
 below (local f32 coordinates, the simulation's Z up); the buffers live in a :class:`Buffers`.
@@ -26,7 +28,8 @@ from ..engine.trees import FieldTrees
 from .looks import KEY
 
 __all__ = ["COVERAGE_ONE", "CameraBasis", "Frustum", "Sizing", "Light", "Ground", "Palette", "Buffers", "Bucket",
-           "spread_stride", "empty_key", "key_rgb", "depth_key", "clear_buffers", "to_u8"]
+           "spread_stride", "empty_key", "key_rgb", "key_depth", "raw_rgb", "is_key", "depth_key", "clear_buffers",
+           "cover_from"]
 
 COVERAGE_ONE = 1024.0  # fixed-point unit of splatted coverage: 2^21 / (pi * 1024) = 650 rocks a pixel
 
@@ -54,8 +57,9 @@ Palette = ti.types.struct(ground_a=_vec3, ground_b=_vec3, light=_vec3, sky=_vec3
 @ti.data_oriented
 class Buffers:
     """The fields of the background layer, ``width`` x ``height``: the image (``sky``), the software buffers of
-    the splatted rocks (1 x 1 placeholders unless ``splat``), the rows they touch, the vehicles' shadows, and
-    three counters (rocks compacted for GGUI particles and for meshes, pixels GGUI drew)."""
+    the splatted rocks (1 x 1 placeholders unless ``splat``), the pixels GGUI drew over them (``cover``), the rows
+    they touch, the vehicles' shadows, and three counters (rocks compacted for GGUI particles and for meshes,
+    pixels GGUI drew)."""
 
     def __init__(self, width: int, height: int, splat: bool, max_cars: int, shadows: bool = False,
                  trees: FieldTrees = None):
@@ -76,6 +80,9 @@ class Buffers:
         # ground only: a rock does not shade itself)
         sw, sh = (width, height) if shadows else (1, 1)
         self.shade = t.image(sw, sh, (2, ti.i32))
+        # the pixels GGUI drew, offscreen (cover_from): the rock pass splats nothing there (splat.py Pass)
+        cw, ch = (width, height) if splat or shadows else (1, 1)
+        self.cover = t.image(cw, ch, (1, ti.u8))
         self.rows = t.scalar(ti.i32, 4)  # lowest and highest row a splat touched, and a shadow
         clear_buffers(self)
         # x, y, cos, sin, half length, half width, contact shadow softness, height of the top, and the centre
@@ -157,37 +164,10 @@ def clear_buffers(buf: ti.template()):
         buf.shade[i, j] = ti.Vector([0, 0], ti.i32)
 
 
-
-# ------------------------------------------------------------------------------------------------ merge
 @ti.kernel
-def to_u8(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), out: ti.types.ndarray(dtype=ti.u8, ndim=3),
-          buf: ti.template()):
-    """GGUI's read-back (W, H, 4) float, y up -> upright (H, W, 3) uint8 (np.rot90 plus the cast), with the
-    background image ``buf.sky`` (W, H) wherever GGUI left its clear colour :data:`KEY` (nothing drawn there).
-
-    Merging here instead of ``canvas.set_image`` saves lavapipe a full-screen textured quad and GGUI a
-    staging copy (~25 ms of CPU a frame at 720p). GGUI draws without antialiasing, so a pixel is either
-    cleared (exactly the key, k/255 floats) or drawn. Works in 32 x 32 tiles so that both the reads and the
-    transposed writes stay in cache. ``buf.drawn_px`` counts the pixels GGUI drew.
-    """
-    H = out.shape[0]
-    W = out.shape[1]
-    buf.drawn_px[None] = 0
-    for by, bx in ti.ndrange((H + 31) // 32, (W + 31) // 32):
-        n = 0
-        for ex, ey in ti.ndrange(32, 32):
-            x = bx * 32 + ex
-            yy = by * 32 + ey  # row of the read-back (0 = bottom)
-            if x < W and yy < H:
-                r, g, b = raw_rgb(raw, x, yy)
-                if is_key(r, g, b):
-                    px = buf.sky[x, yy]
-                    out[H - 1 - yy, x, 0] = px[0]
-                    out[H - 1 - yy, x, 1] = px[1]
-                    out[H - 1 - yy, x, 2] = px[2]
-                else:
-                    n += 1
-                    out[H - 1 - yy, x, 0] = ti.cast(ti.min(ti.max(r, 0), 255), ti.u8)
-                    out[H - 1 - yy, x, 1] = ti.cast(ti.min(ti.max(g, 0), 255), ti.u8)
-                    out[H - 1 - yy, x, 2] = ti.cast(ti.min(ti.max(b, 0), 255), ti.u8)
-        buf.drawn_px[None] += n
+def cover_from(raw: ti.types.ndarray(dtype=ti.f32, ndim=3), buf: ti.template()):
+    """``buf.cover``: 1 where GGUI's read-back ``raw`` ((W, H, 4) floats, row 0 at the bottom) has a pixel drawn,
+    0 where it left its clear colour."""
+    for x, y in ti.ndrange(buf.cover.shape[0], buf.cover.shape[1]):
+        r, g, b = raw_rgb(raw, x, y)
+        buf.cover[x, y] = ti.u8(0) if is_key(r, g, b) else ti.u8(1)

@@ -38,11 +38,12 @@ def smooth01(x):
 
 
 @ti.func
-def splat_shadow(buf, c, r, soft, ch, cam, fr, sh):
+def splat_shadow(buf, c, r, soft, ch, cam, fr, sh, skip):
     """A sphere's shadow on the ground, added to shadow channel ``ch``: an ellipse centred at ground point
     ``c`` (x, y), of radius ``r`` across the sun's azimuth and r / sin(elevation) along it, with soft edges
     ``soft`` m wide (at least a pixel). Drawn through the projection's local affine map at ``c`` (a rock's
-    shadow is small against its distance); below a pixel, its area is added to the pixel under its centre."""
+    shadow is small against its distance); below a pixel, its area is added to the pixel under its centre.
+    ``skip``: not into the pixels GGUI drew (``buf.cover``: render/splat.py)."""
     W, H = buf.shade.shape
     d = ti.Vector([c[0], c[1], sh.z]) - cam.eye
     z = d.dot(cam.fwd)
@@ -66,7 +67,7 @@ def splat_shadow(buf, c, r, soft, ch, cam, fr, sh):
         if hx < 1.0 and hy < 1.0:
             ii = ti.cast(ti.floor(SX), ti.i32)
             jj = ti.cast(ti.floor(SY), ti.i32)
-            if 0 <= ii < W and 0 <= jj < H:
+            if 0 <= ii < W and 0 <= jj < H and not (skip and buf.cover[ii, jj] != 0):
                 area = 3.14159265 * r * r / sh.sin_el * ti.abs(det)  # pixels
                 ti.atomic_add(buf.shade[ii, jj][ch], ti.cast(ti.min(area, 1.0) * SHADE_ONE, ti.i32))
                 ti.atomic_min(buf.rows[2], jj)
@@ -83,7 +84,7 @@ def splat_shadow(buf, c, r, soft, ch, cam, fr, sh):
                     ga = g.dot(a) * sh.sin_el
                     gb = g.dot(b)
                     cov = 1.0 - smooth01((ti.sqrt(ga * ga + gb * gb) - r) / soft + 0.5)
-                    if cov > 0.0:
+                    if cov > 0.0 and not (skip and buf.cover[ii, jj] != 0):
                         ti.atomic_add(buf.shade[ii, jj][ch], ti.cast(cov * SHADE_ONE, ti.i32))
             if j_lo <= j_hi and i_lo <= i_hi:
                 ti.atomic_min(buf.rows[2], j_lo)

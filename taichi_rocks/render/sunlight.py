@@ -65,10 +65,15 @@ def shadow_casters(cars, poses, vehicles, origin, sun_dir) -> int:
     return k
 
 
-def paint_sky_and_ground(buf, cam, frustum, settings, ground_z: float, vehicles, poses, origin, sun_dir) -> None:
+_NONE = (np.zeros((1, 1, 4), np.float32), np.zeros((1, 1, 3), np.uint8))  # paint_ground's arrays, not merging
+
+
+def paint_sky_and_ground(buf, cam, frustum, settings, ground_z: float, vehicles, poses, origin, sun_dir,
+                         merge=None) -> None:
     """The background image of a frame (render/ground.py :func:`.ground.paint_ground`): the sky, the ground at
     ``ground_z`` (world) lit by the sun ``sun_dir`` with the shadows of the ``vehicles`` at ``poses``, the
-    splatted rocks; ``cam`` and ``frustum`` the kernels' view, ``settings`` the renderer's (render/settings.py)."""
+    splatted rocks; ``cam`` and ``frustum`` the kernels' view, ``settings`` the renderer's (render/settings.py).
+    ``merge`` = (GGUI's read-back, the frame): painted into the frame under GGUI's image instead."""
     period = 2.0 * settings.tile
     wrap = (float(np.mod(origin[0], period)), float(np.mod(origin[1], period)))
     light = tuple(a + l * max(float(sun_dir[2]), 0.0) for a, l in zip(AMBIENT, SUN_COLOR))
@@ -79,4 +84,4 @@ def paint_sky_and_ground(buf, cam, frustum, settings, ground_z: float, vehicles,
     palette = K.Palette(ground_a=ti.Vector(GROUND_A), ground_b=ti.Vector(GROUND_B), light=ti.Vector(light),
                         sky=ti.Vector(settings.background), horizon=ti.Vector(settings.horizon),
                         umbra=ti.Vector(umbra))
-    paint_ground(buf, cam, frustum, ground, palette, n_cars)
+    paint_ground(buf, cam, frustum, ground, palette, n_cars, *(merge or _NONE), merge is not None)

@@ -33,9 +33,10 @@ from ..config.streams import LOOK_PROTOTYPE
 from ..engine.trees import FieldTrees
 from ..motion.rockshapes import flat_triangles
 from .rocklook import _unit
+from .vbo import VBO_STRIDE, host_buffer
 
 __all__ = ["MESH_PX", "FINE_PX", "PROTOTYPES", "VERTICES", "LODS", "MeshBucket", "Prototypes", "prototype_of",
-           "rotate", "expand", "host_buffer", "shared_prototypes"]
+           "rotate", "expand", "shared_prototypes"]
 
 MESH_PX = 1.5  # flying rocks at least this many pixels in radius are meshes, smaller ones particles
 FINE_PX = 5.0  # from this many pixels on, the 80-triangle prototype; below it the 20-triangle one
@@ -43,7 +44,6 @@ PROTOTYPES = 8  # rock shapes the renderer draws (variants 0 .. 7 of rock_protot
 FINE, COARSE = 0, 1  # the levels of detail
 VERTICES = (240, 60)  # per rock and level: 80 or 20 triangles, 3 points each (flat shading)
 LODS = 2
-VBO_STRIDE = 12  # float32 per vertex of GGUI's vertex buffers (taichi/ui/staging_buffer.py): xyz, normal, uv, rgba
 
 
 @ti.data_oriented
@@ -61,21 +61,6 @@ class Prototypes:
                 f = self._trees.vector(3, ti.f32, PROTOTYPES * VERTICES[lod])
                 f.from_numpy(np.concatenate(data))
                 out.append(f)
-
-
-# Host memory handed to GGUI lives as long as the process, as GGUI's own wrapper keeps its vertex buffers
-# (taichi/ui/staging_buffer.py caches them for good): GGUI may hold the address of a buffer past the frame
-# that drew it, so a buffer freed with its Renderer could be read or written after it was reused. Buffers are
-# kept per shape and handed to the next bucket of that shape (each frame writes its buffer before GGUI reads
-# it, so buckets that share one never see each other's vertices).
-_HOST_BUFFERS: dict = {}
-
-
-def host_buffer(shape: tuple) -> np.ndarray:
-    """A float32 array of ``shape`` that is never freed (see above); zeroed when first made."""
-    if shape not in _HOST_BUFFERS:
-        _HOST_BUFFERS[shape] = np.zeros(shape, np.float32)
-    return _HOST_BUFFERS[shape]
 
 
 _SHARED: dict = {}

@@ -1,13 +1,15 @@
 """The vehicles of a frame and the marks their hits leave, host side: one merged mesh of every vehicle's body and
 wheels (render/bodies.py, render/meshes.py), posed on the host each frame (the wheels turned by the odometer:
 render/wheels.py), with the windscreen's frame of a vehicle whose cabin a shot looks out of
-(render/interior.py), and the impacts' flashes and windscreen marks (render/hits.py).
+(render/interior.py), and the impacts' flashes and marks (render/hits.py).
 
 Why on the host: GGUI 1.7.4's ``mesh_instance`` lights the *untransformed* mesh (Mesh_vk.vert forwards the
 model-space position and normal to the lighting), so a yawed vehicle would keep the shading of an unrotated
 one: the vertices and normals are transformed here and drawn with one explicit identity model matrix (a plain
-``scene.mesh`` now and then vanishes from a frame: see render/renderer.py). :meth:`VehicleLayer.lost` is the
-safety net that finds a frame where GGUI lost the mesh anyway.
+``scene.mesh`` now and then vanishes from a frame: see render/renderer.py). They go straight into GGUI's vertex
+buffer with the colours, and the triangles drawn (from outside, or from a cabin) into its index buffer
+(render/vbo.py), made once a mesh: no Taichi fields, none of the wrapper's per-frame copies.
+:meth:`VehicleLayer.lost` is the safety net that finds a frame where GGUI lost the mesh anyway.
 """
 
 from __future__ import annotations
@@ -16,13 +18,12 @@ import math
 
 import numpy as np
 
-from ..engine.transfer import put_whole
 from .bodies import scene_meshes
-from .buffers import POOL, lease_vehicles
 from .hits import HitLayer
 from .interior import interior_of
 from .looks import KEY
 from .meshes import merge, pose_mesh
+from .vbo import VBO_STRIDE, declare_mesh, host_buffer
 from .wheels import Odometer, wheel_angles
 
 __all__ = ["LOST_COVERAGE", "VehicleLayer"]
@@ -34,12 +35,13 @@ class VehicleLayer:
     """The vehicles of ``scene`` (and ``hits``: their flashes and marks, :class:`.hits.HitLayer`) as GGUI
     draws them. :meth:`build` makes the mesh for the cabins a camera looks out of; ``meshes`` (per vehicle: its
     mesh, with the windscreen's frame where it has an interior), ``sizes`` (their vertex counts), ``layouts``
-    (the merged mesh's triangles drawn from outside, key None, and from the cabin of vehicle i, key i),
-    ``frame`` (the last frame's vertices, local frame) and ``fields`` (render/buffers.py VehicleFields)."""
+    (the merged mesh's triangles drawn from outside, key None, and from the cabin of vehicle i, key i; int32)
+    and ``frame`` (the last frame's vertices, local frame)."""
 
     def __init__(self, scene):
-        self.fields = None
         self.hits = HitLayer(scene)
+        self.identity = host_buffer((1, 4, 4), "vehicles")  # an explicit identity model matrix: see above
+        self.identity[0] = np.eye(4, dtype=np.float32)
 
     def build(self, scene, paths, inside_needed) -> None:
         """The vehicles of ``scene`` (driving ``paths``): one merged mesh, with the windscreen's frame of the
@@ -51,18 +53,12 @@ class VehicleLayer:
             self.interiors[i] = interior_of(scene.vehicles[i], self.meshes[i])
             self.meshes[i] = self.interiors[i].mesh
         self.sizes = [len(m.verts) for m in self.meshes]
-        vs, ns, cs, ids = merge([m[:4] for m in self.meshes])
+        _, _, cs, _ = merge([m[:4] for m in self.meshes])
+        self.colours = cs.astype(np.float32)
         self.layouts = {None: self._triangles(None)}
         self.layouts.update({i: self._triangles(i) for i in self.interiors})
-        self.layout = None
         self.frame = None  # this frame's vertices (local frame), for the lost-mesh check
         self.odometer = Odometer(paths)
-        if self.fields is not None:  # the fields of the last call go back (the same sizes take them again)
-            POOL.give_back(self.fields, self)
-        self.fields = v = lease_vehicles(self, len(vs), max(len(tri) for tri in self.layouts.values()))
-        # an explicit identity model matrix: see the module docstring (a plain scene.mesh can vanish)
-        put_whole([v.cols, v.model], [cs, np.eye(4)[None]], np.float32)
-        self._upload_layout(None)
 
     def covers(self, inside_needed) -> bool:
         """True if the mesh holds the interiors of every vehicle in ``inside_needed``."""
@@ -78,14 +74,7 @@ class VehicleLayer:
             out.append(np.asarray(tri, np.int64) + start[i])
         if inside is not None:
             out.insert(0, out.pop(inside))
-        return np.concatenate(out)
-
-    def _upload_layout(self, inside) -> None:
-        ids = self.layouts[inside]
-        full = np.zeros(self.fields.idx.shape[0], np.int32)
-        full[:len(ids)] = ids
-        put_whole([self.fields.idx], [full], np.float32)
-        self.layout = inside
+        return np.concatenate(out).astype(np.int32)
 
     def wheel_angles(self, t: float) -> list:
         """Per vehicle, its wheels' angles (rad) at time ``t``: distance driven / tire radius (rear wheels:
@@ -105,13 +94,15 @@ class VehicleLayer:
         posed = self.posed(poses, origin, t)
         out_v = np.concatenate([v for v, _ in posed])
         self.frame = out_v
-        # both in one launch (engine/transfer.py): one compile a renderer, not one per field
-        v = self.fields
-        put_whole([v.verts, v.norms], [out_v, np.concatenate([n for _, n in posed])], np.float32)
-        if inside != self.layout:
-            self._upload_layout(inside)
-        scene.mesh_instance(v.verts, indices=v.idx, normals=v.norms, per_vertex_color=v.cols, transforms=v.model,
-                            index_count=len(self.layouts[self.layout]), show_wireframe=wireframe)
+        vbo = host_buffer((len(out_v), VBO_STRIDE), "vehicles")
+        vbo[:, :3] = out_v
+        vbo[:, 3:6] = np.concatenate([n for _, n in posed])
+        vbo[:, 8:11] = self.colours
+        vbo[:, 11] = 1.0
+        tri = self.layouts[inside]
+        idx = host_buffer((len(tri),), "vehicles", np.int32)
+        idx[:] = tri
+        declare_mesh(scene, vbo, self.identity, idx, wireframe)
 
     def lost(self, raw, eye, fwd, right, up, views, settings) -> bool:
         """True if a vehicle in full view (in front of the camera, its screen box at least 3 x 3 pixels and
@@ -139,8 +130,3 @@ class VehicleLayer:
             if drawn.mean() < LOST_COVERAGE:
                 return True
         return False
-
-    def close(self) -> None:
-        """Give the fields back to the pool and retire the hits' buffers."""
-        POOL.give_back(self.fields, self)
-        self.hits.close()

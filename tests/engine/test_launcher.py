@@ -103,3 +103,48 @@ def test_two_template_arguments_two_contexts():
     fast(b, 5, 1.0, np.ones((1, 2)), out)
     assert len(fast._bound) == 2
     assert a.a.to_numpy()[0] == 1 and b.a.to_numpy()[0] == 5
+
+
+def test_a_compile_between_two_launches_changes_nothing():
+    """Taichi hands the compiled code as a reference into its cache, which a later compile may move: a launch
+    after another instance compiled must still run its own code (it wrote garbage when the launcher kept it)."""
+    a = Box(6)
+    fast = Launcher(_fill)
+    out = np.zeros((1, 2))
+    assert fast(a, 1, 1.0, np.ones((1, 2)), out) == 2
+    for k in range(3):  # new instances compile in between: of this kernel (another template) and another one
+        Launcher(_scaled)(ti.Vector([1.0 + k, 2.0]))
+        _fill(Box(6 + k), k, 0.5, np.ones((1, 2)), np.zeros((1, 2)))
+    assert fast(a, 2, 1.0, np.ones((1, 2)), out) == 3
+    assert np.array_equal(a.a.to_numpy(), np.arange(6, dtype=np.float32) + 2)
+
+
+def test_device_arrays_set_again_at_every_launch():
+    """A launch turns a device array's handle in the context into its address: the same context launched again
+    with the same array, or with another of the same features, must write where it should."""
+    from taichi_rocks.engine.worlddata import HostField, copy_launchers
+
+    copies = copy_launchers()
+    a, b = ti.ndarray(ti.f32, 8), ti.ndarray(ti.f32, 8)
+    fa = HostField("a", a, 0, 0, (8,), np.float32, 1, copies)
+    fb = HostField("b", b, 2, 0, (4,), np.float32, 1, copies)
+    for k in range(4):  # the same array, then another through the same bound context
+        fa[k] = k + 0.5
+        fb[k] = -k - 1.0
+    assert np.array_equal(fa.to_numpy(), [0.5, 1.5, 2.5, 3.5, 0, 0, 0, 0])
+    assert np.array_equal(b.to_numpy(), [0, 0, -1, -2, -3, -4, 0, 0])
+
+
+def test_each_instance_gets_its_own_context(monkeypatch):
+    """Arrays of two element types are two compiled instances of one kernel: after the first call of each, the
+    launcher launches both itself (Taichi's own call, ten times the cost, is not taken again)."""
+    from taichi_rocks.engine.worlddata import HostField, copy_launchers
+
+    copies = copy_launchers()
+    fa = HostField("a", ti.ndarray(ti.f32, 4), 0, 0, (4,), np.float32, 1, copies)
+    fb = HostField("b", ti.ndarray(ti.i32, 4), 0, 0, (4,), np.int32, 1, copies)
+    fa[0], fb[0] = 1.0, 1
+    monkeypatch.setattr(Launcher, "_primal_call", lambda self, args: pytest.fail("Taichi's own call was taken"))
+    for k in range(3):
+        fa[k + 1], fb[k + 1] = k + 2.0, k + 2
+    assert list(fa.to_numpy()) == [1, 2, 3, 4] and list(fb.to_numpy()) == [1, 2, 3, 4]

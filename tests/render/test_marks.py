@@ -1,6 +1,7 @@
-"""Hits you can see, host side (render/marks.py), on synthetic events: the state keeps each hit once, forgets
-what lies after a time gone back to, counts by class; a windscreen mark lies where the stone hit, on the glass,
-shaped by its class, and nowhere else; flashes ride with the vehicle and keep a size in pixels."""
+"""Hits you can see, host side (render/marks.py, glassmarks.py, paintchips.py, markstore.py, flashes.py), on
+synthetic events: the state keeps each hit once, forgets what lies after a time gone back to, counts by class;
+a windscreen mark lies where the stone hit, on the glass, shaped by its class, and nowhere else; flashes ride
+with the vehicle and keep a size in pixels."""
 
 import math
 
@@ -24,6 +25,17 @@ def _events(n, **cols):
 def _car():
     return make_scene(vehicles=[{"name": "car", "kind": "car", "length": 4.5, "width": 1.8, "height": 1.45,
                                  "path": {"points": [[0.0, 0.0], [99.0, 0.0]]}}]).vehicles[0]
+
+
+def _segments(hits, spec, vehicle=0):
+    """The windscreen marks' segments of ``vehicle`` shown by ``hits`` (body frame on the glass, (K, 2, 3)),
+    made by a store of ``spec``'s marks (render/markstore.py)."""
+    from taichi_rocks.render.glassmarks import glass_point
+    from taichi_rocks.render.markstore import MarkStore
+
+    store = MarkStore([spec, spec])
+    store.sync(hits)
+    return glass_point(store.cabins[vehicle], store.segments(vehicle, hits.t))
 
 
 def _windscreen_hit(cab, u=0.5, y=0.1, damage=1, **kw):
@@ -77,14 +89,15 @@ def test_a_windscreen_mark_lies_where_the_stone_hit_on_the_glass(damage):
     """The mark's segments lie in the windscreen's plane, inside the glass, around the hit point: a chip within
     CHIP_R of it, a crack reaching further (up to CRACK_L / 2 per arm, its branches a little more)."""
     from taichi_rocks.motion.cabin import cabin_of
-    from taichi_rocks.render.marks import CHIP_R, CRACK_L, Hits
+    from taichi_rocks.render.glassmarks import CHIP_R, CRACK_L
+    from taichi_rocks.render.marks import Hits
 
     spec = _car()
     cab = cabin_of(spec)
     hits = Hits()
     ev = _windscreen_hit(cab, u=0.45, y=-0.2, damage=damage, rock=7, step=30, time=1.0)
     hits.update(ev, 1.0)
-    seg = hits.windscreen_segments(0, cab)
+    seg = _segments(hits, spec)
     assert len(seg) >= 8
     p = seg.reshape(-1, 3)
     np.testing.assert_allclose(p[:, 0], cab.windscreen_x(p[:, 2]), atol=1e-12)  # on the glass's plane
@@ -97,37 +110,40 @@ def test_a_windscreen_mark_lies_where_the_stone_hit_on_the_glass(damage):
         assert reach <= CHIP_R[1] + 1e-9
     else:
         assert 0.5 * CRACK_L[0] * 0.7 <= reach <= CRACK_L[1]
-    assert hits.windscreen_segments(1, cab).shape == (0, 2, 3)  # another vehicle's windscreen: nothing
+    assert _segments(hits, spec, 1).shape == (0, 2, 3)  # another vehicle's windscreen: nothing
 
 
 def test_no_mark_from_a_light_hit_or_off_the_glass_and_none_after_a_scrub_back():
     from taichi_rocks.motion.cabin import cabin_of
     from taichi_rocks.render.marks import Hits
 
-    cab = cabin_of(_car())
+    spec = _car()
+    cab = cabin_of(spec)
     hits = Hits()
     light = _windscreen_hit(cab, damage=0, rock=1, step=6, time=0.5)  # a "mark" class hit: no mark left
     bonnet = _windscreen_hit(cab, damage=2, rock=2, step=7, time=0.6)
     bonnet["part"] = 1
     hits.update(np.concatenate([light, bonnet]), 0.7)
-    assert hits.windscreen_segments(0, cab).shape == (0, 2, 3)
+    assert _segments(hits, spec).shape == (0, 2, 3)
     chip = _windscreen_hit(cab, damage=1, rock=3, step=60, time=1.0)
     hits.update(chip, 1.0)
-    assert len(hits.windscreen_segments(0, cab))
+    assert len(_segments(hits, spec))
     hits.update(chip[:0], 0.9)  # the viewer goes back before the chip
-    assert hits.windscreen_segments(0, cab).shape == (0, 2, 3)
+    assert _segments(hits, spec).shape == (0, 2, 3)
     hits.update(chip[:0], 1.0)  # and forward again
-    assert len(hits.windscreen_segments(0, cab))
+    assert len(_segments(hits, spec))
 
 
 def test_a_mark_is_the_same_every_time_and_grows_with_the_hit():
     from taichi_rocks.motion.cabin import cabin_of
-    from taichi_rocks.render.marks import mark_segments, severity
+    from taichi_rocks.render.glassmarks import glass_point, mark_segments
+    from taichi_rocks.render.marks import severity
 
     cab = cabin_of(_car())
     e = _windscreen_hit(cab, damage=2, rock=5, step=9)[0]
     np.testing.assert_array_equal(mark_segments(e, 0.3, cab), mark_segments(e, 0.3, cab))
-    small, big = (np.linalg.norm(mark_segments(e, s, cab).reshape(-1, 3) - e["point"], axis=1).max() for s in (0, 1))
+    small, big = (np.linalg.norm(glass_point(cab, mark_segments(e, s, cab)).reshape(-1, 3) - e["point"], axis=1).max()
+                  for s in (0, 1))
     assert big > 1.5 * small
     th = (0.0055, 0.14)
     lo = _windscreen_hit(cab, damage=1, momentum=2 * 0.006 / 10.0, speed=10.0)[0]  # 1/2 p u = 0.006 J
@@ -138,12 +154,14 @@ def test_a_mark_is_the_same_every_time_and_grows_with_the_hit():
 
 def test_a_mark_near_the_edge_is_clipped_to_the_glass():
     from taichi_rocks.motion.cabin import cabin_of
-    from taichi_rocks.render.marks import GLASS_MARGIN, Hits
+    from taichi_rocks.render.glassmarks import GLASS_MARGIN
+    from taichi_rocks.render.marks import Hits
 
-    cab = cabin_of(_car())
+    spec = _car()
+    cab = cabin_of(spec)
     hits = Hits()
     hits.update(_windscreen_hit(cab, u=0.1, y=cab.base_half - 0.02, damage=2, rock=4, step=3), 0.1)
-    p = hits.windscreen_segments(0, cab).reshape(-1, 3)
+    p = _segments(hits, spec).reshape(-1, 3)
     u = (p[:, 2] - cab.belt) / (cab.roof - cab.belt)
     assert np.all(np.abs(p[:, 1]) <= cab.base_half + u * (cab.top_half - cab.base_half) - GLASS_MARGIN + 1e-6)
     assert np.all(p[:, 2] >= cab.belt + GLASS_MARGIN - 1e-6)
@@ -162,7 +180,8 @@ def test_body_frame_and_pose_transforms():
 
 
 def test_a_flash_rides_with_the_vehicle_and_keeps_its_size_in_pixels():
-    from taichi_rocks.render.marks import FLASH_M, FLASH_PX, FLASH_S, HOT, RAYS, flash_geometry
+    from taichi_rocks.render.flashes import FLASH_M, FLASH_PX, HOT, RAYS, flash_geometry
+    from taichi_rocks.render.marks import FLASH_S
 
     ev = _events(2, point=[(2.0, 0.0, 1.0), (2.0, 0.0, 1.0)], rock=[1, 2])
     pos = np.array([(0.0, 0.0, 0.0), (100.0, 0.0, 0.0)])
@@ -204,14 +223,19 @@ def test_glass_ribbons_stay_on_the_glass(side):
     corner lies on the windscreen's plane (GLASS_GAP off it, on the camera's side), GLASS_EDGE inside its edges,
     and each ribbon is about ``width_px`` pixels wide where it is not clipped."""
     from taichi_rocks.motion.cabin import cabin_of
-    from taichi_rocks.render.marks import GLASS_EDGE, GLASS_GAP, Hits, glass_ribbons, glass_normal
+    from taichi_rocks.render.glassmarks import GLASS_EDGE, GLASS_GAP, glass_normal, glass_ribbons
+    from taichi_rocks.render.marks import Hits
+    from taichi_rocks.render.markstore import MarkStore
 
-    cab = cabin_of(_car())
+    spec = _car()
+    cab = cabin_of(spec)
     hits = Hits()
     ev = np.concatenate([_windscreen_hit(cab, u=u, y=y, damage=2, rock=k, step=k, momentum=1.0)
                          for k, (u, y) in enumerate(((0.5, 0.0), (0.1, cab.base_half - 0.03), (0.9, -0.5)))])
     hits.update(ev, 1.0)
-    seg = hits.windscreen_segments(0, cab)
+    store = MarkStore([spec])
+    store.sync(hits)
+    seg = store.segments(0, hits.t)
     for eye, px_per_rad in (((cab.eye[0], cab.eye[1], cab.eye[2]), 700.0), ((30.0, 0.0, 2.0), 200.0)):
         t = glass_ribbons(seg, cab, side, eye, px_per_rad, 2.0)
         assert t.shape[1:] == (3, 3) and len(t) >= 2 * len(seg) - 10
@@ -231,7 +255,9 @@ def test_a_paint_chip_lies_on_the_face_hit_and_inside_it(damage):
     it), inside that face's edges (a hit near an edge is clipped; one off it leaves none), the same every time,
     larger for a crack than for a chip; Hits.marks counts it, and the windscreen's segments do not."""
     from taichi_rocks.motion.bodies import body_parts
-    from taichi_rocks.render.marks import PAINT_GAP, PAINT_MARGIN, PAINT_R, Hits, body_faces, paint_chip
+    from taichi_rocks.render.marks import Hits
+    from taichi_rocks.render.markstore import MarkStore
+    from taichi_rocks.render.paintchips import PAINT_GAP, PAINT_MARGIN, PAINT_R, body_faces, paint_chip
 
     spec = _car()
     faces = body_faces(spec)
@@ -256,6 +282,8 @@ def test_a_paint_chip_lies_on_the_face_hit_and_inside_it(damage):
                     step=6, normal_momentum=1.0, normal_speed=30.0)
     hits = Hits()
     hits.update(np.concatenate([top[None], front]), 1.0)
-    assert len(hits.marks()) == 2 and hits.windscreen_segments(0, None).shape == (0, 2, 3)
-    tris, nrm = hits.paint_chips(0, faces)
+    store = MarkStore([spec])
+    store.sync(hits)
+    assert len(hits.marks()) == 2 and store.segments(0, hits.t).shape == (0, 2, 2)
+    tris, nrm = store.paint_chips(0, hits.t)
     assert len(tris) == len(nrm) and {tuple(np.round(v, 9)) for v in nrm} == {(0.0, 0.0, 1.0), (1.0, 0.0, 0.0)}

@@ -178,7 +178,7 @@ def _paint_hits(sim):
 def test_hits_on_the_bonnet_and_the_front_leave_paint_chips_there(drawn):
     """Bonnet and front hits (chip and crack class) leave marks: pixels change, only where the rays meet the
     bonnet's top or the body's front face (ahead of the windscreen; the bumper's box proud of it included)."""
-    from taichi_rocks.render.marks import PAINT_R
+    from taichi_rocks.render.paintchips import PAINT_R
 
     sim, r = drawn
     r.set_view("chase")

@@ -19,6 +19,14 @@ SCENE = {
 ROCK = 17
 
 
+def _segments(layer, vehicle=0):
+    """The windscreen marks' segments of ``vehicle`` the layer shows (body frame on the glass, (K, 2, 3))."""
+    from taichi_rocks.render.glassmarks import glass_point
+
+    layer.store.sync(layer.hits)
+    return glass_point(layer.store.cabins[vehicle], layer.store.segments(vehicle, layer.hits.t))
+
+
 def _aim(sim, cab, lead_s=0.06):
     """A stone that the player's windscreen meets ``lead_s`` seconds from now at the glass's middle, left of
     centre: its start (world), velocity, and the body-frame point aimed at."""
@@ -62,14 +70,14 @@ def test_the_stone_leaves_one_mark_where_it_hit(run):
     hit = marks["point"][0]
     # its contact point: where the aimed line meets the glass, less the stone's radius along the normal
     assert np.linalg.norm(hit - run["target"]) < 0.03, (hit, run["target"])
-    seg = layer.hits.windscreen_segments(0, cab).reshape(-1, 3)
+    seg = _segments(layer).reshape(-1, 3)
     # the mark starts at the hit, on the glass's plane (the contact point was found a few mm inside the glass)
     on_glass = np.array([cab.windscreen_x(hit[2]), hit[1], hit[2]])
     assert abs(on_glass[0] - hit[0]) < 0.01
     assert len(seg) and np.linalg.norm(seg - on_glass, axis=1).min() < 1e-9
     centre = seg.mean(axis=0)
     assert abs(centre[1] - hit[1]) < 0.3 and abs(centre[2] - hit[2]) < 0.3
-    assert layer.hits.windscreen_segments(1, cab).shape == (0, 2, 3)  # none on the lead
+    assert _segments(layer, 1).shape == (0, 2, 3)  # none on the lead
     counts = layer.counts()
     assert sum(counts.values()) == 1 and counts[("mark", "chip", "crack")[marks["damage"][0]]] == 1
 
@@ -80,7 +88,7 @@ def test_going_back_before_the_hit_takes_the_mark_away_and_playing_brings_it_bac
     sim.restore(run["before"])  # the viewer's scrub back: a saved state before the hit, the clock then
     layer.update(sim)
     assert sim.time == run["t_before"] and len(layer.hits.marks()) == 0
-    assert layer.hits.windscreen_segments(0, run["cab"]).shape == (0, 2, 3)
+    assert _segments(layer).shape == (0, 2, 3)
     sim.restore(run["after_aim"])  # the same stone again
     sim.advance_to(0.4)
     layer.update(sim)
@@ -123,3 +131,40 @@ def test_a_resumed_render_keeps_the_marks_made_before_its_saved_state(taichi_cpu
     for k in (20, 23):
         np.testing.assert_array_equal(iio.imread(tmp_path / "cut" / "frames" / f"frame_{k:05d}.png"),
                                       iio.imread(tmp_path / "ref" / "frames" / f"frame_{k:05d}.png"))
+
+
+def test_the_views_scrub_hides_the_marks_and_brings_them_back(taichi_cpu):
+    """The viewer's clock (app/timeline.py) on an offscreen Renderer of a car whose windscreen cracks at frames 16
+    and 17, seen from its driver's seat: played to frame 22, scrubbed back to frame 12 (a saved state, then
+    simulated forward) and forward to 22 again (simulated again from a saved state, the marks already made):
+    each frame is the one first drawn at that time, the cracks gone at 12 and back at 22, made once."""
+    from taichi_rocks.app.timeline import Timeline
+    from taichi_rocks.engine.simulation import Simulation
+    from taichi_rocks.render.renderer import Renderer
+
+    scene = parse_scene(UNDER_FIRE, source="<test>")
+    sim = Simulation(scene, tumble=True, track_changes=False)
+    r = Renderer(sim, resolution=(320, 192), window_every=0)
+    try:
+        tl = Timeline(30.0, 24, every=5)
+        r.view()
+        tl.save(sim, r.rig)
+        first = {0: r.render_frame().copy()}
+        for k in range(1, 23):
+            tl.advance(sim, r.view)
+            tl.save(sim, r.rig)
+            first[k] = r.render_frame().copy()
+        made = r.hits.store.made
+        assert len(r.hits.hits.marks()) == made
+        assert np.abs(first[22].astype(int) - first[12]).max() > 100  # the cracks, and what moved
+        on_glass = {}
+        for k in (12, 22, 18, 3):
+            tl.seek(k, sim, r.rig, r.view)
+            np.testing.assert_array_equal(r.render_frame(), first[k])
+            marks = r.hits.hits.marks()
+            assert np.all(marks["time"] <= k / 30.0 + 1e-9)
+            on_glass[k] = int((marks["part"] == 2).sum())
+        assert on_glass[12] == on_glass[3] == 0 and on_glass[22] >= 2  # the windscreen's cracks: 16 and 17
+        assert r.hits.store.made == made  # none made again
+    finally:
+        r.close()

@@ -70,7 +70,8 @@ def test_frames_written_with_the_right_size(mp4_render):
         assert img.shape == (H, W, 3) and img.dtype == np.uint8
     np.testing.assert_array_equal(iio.imread(pngs[-1]), frames[-1])
     assert not [p for p in (out / "frames").iterdir() if p.name.startswith(".")]  # no temporary files left
-    assert set(res["profile"]) >= {"simulation", "culling", "drawing", "encoding"}
+    assert set(res["profile"]) >= {"simulation", "culling", "marks", "sky_ground", "declare", "readback",
+                                   "encoding"}
     assert res["frames_per_second"] > 0
 
 
@@ -326,31 +327,37 @@ def test_deterministic_frames_and_window_recycling(pipeline, minimal_scene, mp4_
         r.close()
 
 
-def test_vehicle_mesh_is_declared_with_an_identity_model_matrix(shared):
+def test_vehicle_mesh_is_declared_with_an_identity_model_matrix(shared, monkeypatch):
     """GGUI 1.7.4 draws a plain ``scene.mesh`` with model = I * (1 - a) + M * a, a = 0 and M from a buffer it
     never fills: NaN or Inf left there removes the whole mesh from the frame (now and then, and often again on
-    a redraw). So the vehicles go through ``mesh_instance`` with one explicit identity matrix, and the frame is
-    the same as before."""
+    a redraw). So the vehicles go through ``mesh_instance`` with one explicit identity matrix (render/vbo.py
+    declare_mesh: its vertices, indices and that matrix handed to GGUI as they are), and the frame is the same
+    as before."""
+    import taichi_rocks.render.vehicles as vehicles
+
     sim, r = shared
     reference = r.render_frame().copy()  # (re)opens the window: r._win.scene is the one drawn below
     scene = r._win.scene
     calls = []
-    real_instance = scene.mesh_instance
+    real = vehicles.declare_mesh
 
-    def spy_instance(*args, **kw):
-        calls.append(kw.get("transforms"))
-        return real_instance(*args, **kw)
+    def spy(*args, **kw):
+        calls.append((args[1].copy(), args[2].copy(), args[3].copy()))
+        return real(*args, **kw)
 
     def plain_mesh(*args, **kw):
         raise AssertionError("the vehicles were declared as a plain mesh (GGUI reads an unfilled model matrix)")
 
-    scene.mesh_instance, scene.mesh = spy_instance, plain_mesh
+    monkeypatch.setattr(vehicles, "declare_mesh", spy)
+    scene.mesh = plain_mesh
     try:
         img = r.render_frame().copy()
     finally:
-        del scene.mesh_instance, scene.mesh
-    assert len(calls) == 1 and calls[0] is not None
-    np.testing.assert_array_equal(calls[0].to_numpy(), np.eye(4, dtype=np.float32)[None])
+        del scene.mesh
+    [(vbo, identity, idx)] = calls
+    np.testing.assert_array_equal(identity, np.eye(4, dtype=np.float32)[None])
+    np.testing.assert_array_equal(vbo[:, :3], r.vehicles.frame.astype(np.float32))  # this frame's vertices
+    assert idx.dtype == np.int32 and len(idx) % 3 == 0 and idx.max() < len(vbo)
     np.testing.assert_array_equal(img, reference)
 
 
@@ -364,7 +371,7 @@ def test_a_lost_vehicle_mesh_is_drawn_again(shared):
     redraws = r.redraws
     np.testing.assert_array_equal(r.render_frame(), reference)
     assert r.redraws == redraws  # no false alarm
-    real = r._draw_vehicles
+    real = r.vehicles.declare
     calls = []
 
     def lose_first(*args):
@@ -372,12 +379,12 @@ def test_a_lost_vehicle_mesh_is_drawn_again(shared):
         if len(calls) > 1:
             real(*args)
 
-    r._draw_vehicles = lose_first
+    r.vehicles.declare = lose_first
     try:
         r._prev_drawn = 0
         img = r.render_frame()
     finally:
-        del r._draw_vehicles
+        del r.vehicles.declare
     assert len(calls) == 2 and r.redraws == redraws + 1
     np.testing.assert_array_equal(img, reference)
 
@@ -624,13 +631,13 @@ def test_wheels_turn_by_distance_over_radius(shared, minimal_scene):
     (car,) = minimal_scene.vehicles
     speed = car.path.speed
     t1, t2 = 0.5, 0.5 + 1 / 30
-    a1, a2 = np.array(r.wheel_angles(t1)[0]), np.array(r.wheel_angles(t2)[0])
+    a1, a2 = np.array(r.vehicles.wheel_angles(t1)[0]), np.array(r.vehicles.wheel_angles(t2)[0])
     mesh = r.vehicles.meshes[0]
     want = speed * (t2 - t1) / car.tire_radius * np.where(mesh.rear, 1.0 + car.slip, 1.0)
     np.testing.assert_allclose(a2 - a1, want, rtol=1e-9)
     assert mesh.rear.sum() == 2 and want.min() > 0.3  # a visible step: ~0.1 of a turn a frame
     pose = sim.vehicle_poses()[0]
-    posed = [r.posed_vehicles([pose], sim.origin, t)[0][0] for t in (t1, t2)]
+    posed = [r.vehicles.posed([pose], sim.origin, t)[0][0] for t in (t1, t2)]
     c, s = math.cos(pose.heading), math.sin(pose.heading)
     to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # inverse of the heading's rotation
     base = np.asarray(pose.position) - sim.origin
@@ -784,7 +791,7 @@ def test_view_preset_tire_pixel_is_the_tire(pipeline, scenes_dir):
         img = r.render_frame().copy()
         view = r.view()
         poses = sim.vehicle_poses()
-        posed = r.posed_vehicles(poses, sim.origin, sim.time)
+        posed = r.vehicles.posed(poses, sim.origin, sim.time)
         pose = poses[r.target]
         local = type(pose)(pose.name, pose.position - sim.origin, pose.heading, pose.speed, pose.yaw_rate,
                            pose.velocity)
