@@ -4,7 +4,7 @@ PY    := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 SCENE ?= scenes/convoy.toml
 
-.PHONY: setup demo test lint bench clean native
+.PHONY: setup demo test lint bench clean native game game-frames
 
 setup: $(STAMP)
 
@@ -14,6 +14,17 @@ $(STAMP): pyproject.toml tools/setup.sh
 
 demo: setup
 	$(VENV)/bin/taichi-rocks render $(SCENE) --overwrite
+
+# the Panda3D game (examples/panda3d_game.py; Panda3D comes with setup): play it in a window (offscreen where there
+# is no display), or render GAME_FRAMES frames of it offscreen, a recorded drive at the wheel, into GAME_OUT
+GAME_FRAMES ?= 300
+GAME_OUT ?= renders/game
+
+game: setup
+	$(PY) examples/panda3d_game.py
+
+game-frames: setup
+	$(PY) examples/panda3d_game.py --offscreen --frames $(GAME_FRAMES) --out $(GAME_OUT) --overwrite
 
 # the suite on TEST_WORKERS processes (pytest-xdist), a test file per process at a time (its module fixtures and
 # compiled kernels stay together), the slowest files first (tests/conftest.py SLOW_FILES, kept in that order by

@@ -30,7 +30,7 @@ SLOW_FILES = {
     "bench/test_launch_study.py": 14, "bench/test_impacts_study.py": 14, "render/test_shots.py": 13,
     "output/test_export.py": 13, "render/test_render_stepping.py": 12, "render/test_interior.py": 12,
     "engine/test_rockfields.py": 11, "engine/test_reference_stepping.py": 10, "test_cli_coverage.py": 9,
-    "render/test_tumbling.py": 9, "output/test_export_values.py": 9,
+    "render/test_tumbling.py": 9, "output/test_export_values.py": 9, "test_game.py": 35,
 }
 
 

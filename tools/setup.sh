@@ -2,7 +2,8 @@
 # Installs what taichi-rocks needs on a fresh Debian/Ubuntu machine: a Vulkan driver for the offscreen
 # renderer (Mesa's software lavapipe when no Vulkan device is present), a virtual X display with xdotool for
 # the tests of the window (`taichi-rocks view`), CMake and a C++ compiler for the native host (`make native`)
-# and a virtualenv with the package (and Ray, for the sweeps).
+# and a virtualenv with the package (and Ray, for the sweeps, and Panda3D, for the game of
+# examples/panda3d_game.py and its test).
 set -euo pipefail
 venv=${1:-.venv}
 
@@ -52,8 +53,9 @@ if ! "$python" -c 'import sys; sys.exit(not ((3, 11) <= sys.version_info[:2] < (
 fi
 [ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
-# the ray extra: the sweep runner's cluster backend, whose tests start a local Ray cluster
-"$venv/bin/python" -m pip install -q -e '.[test,usd,ray]'
+# the ray extra: the sweep runner's cluster backend, whose tests start a local Ray cluster; the game extra: Panda3D,
+# whose software renderer runs the game's test offscreen
+"$venv/bin/python" -m pip install -q -e '.[test,usd,ray,game]'
 # the package's bytecode, once: an editable install leaves the sources uncompiled, and where Python writes no
 # bytecode (PYTHONDONTWRITEBYTECODE) every process would compile them again (the suite starts about a hundred)
 "$venv/bin/python" -m compileall -q taichi_rocks >/dev/null
