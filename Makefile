@@ -4,7 +4,7 @@ PY    := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 SCENE ?= scenes/convoy.toml
 
-.PHONY: setup demo test lint bench clean game game-frames
+.PHONY: setup demo test lint bench clean native game game-frames
 
 setup: $(STAMP)
 
@@ -31,8 +31,17 @@ game-frames: setup
 # --no-loadscope-reorder); each process holds one Taichi runtime. 2 suits a 2-core machine.
 TEST_WORKERS ?= 2
 
+# (native/ is built first where cmake and a C++ compiler exist; elsewhere tests/native/ skips, saying why)
 test: setup
+	@if command -v cmake >/dev/null && command -v c++ >/dev/null; then $(MAKE) --no-print-directory native; \
+	else echo "make test: no cmake or no c++ here: native/ is not built and tests/native/ is skipped" >&2; fi
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+
+# the native host (docs/native.md): native/build/librocks.so and native/build/rocks_run, over the C API of the
+# taichi wheel in $(VENV); cmake and a C++17 compiler (tools/setup.sh installs them where they are missing)
+native: setup
+	cmake -S native -B native/build -DPYTHON=$(abspath $(PY)) -DCMAKE_BUILD_TYPE=Release >/dev/null
+	cmake --build native/build -j $(TEST_WORKERS)
 
 # ruff with the rules of pyproject.toml ([tool.ruff]); .ci/run runs it before the tests
 lint: setup
@@ -43,4 +52,4 @@ bench: setup
 	$(VENV)/bin/taichi-rocks bench
 
 clean:
-	rm -rf $(VENV) renders/*/ .pytest_cache
+	rm -rf $(VENV) renders/*/ .pytest_cache native/build

@@ -1,4 +1,4 @@
-"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | bench | sweep``.
+"""Command line: ``taichi-rocks check | schema | simulate | export | render | view | aot | bench | sweep``.
 
 Exit status: 0 success; 1 the simulation went wrong (runtime guard; a sweep: a run failed); 2 bad input (scene, arguments,
 existing outputs, missing Vulkan, no display for ``view``); 130 interrupted (Ctrl-C); 128 + N ended by signal N
@@ -134,6 +134,16 @@ def _parser() -> argparse.ArgumentParser:
                    help="save the simulation state every N frames, for --resume (default: 30)")
 
     _view_parser(sub, ARCHES)
+
+    a = sub.add_parser("aot", help="write the scene's step as an ahead-of-time module for a host without Python "
+                                   "(native/, docs/native.md)")
+    a.add_argument("scene", metavar="SCENE")
+    a.add_argument("--arch", choices=("x64", "vulkan"), default="x64",
+                   help="the backend the module runs on: x64 (the CPU) or vulkan (default: x64)")
+    a.add_argument("--out", type=str, required=True, metavar="DIR", help="the module's folder")
+    a.add_argument("--seed", type=int, help="override the scene's seed")
+    a.add_argument("--tumble", action="store_true", help="track the rocks' orientations (changes() gives them)")
+    a.add_argument("--overwrite", action="store_true", help="replace an existing DIR")
     _bench_parser(sub, ARCHES, BACKENDS)
     _sweep_parser(sub, ARCHES, BACKENDS)
     return p
@@ -365,6 +375,20 @@ def cmd_view(args) -> int:
     return EXIT_OK
 
 
+def cmd_aot(args) -> int:
+    from .config.scene import load_scene, scene_with
+
+    scene = load_scene(args.scene)
+    if args.seed is not None:
+        scene = scene_with(scene, {"seed": args.seed})
+    from .app.aot import make_module
+
+    info = make_module(scene, args.arch, args.out, overwrite=args.overwrite, tumble=args.tumble)
+    print(f"wrote {info['path']}: {info['arch']} module of {info['kernels']} kernels, {info['rocks']} rocks, "
+          f"drives of {info['steps']} steps, {info['bytes'] / 1e6:.1f} MB")
+    return EXIT_OK
+
+
 def cmd_bench(args) -> int:
     from .config.arches import NO_F64
 
@@ -447,6 +471,7 @@ _PRELOAD = {
     "bench": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.bench.run",
               "taichi_rocks.bench.launch", "taichi_rocks.bench.activity", "taichi_rocks.bench.impacts"),
     "sweep": ("taichi_rocks.config.sweep", "taichi_rocks.app.sweep.sweep", "tqdm"),
+    "aot": ("taichi_rocks.config.scene", "taichi_rocks.engine.simulation", "taichi_rocks.app.aot"),
 }
 _LATE = ("mmap", "multiprocessing.synchronize", "taichi.lang.matrix_ops")
 _PRELOAD_IF_PRESENT = {"simulate": _LATE, "bench": _LATE, "sweep": ("multiprocessing.connection",),
@@ -461,7 +486,8 @@ _PRELOAD_CALLS = {"render": (("PIL.Image", "init"),)}
 # The commands that start Taichi here or in their workers, and whether TAICHI_ROCKS_THREADS counts for them (a
 # sweep's workers get theirs from --threads): their environment variables (config/environment.py) are checked
 # before anything starts.
-_ENVIRONMENT = {"simulate": True, "export": True, "render": True, "bench": True, "view": True, "sweep": False}
+_ENVIRONMENT = {"simulate": True, "export": True, "render": True, "bench": True, "view": True, "sweep": False,
+                "aot": True}
 
 
 def _start(argv):
@@ -495,6 +521,10 @@ def _start(argv):
         from .engine.runtime import init_taichi
 
         init_taichi(args.arch)
+    if args.command == "aot":  # the Simulation whose World the module starts from runs on the module's backend
+        from .engine.runtime import init_taichi
+
+        init_taichi("cpu" if args.arch == "x64" else args.arch, warn=lambda msg: None)
     return args
 
 
@@ -527,7 +557,8 @@ def main(argv=None, *, held=None, restore=None) -> int:
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
-_OUT_EXPECTED = {"simulate": "an .npz file name", "render": "a folder name", "sweep": "a folder name"}
+_OUT_EXPECTED = {"simulate": "an .npz file name", "render": "a folder name", "sweep": "a folder name",
+                 "aot": "a folder name"}
 
 
 def _check_out(args) -> None:
@@ -547,11 +578,12 @@ def _run(args, held) -> int:
     from .config.scene import SceneError
 
     handler = {"check": cmd_check, "schema": cmd_schema, "simulate": cmd_simulate, "export": cmd_export,
-               "render": cmd_render, "view": cmd_view, "bench": cmd_bench, "sweep": cmd_sweep}[args.command]
+               "render": cmd_render, "view": cmd_view, "aot": cmd_aot, "bench": cmd_bench,
+               "sweep": cmd_sweep}[args.command]
     try:
         if held:
             raise Interrupted(signum=held[-1])
-        if args.command in ("simulate", "export", "render", "sweep"):
+        if args.command in ("simulate", "export", "render", "sweep", "aot"):
             _check_out(args)
         return handler(args)
     except SceneError as e:

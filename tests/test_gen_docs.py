@@ -91,7 +91,7 @@ def test_the_cli_page_has_every_command_and_option():
     text = gen.CLI.read_text()
     readme = gen.README.read_text()
     commands = gen._commands()
-    assert [name for name, _, _ in commands] == ["check", "schema", "simulate", "export", "render", "view", "bench",
+    assert [name for name, _, _ in commands] == ["check", "schema", "simulate", "export", "render", "view", "aot", "bench",
                                                  "sweep"]
     parts = {chunk.split("\n", 1)[0]: chunk for chunk in text.split("\n## ")[1:]}
     for name, parser, what in commands:

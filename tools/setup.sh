@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs what taichi-rocks needs on a fresh Debian/Ubuntu machine: a Vulkan driver for the offscreen
 # renderer (Mesa's software lavapipe when no Vulkan device is present), a virtual X display with xdotool for
-# the tests of the window (`taichi-rocks view`) and a virtualenv with the package (and Ray, for the sweeps, and
-# Panda3D, for the game of examples/panda3d_game.py and its test).
+# the tests of the window (`taichi-rocks view`), CMake and a C++ compiler for the native host (`make native`)
+# and a virtualenv with the package (and Ray, for the sweeps, and Panda3D, for the game of
+# examples/panda3d_game.py and its test).
 set -euo pipefail
 venv=${1:-.venv}
 
@@ -25,6 +26,15 @@ fi
 if ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null || ! command -v xdpyinfo >/dev/null; then
   echo "setup: installing a virtual X display and input tools for the view tests (xvfb xdotool x11-utils)" >&2
   packages+=(xvfb xdotool x11-utils)
+fi
+# - the native host (native/, docs/native.md) is built with CMake and a C++17 compiler
+if ! command -v cmake >/dev/null; then
+  echo "setup: installing cmake for the native host (native/)" >&2
+  packages+=(cmake)
+fi
+if ! command -v c++ >/dev/null && ! command -v g++ >/dev/null; then
+  echo "setup: installing a C++ compiler for the native host (g++)" >&2
+  packages+=(g++)
 fi
 if [ ${#packages[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else SUDO=""; fi

@@ -8,15 +8,16 @@ id and a list of the ids flagged since the last read (``drawn_flag``, ``drawn_li
 * :func:`note` - at the end of every step, for each rock a step can have changed (the active list after the
   tire pass, inside the settling loop of active stepping; every rock with full stepping), compare its state with
   the mirror bit for bit; where it differs, copy it and list the id once (an atomic flag, then an atomic slot);
-* :func:`shift_drawn` - the floating origin moved by d: the mirror moves as the rocks do, p' = fl(p - d), and
-  a rock is listed where its world position changes by rounding, float64(p') + origin' != float64(p) + origin
+* :func:`shift_drawn_rows` - the floating origin moved by d (engine/origin.py ``move_origin``): the mirror moves
+  as the rocks do, p' = fl(p - d), and a rock is listed where its world position changes by rounding, float64(p') + origin' != float64(p) + origin
   (the f32 move rounds near a zero coordinate; the origin, anchor + whole multiples of 64 m, rounds in float64
   when the anchor has a fraction): a few to all rocks, once per shift (every 3-6 s at 20 m/s);
 * :func:`sync_drawn` - rocks were loaded (a new Simulation, restore, set_rocks): the mirror from the rock arrays,
   every id listed (the next read gives every rock);
 * :func:`gather_packed` (CPU) - the read in one launch: the k listed ids' mirror rows into a float64 NumPy array
   the host keeps (Taichi writes into it in place; every int32 id and f32 value is exact in float64), the flags
-  and the count cleared, k returned; a buffer too small for k is grown and the launch repeated;
+  and the count cleared, k returned; a buffer too small for k is grown and the launch repeated
+  (:func:`gather_counted`: the same, k written into a one-element array, for a host without Python: native/);
 * :func:`gather` (GPU backends) - k read first (one scalar), then the rows into NumPy arrays of k rows (Taichi
   copies k rows back, not the bed).
 
@@ -34,9 +35,8 @@ from .loops import top_loop
 from .params import IPar
 from .view import world_kernel
 
-vec2 = ti.types.vector(2, ti.f64)
-
-__all__ = ["note", "note_listed", "shift_drawn", "sync_drawn", "listed_count", "gather", "gather_packed", "DRAWN"]
+__all__ = ["note", "note_listed", "shift_drawn_rows", "sync_drawn", "listed_count", "gather", "gather_packed",
+           "gather_counted", "DRAWN"]
 
 #: the rock fields the mirror holds, as (rock field, mirror field); "orient" only where the World has it
 DRAWN = (("pos", "drawn_pos"), ("phase", "drawn_phase"), ("orient", "drawn_orient"))
@@ -96,14 +96,13 @@ def note_listed(w: ti.template(), plan: ti.template()):
         note(w, i)
 
 
-@world_kernel
-def shift_drawn(w: ti.template(), d: vec2, before: vec2, after: vec2, exact: ti.template()):
-    """The floating origin moved by ``d`` (XY) from ``before`` to ``after`` (float64, world): every mirror
-    position moves as its rock does (kernels.shift_origin, tilestore.shift_store: p - d in the World's precision),
-    and a rock whose world position float64(p) + origin differs after the move (the f32 move rounds, or the
-    float64 sum does) is listed. ``exact``: the backend computes in float64 (CPU, CUDA); without it every rock
-    is listed."""
-    dv = ti.Vector([ti.cast(d[0], w.real), ti.cast(d[1], w.real), 0.0])
+@ti.func
+def shift_drawn_rows(w: ti.template(), dv, before, after, exact: ti.template()):
+    """The floating origin moved by ``dv`` (the move as a 3-vector in the World's precision, z = 0) from
+    ``before`` to ``after`` (float64 XY, world; engine/origin.py ``move_origin``): every mirror position moves as
+    its rock does (p - d in the World's precision), and a rock whose world position float64(p) + origin differs
+    after the move (the f32 move rounds, or the float64 sum does) is listed. ``exact``: the backend computes in
+    float64 (CPU, CUDA); without it every rock is listed."""
     for rid in range(w.n):
         p = w.drawn_pos[rid]
         q = p - dv
@@ -146,12 +145,10 @@ def _packed_row(w: ti.template(), out: ti.template(), j, rid):
             out[j, 5 + c] = ti.cast(q[c], ti.f64)
 
 
-@world_kernel
-def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2)) -> ti.i32:
-    """Rows (id, phase, position in the local frame, orientation x, y, z, w with tumbling) of every listed id
-    into ``out`` (float64), the flags and the count cleared; returns the count. If ``out`` has fewer rows than
-    the count, nothing is written or cleared (the caller grows it and calls again). One serial task: a game's
-    read is a few thousand rows, less work than a parallel task's start-up on the CPU (engine/loops.py)."""
+@ti.func
+def _take_packed(w: ti.template(), out: ti.template()):
+    """The rows of every listed id into ``out`` (as :func:`gather_packed` says), the flags and the count cleared
+    if they fit; returns the count."""
     k = w.drawn_count[None]
     fits = k <= out.shape[0]
     ti.loop_config(serialize=True)
@@ -163,6 +160,23 @@ def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2))
     if fits:
         w.drawn_count[None] = 0
     return k
+
+
+@world_kernel
+def gather_packed(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2)) -> ti.i32:
+    """Rows (id, phase, position in the local frame, orientation x, y, z, w with tumbling) of every listed id
+    into ``out`` (float64), the flags and the count cleared; returns the count. If ``out`` has fewer rows than
+    the count, nothing is written or cleared (the caller grows it and calls again). One serial task: a game's
+    read is a few thousand rows, less work than a parallel task's start-up on the CPU (engine/loops.py)."""
+    return _take_packed(w, out)
+
+
+@world_kernel
+def gather_counted(w: ti.template(), out: ti.types.ndarray(dtype=ti.f64, ndim=2),
+                   count: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """:func:`gather_packed` with the count written to ``count[0]`` instead of returned: what a host launching
+    through Taichi's C API reads (a kernel returns no value there; native/)."""
+    count[0] = _take_packed(w, out)
 
 
 @world_kernel

@@ -214,6 +214,14 @@ def _take_all_world(w: ti.template(), ints: ti.types.ndarray(), reals: ti.types.
     return _all_rows(w.events, ints, reals)
 
 
+@world_kernel
+def take_counted(w: ti.template(), ints: ti.types.ndarray(), reals: ti.types.ndarray(),
+                 count: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """A World's events as :func:`_take_all_world`, the count appended since the last drain written to
+    ``count[0]`` instead of returned: what a host launching through Taichi's C API reads (native/)."""
+    count[0] = _all_rows(w.events, ints, reals)
+
+
 @ti.kernel
 def _clear(buf: ti.template()):
     buf.count[None] = 0

@@ -241,14 +241,6 @@ def hash_and_tires(w: ti.template(), plan: ti.template(), step: ti.i32):
 
 
 @world_kernel
-def shift_origin(w: ti.template(), shift: vec2):
-    """Move the local frame's origin by ``shift`` (XY): every rock's local position moves by -shift."""
-    d = ti.Vector([ti.cast(shift[0], w.real), ti.cast(shift[1], w.real), 0.0])
-    for i in range(w.ipar[IPar.N_ROCKS]):
-        w.pos[i] -= d
-
-
-@world_kernel
 def reorder_rocks(w: ti.template()):
     """Re-sort the rocks in memory by hash slot after a scatter of every rock (centre insert: ``entries[k]`` is
     the rock at place k): every carried rock field (engine/rockfields.py) through its buffer, then ``entries``

@@ -34,7 +34,7 @@ from .effects import Effects
 from .host import LOOKAHEAD, ORIGIN_RANGE, ORIGIN_SNAP, HostSide, HostState
 from .impact_pass import ImpactLog, body_table, check_bodies, write_bodies
 from .livesteps import LiveHostSide
-from .kernels import count_flying, shift_origin
+from .kernels import count_flying
 from .launcher import Launcher
 from .layout import check_fits, world_layout
 from .runtime import init_taichi
@@ -45,7 +45,7 @@ from .steppers import stepper_for
 from .timing import NO_TIMER
 from .world import Par, World, acquire
 
-__all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "LOOKAHEAD", "HealthError", "Simulation", "shift_origin"]
+__all__ = ["ORIGIN_RANGE", "ORIGIN_SNAP", "LOOKAHEAD", "HealthError", "Simulation"]
 
 
 class Simulation(Reads, Saves):

@@ -20,16 +20,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import active, changes, hashgrid, rocks, stepdata, tilestore, tires
+from . import active, changes, hashgrid, origin, rocks, stepdata, tilestore, tires
 from .impact_pass import time_row
-from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, shift_origin, switches
+from .kernels import coast_pass, hash_and_tires, health, reorder_rocks, rock_pass, switches
 from .launcher import Launcher
 from .rockfields import ID
 from .runtime import current_arch, on_cpu, threads_in_use
 from .variant import VariantChoice, loops_from_env
 from .world import LAUNCHED, IPar, next_prime
 
-__all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for"]
+__all__ = ["Stepper", "FullStepper", "ActiveStepper", "stepper_for", "TABLE_EVERY", "TABLE_MIN", "TABLE_LOAD"]
+
+# active stepping fits the hash's slots in use to the active list every TABLE_EVERY steps (and after the first): a
+# prime about TABLE_LOAD times its length, at least TABLE_MIN (ActiveStepper._fit)
+TABLE_EVERY, TABLE_MIN, TABLE_LOAD = 32, 1024, 1.5
 
 
 class Stepper:
@@ -154,17 +158,19 @@ class Stepper:
             changes.sync_drawn(self.world)
 
     def shift_origin(self, d: np.ndarray) -> None:
-        """The local frame's origin moved by ``d`` (XY, whole multiples of ORIGIN_SNAP): every rock moves by -d."""
+        """The local frame's origin moved by ``d`` (XY, whole multiples of ORIGIN_SNAP): every rock moves by -d, in
+        the rock arrays, the tiles and the mirror of changes() (engine/origin.py); the host's origin has already
+        moved by ``d``."""
         with self.timer("origin shift"):
-            shift_origin(self.world, d)
-            self._shift_drawn(d)
-
-    def _shift_drawn(self, d: np.ndarray) -> None:
-        """The mirror of changes() moves with the rocks; the host's origin has already moved by ``d``."""
-        if self.world.drawn:
             h = self.host
             before = h.anchor[:2] + (h.shift - np.asarray(d, np.float64))  # as HostState.set_shift adds them
-            changes.shift_drawn(self.world, d, before, h.origin[:2], on_cpu() or current_arch() == "cuda")
+            origin.put_move(self.world, d, before, h.origin[:2])
+            origin.move_origin(self.world, self.exact)
+
+    @property
+    def exact(self) -> bool:
+        """The backend computes the mirror's float64 sums exactly (engine/origin.py ``move_origin``)."""
+        return on_cpu() or current_arch() == "cuda"
 
     # -------------------------------------------------------------------------------------------- guard
     def health(self, centre: np.ndarray, slack: float):
@@ -272,7 +278,7 @@ class ActiveStepper(Stepper):
         tire finds)."""
         self.variant.update(active)
         if self.plan.splash and self.table_auto:
-            want = next_prime(max(1024, int(1.5 * active)))
+            want = next_prime(max(TABLE_MIN, int(TABLE_LOAD * active)))
             self.world.ipar[IPar.TABLE] = min(want, self.world.table_size)
 
     def rock_arrays(self) -> dict:
@@ -293,7 +299,7 @@ class ActiveStepper(Stepper):
         with self.timer("active step"):
             self._launch["active_step"](self.world, self.switches["active_step"], row, s.step, int(self.check_all))
             self._launch["active_finish"](self.world, self.switches["active_finish"], row, s.step)
-        if self.check_all or s.step % 32 == 0:  # and after the first step: the loaded rocks have settled
+        if self.check_all or s.step % TABLE_EVERY == 0:  # and after the first step: the loaded rocks have settled
             self._fit(self.active_count)
         self.check_all = False
         return self.plan.splash
@@ -325,12 +331,6 @@ class ActiveStepper(Stepper):
         super().coast(n, dt, centre, lead, step0)
         with self.timer("settle"):
             active.settle(self.world, self.tile_shift())
-
-    def shift_origin(self, d: np.ndarray) -> None:
-        with self.timer("origin shift"):
-            shift_origin(self.world, d)
-            tilestore.shift_store(self.world, d)
-            self._shift_drawn(d)
 
     def health(self, centre: np.ndarray, slack: float):
         health(self.world, self.switches["health"], centre, slack)

@@ -1,5 +1,6 @@
-"""Active stepping's tile store between steps (engine/active.py holds the store and the step): the floating
-origin's shift of the stored rocks, and the runtime guard over them (``Simulation.check_health``)."""
+"""Active stepping's tile store between steps (engine/active.py holds the store and the step): the runtime guard
+over the stored rocks (``Simulation.check_health``; the floating origin moves them with the others:
+engine/origin.py)."""
 
 import taichi as ti
 
@@ -7,18 +8,7 @@ from .tiles import same_key, tile_key, vec2
 from .world import Par
 from .view import world_kernel
 
-__all__ = ["shift_store", "store_health"]
-
-
-@world_kernel
-def shift_store(w: ti.template(), shift: vec2):
-    """The floating origin moved by ``shift`` (whole multiples of 64 m): stored rocks' local positions move by
-    -shift (keys are anchor-relative and stay)."""
-    dv = ti.Vector([ti.cast(shift[0], w.real), ti.cast(shift[1], w.real), 0.0])
-    cap = w.store_capacity
-    for t, k in ti.ndrange(w.store_grid * w.store_grid, cap):
-        if k < w.ts_count[t]:
-            w.ts_pos[t * cap + k] -= dv
+__all__ = ["store_health"]
 
 
 @world_kernel

@@ -149,7 +149,8 @@ def field_specs(n: int, real: str, *, hash_table: int = 0, hash_entries: int = 0
     rocks = default_rock_fields(hashed, store is not None) if rocks is None else rocks
     out = [FieldSpec(f.name, f.dtype, f.n, (cap,)) for f in rocks]
     out += [FieldSpec("par", "real", 1, (Par.COUNT,)), FieldSpec("ipar", "i32", 1, (IPar.COUNT,)),
-            FieldSpec("launches", "i64", 1, ()), FieldSpec("recycles", "i64", 1, ())]
+            FieldSpec("launches", "i64", 1, ()), FieldSpec("recycles", "i64", 1, ()),
+            FieldSpec("origin_move", "f64", 2, (3,))]  # the floating origin's move (engine/origin.py)
     if hashed:
         # cell_start[s] .. cell_start[s + 1] is slot s's range of `entries` after a build
         out += [FieldSpec("cell_start", "i32", 1, (hash_table + 1,)),

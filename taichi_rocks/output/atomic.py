@@ -11,8 +11,8 @@ import secrets
 import shutil
 from pathlib import Path
 
-__all__ = ["temp_name", "atomic_path", "write_atomically", "new_folders", "remove_stale_temporaries", "check_place",
-           "remove_stale_in"]
+__all__ = ["temp_name", "atomic_path", "write_atomically", "atomic_folder", "new_folders", "remove_stale_temporaries",
+           "check_place", "remove_stale_in"]
 
 
 def check_place(path, folder: bool = False) -> None:
@@ -67,6 +67,34 @@ def write_atomically(final: Path, write) -> None:
     with atomic_path(final) as tmp:
         with open(tmp, "xb") as f:
             write(f)
+
+
+@contextlib.contextmanager
+def atomic_folder(final: Path, overwrite: bool = False):
+    """Write the folder ``final`` complete or not at all: yields a new empty temporary folder beside it, which
+    replaces ``final`` when the body returns (an existing ``final`` only with ``overwrite``: FileExistsError,
+    before the body runs, otherwise); on any failure (or Ctrl-C) the temporary is removed and ``final`` is as it
+    was. Missing parents of ``final`` are made, and removed again on failure."""
+    final = Path(final)
+    if (final.exists() or final.is_symlink()) and not overwrite:
+        raise FileExistsError(f"{final}: exists; pass --overwrite to replace it")
+    check_place(final, folder=True)
+    remove_stale_temporaries(final)
+    with new_folders(final.parent):
+        tmp = temp_name(final)
+        try:
+            tmp.mkdir()
+            yield tmp
+            old = None
+            if final.exists() or final.is_symlink():
+                old = temp_name(final)
+                os.rename(final, old)
+            os.rename(tmp, final)
+            if old is not None:
+                shutil.rmtree(old) if old.is_dir() and not old.is_symlink() else old.unlink()
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
 
 
 @contextlib.contextmanager

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from scenes_util import scene
-from taichi_rocks.engine import changes
+from taichi_rocks.engine import changes, origin
 from taichi_rocks.engine.simulation import Simulation
 
 pytestmark = pytest.mark.usefixtures("taichi_cpu")
@@ -123,8 +123,8 @@ def test_without_tracking():
 
 
 def test_shift_listing_matches_float32_rounding():
-    """shift_drawn lists exactly the rocks whose world position float64(p) + origin changes when the origin
-    moves (NumPy: the f32 move and the float64 sums), on adversarial values: zeros, signed zeros, tiny and huge
+    """The origin's move (engine/origin.py) lists exactly the rocks whose world position float64(p) + origin
+    changes when the origin moves (NumPy: the f32 move and the float64 sums), on adversarial values: zeros, signed zeros, tiny and huge
     coordinates, exact multiples of the shift, values that cross a power of two; an anchor with a fraction."""
     sim = Simulation(_scene("full"))
     w, n = sim.world, sim.n_rocks
@@ -140,7 +140,8 @@ def test_shift_listing_matches_float32_rounding():
         w.drawn_flag.fill(0)
         w.drawn_count[None] = 0
         before, after = anchor + np.array([64.0, 0.0]), anchor + np.array([64.0, 0.0]) + d
-        changes.shift_drawn(w, d, before, after, True)
+        origin.put_move(w, d, before, after)
+        origin.move_origin(w, True)
         k = int(changes.listed_count(w))
         listed = np.sort(w.drawn_list.to_numpy()[:k])
         moved = p[:, :2] - d.astype(np.float32)
