@@ -403,18 +403,23 @@ void Device::write_f64(uint32_t first, uint32_t count, const double* in) {
   copy("write_f64", "d1", first, count, small_f64_);
 }
 
+int32_t Device::launch_counted(const char* name, std::initializer_list<const HostArray*> outputs) {
+  auto args = with_groups();
+  for (const HostArray* b : outputs) args.push_back(nd_arg(b->nd));
+  args.push_back(nd_arg(count_.nd));
+  launch(name, args);
+  ti_wait(rt_);
+  check("wait");
+  int32_t count = 0;
+  std::memcpy(&count, map(count_.memory, "map"), 4);
+  unmap(count_.memory);
+  return count;
+}
+
 int64_t Device::gather_changes(std::vector<double>& rows, int width) {
   if (changes_.memory == TI_NULL_HANDLE || changes_.nd.shape.dims[1] != static_cast<uint32_t>(width))
     throw Error(ROCKS_ERROR_ARGUMENT, "changes: the module keeps no mirror of that width");
-  auto args = with_groups();
-  args.push_back(nd_arg(changes_.nd));
-  args.push_back(nd_arg(count_.nd));
-  launch("gather_counted", args);
-  ti_wait(rt_);
-  check("wait");
-  int32_t k = 0;
-  std::memcpy(&k, map(count_.memory, "map"), 4);
-  unmap(count_.memory);
+  const int32_t k = launch_counted("gather_counted", {&changes_});
   if (k < 0 || static_cast<uint32_t>(k) > changes_.nd.shape.dims[0])
     throw Error(ROCKS_ERROR_DEVICE, "changes: " + std::to_string(k) + " rows listed, more than the rocks");
   rows.resize(static_cast<size_t>(k) * width);
@@ -429,16 +434,7 @@ int64_t Device::take_events(std::vector<int32_t>& ints, std::vector<double>& rea
                             int capacity) {
   if (ev_ints_.memory == TI_NULL_HANDLE || ev_ints_.nd.shape.dims[0] != static_cast<uint32_t>(capacity))
     throw Error(ROCKS_ERROR_ARGUMENT, "impacts: the module keeps no event buffer of that capacity");
-  auto args = with_groups();
-  args.push_back(nd_arg(ev_ints_.nd));
-  args.push_back(nd_arg(ev_reals_.nd));
-  args.push_back(nd_arg(count_.nd));
-  launch("take_counted", args);
-  ti_wait(rt_);
-  check("wait");
-  int32_t appended = 0;
-  std::memcpy(&appended, map(count_.memory, "map"), 4);
-  unmap(count_.memory);
+  const int32_t appended = launch_counted("take_counted", {&ev_ints_, &ev_reals_});
   int64_t n = std::min<int64_t>(appended, capacity);
   ints.resize(static_cast<size_t>(n) * n_int);
   reals.resize(static_cast<size_t>(n) * n_real);

@@ -4,6 +4,7 @@
 
 #include <taichi/taichi_core.h>
 
+#include <initializer_list>
 #include <map>
 #include <string>
 #include <vector>
@@ -76,6 +77,8 @@ class Device {
   void unmap(TiMemory m);
   void launch(const char* name, std::vector<TiArgument>& args);
   std::vector<TiArgument> with_groups() const;
+  // launch kernel `name` over the World's groups, `outputs` and the count array, wait, and read the count it wrote
+  int32_t launch_counted(const char* name, std::initializer_list<const HostArray*> outputs);
   void copy(const char* kernel, const std::string& group, uint32_t first, uint32_t count, HostArray& a);
   void check_kernel(const Json& manifest, const std::string& name, const std::vector<std::string>& want);
   void upload(Group& g, const std::string& path);
