@@ -177,30 +177,26 @@ def textured(name, verts, uv, tris) -> GeomNode:
 
 def texture(name, rgb: np.ndarray) -> Texture:
     """A mipmapped, repeating texture from an (H, W, 3) float image in [0, 1] (row 0 at the top)."""
-    h, w, _ = rgb.shape
-    tex = Texture(name)
-    tex.setup2dTexture(w, h, Texture.T_unsigned_byte, Texture.F_rgb)
-    bgr = np.round(255 * np.clip(rgb[::-1, :, ::-1], 0, 1)).astype(np.uint8)  # Panda3D: BGR, bottom row first
-    tex.setRamImage(bgr.tobytes())
-    tex.setMinfilter(SamplerState.FT_linear_mipmap_linear)
-    tex.setMagfilter(SamplerState.FT_linear)
-    tex.setWrapU(SamplerState.WM_repeat)
-    tex.setWrapV(SamplerState.WM_repeat)
-    return tex
+    return _texture(name, rgb, Texture.F_rgb, [2, 1, 0], SamplerState.FT_linear_mipmap_linear,
+                    SamplerState.WM_repeat)
 
 
 def texture_rgba(name, rgba_image: np.ndarray) -> Texture:
-    """A clamped, mipmapped texture with alpha from an (H, W, 4) float image in [0, 1] (row 0 at the top). The
+    """A clamped texture with alpha from an (H, W, 4) float image in [0, 1] (row 0 at the top). The
     software renderer blends by a texture's alpha (it ignores the alpha of vertex colours)."""
-    h, w, _ = rgba_image.shape
+    return _texture(name, rgba_image, Texture.F_rgba, [2, 1, 0, 3], SamplerState.FT_linear, SamplerState.WM_clamp)
+
+
+def _texture(name, image: np.ndarray, fmt, channels: list, min_filter, wrap) -> Texture:
+    """A texture of 8-bit channels from a float image in [0, 1]: Panda3D wants BGR(A), the bottom row first."""
+    h, w, _ = image.shape
     tex = Texture(name)
-    tex.setup2dTexture(w, h, Texture.T_unsigned_byte, Texture.F_rgba)
-    bgra = np.round(255 * np.clip(rgba_image[::-1][..., [2, 1, 0, 3]], 0, 1)).astype(np.uint8)
-    tex.setRamImage(bgra.tobytes())
-    tex.setMinfilter(SamplerState.FT_linear)
+    tex.setup2dTexture(w, h, Texture.T_unsigned_byte, fmt)
+    tex.setRamImage(np.round(255 * np.clip(image[::-1][..., channels], 0, 1)).astype(np.uint8).tobytes())
+    tex.setMinfilter(min_filter)
     tex.setMagfilter(SamplerState.FT_linear)
-    tex.setWrapU(SamplerState.WM_clamp)
-    tex.setWrapV(SamplerState.WM_clamp)
+    tex.setWrapU(wrap)
+    tex.setWrapV(wrap)
     return tex
 
 
