@@ -24,6 +24,12 @@ def vertex_view(vdata: GeomVertexData, lit: bool = False) -> np.ndarray:
     return np.frombuffer(memoryview(vdata.modifyArray(0)), VERTEX_N if lit else VERTEX)
 
 
+def vertex_words(vdata: GeomVertexData) -> np.ndarray:
+    """The vertex array of ``vdata`` (format V3c4: VERTEX) as (rows, 4) 32-bit words, written in place (marks it
+    modified): three float32 words of the position and one word of the colour's four bytes."""
+    return np.frombuffer(memoryview(vdata.modifyArray(0)), np.uint32).reshape(-1, 4)
+
+
 def _geom(name, verts, colors, prim, normals=None, dynamic=False) -> Geom:
     lit = normals is not None
     fmt = GeomVertexFormat.getV3n3c4() if lit else GeomVertexFormat.getV3c4()

@@ -38,7 +38,7 @@ import numpy as np
 from panda3d.core import (BoundingBox, Geom, GeomEnums, GeomLines, GeomNode, GeomPoints, GeomTriangles,
                           GeomVertexData, GeomVertexFormat, LODNode, NodePath, OmniBoundingVolume, Point3)
 
-from .meshes import VERTEX, vertex_view
+from .meshes import vertex_view, vertex_words
 
 SHAPES = 16  # irregular templates, chosen by rock id
 SIZE = 1.25  # a template's corners lie this many radii from the centre (a tetrahedron shows less than its sphere)
@@ -146,7 +146,8 @@ class Chunk:
         self.node.show()
 
     def views(self) -> tuple:
-        return vertex_view(self.mesh).reshape(-1, 4), vertex_view(self.points)
+        """The pebble buffer as (capacity, 4, 4) and the point buffer as (capacity, 4) 32-bit words, in place."""
+        return vertex_words(self.mesh).reshape(-1, 4, 4), vertex_words(self.points)
 
     def _sized(self) -> None:
         """The primitives cover slots 0 .. count - 1 only (the first 12 count entries of the index pattern): the
@@ -241,16 +242,21 @@ class RockMesh:
         corners = local[:, None, :] + turned
         light = AMBIENT + DIFFUSE * np.maximum((turned @ SUN) * self._inv_len[ids], 0.0)  # (k, 4): n = t / |t|
         k = len(ids)
-        pebbles, dots = np.empty((k, 4), VERTEX), np.empty(k, VERTEX)  # as the buffers hold them
-        pebbles["p"] = corners
-        lit = np.minimum(self._base255[ids][:, None, :] * light[..., None], 255.0)
-        colour = pebbles["c"]
-        colour[..., :3] = lit
-        colour[..., 3] = 255
-        dots["p"] = local
-        dot = dots["c"]
-        dot[:, :3] = np.minimum(lit.mean(axis=1) * self._glint[ids, None], 255.0)
+        # the rows as the buffers hold them (meshes.VERTEX), built as 32-bit words: the position's three floats
+        # and the colour's four bytes, so that moving them about is plain copies of words
+        shade = np.minimum(self._base255[ids][:, None, :] * light[..., None], 255.0)
+        lit = np.empty((k, 4, 4), np.uint8)
+        lit[..., :3] = shade
+        lit[..., 3] = 255
+        dot = np.empty((k, 4), np.uint8)
+        dot[:, :3] = np.minimum(shade.mean(axis=1) * self._glint[ids, None], 255.0)
         dot[:, 3] = 255
+        pebbles = np.empty((k, 4, 4), np.uint32)
+        pebbles[..., :3] = corners.astype(np.float32).view(np.uint32)
+        pebbles[..., 3] = lit.view(np.uint32)[..., 0]
+        dots = np.empty((k, 4), np.uint32)
+        dots[:, :3] = local.astype(np.float32).view(np.uint32)
+        dots[:, 3] = dot.view(np.uint32)[:, 0]
         self._file(ids, local, (pebbles, dots))
         seg = np.stack([before + np.asarray(camera_move, np.float64), rows.positions[flying]], 1) - self.origin
         tint = np.minimum(dot[flying].astype(np.int64) * 5 // 4 + 20, 255).astype(np.uint8)  # lighter than the stone
