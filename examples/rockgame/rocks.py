@@ -146,7 +146,12 @@ class Chunk:
         self.node.show()
 
     def views(self) -> tuple:
-        """The pebble buffer as (capacity, 4, 4) and the point buffer as (capacity, 4) 32-bit words, in place."""
+        """The pebble buffer as (capacity, 4) and the point buffer as (capacity,) vertices (meshes.VERTEX)."""
+        return vertex_view(self.mesh).reshape(-1, 4), vertex_view(self.points)
+
+    def words(self) -> tuple:
+        """The same buffers as (capacity, 4, 4) and (capacity, 4) 32-bit words, written in place: a rock's rows
+        move about as plain copies of words."""
         return vertex_words(self.mesh).reshape(-1, 4, 4), vertex_words(self.points)
 
     def _sized(self) -> None:
@@ -161,7 +166,7 @@ class Chunk:
         """One frame of this chunk: empty the slots ``gone`` (the rocks of the last slots move into the holes left
         below the new count), write ``stay_data`` (a rock's 4 pebble vertices and its point, as the buffers hold
         them) where the rocks ``stay`` are, and append the rocks ``arrive`` with ``arrive_data``."""
-        mesh, pts = self.views()
+        mesh, pts = self.words()
         if len(gone):
             slots = gone
             new = self.count - len(gone)
@@ -182,7 +187,7 @@ class Chunk:
             m = len(arrive)
             if self.count + m > self.capacity:
                 self._grow(max(self.count + m, int(1.5 * self.capacity)))
-                mesh, pts = self.views()
+                mesh, pts = self.words()
             slots = np.arange(self.count, self.count + m)
             self.rock[slots] = arrive
             slot_of[arrive] = slots

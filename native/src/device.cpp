@@ -367,22 +367,22 @@ void Device::copy(const char* kernel, const std::string& group_name, uint32_t fi
   launch(kernel, args);
 }
 
-void Device::read_i32(uint32_t first, uint32_t count, int32_t* out) {
-  if (count > 64) throw Error(ROCKS_ERROR_ARGUMENT, "read_i32: at most 64 elements at a time");
-  copy("read_i32", "i1", first, count, small_i32_);
+void Device::read_small(const char* kernel, const char* group_name, uint32_t first, uint32_t count, HostArray& a,
+                        void* out, size_t element_bytes) {
+  if (count > 64) throw Error(ROCKS_ERROR_ARGUMENT, std::string(kernel) + ": at most 64 elements at a time");
+  copy(kernel, group_name, first, count, a);
   ti_wait(rt_);
   check("wait");
-  std::memcpy(out, map(small_i32_.memory, "map"), count * 4);
-  unmap(small_i32_.memory);
+  std::memcpy(out, map(a.memory, "map"), count * element_bytes);
+  unmap(a.memory);
+}
+
+void Device::read_i32(uint32_t first, uint32_t count, int32_t* out) {
+  read_small("read_i32", "i1", first, count, small_i32_, out, 4);
 }
 
 void Device::read_i64(uint32_t first, uint32_t count, int64_t* out) {
-  if (count > 64) throw Error(ROCKS_ERROR_ARGUMENT, "read_i64: at most 64 elements at a time");
-  copy("read_i64", "l1", first, count, small_i64_);
-  ti_wait(rt_);
-  check("wait");
-  std::memcpy(out, map(small_i64_.memory, "map"), count * 8);
-  unmap(small_i64_.memory);
+  read_small("read_i64", "l1", first, count, small_i64_, out, 8);
 }
 
 void Device::write_i32(uint32_t first, uint32_t count, const int32_t* in) {

@@ -80,6 +80,9 @@ class Device {
   // launch kernel `name` over the World's groups, `outputs` and the count array, wait, and read the count it wrote
   int32_t launch_counted(const char* name, std::initializer_list<const HostArray*> outputs);
   void copy(const char* kernel, const std::string& group, uint32_t first, uint32_t count, HostArray& a);
+  // copy `count` (at most 64) elements from `first` of a group into `out` through `a` and kernel `kernel`
+  void read_small(const char* kernel, const char* group_name, uint32_t first, uint32_t count, HostArray& a,
+                  void* out, size_t element_bytes);
   void check_kernel(const Json& manifest, const std::string& name, const std::vector<std::string>& want);
   void upload(Group& g, const std::string& path);
 };
