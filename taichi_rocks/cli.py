@@ -8,14 +8,14 @@ traceback.
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import json
-import math
 import os
 import signal
 import sys
 from pathlib import Path
+
+from .cliparse import parser
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -45,161 +45,6 @@ def _raise_stop(signum, frame):
 
 def _signal_name(signum: int) -> str:
     return signal.Signals(signum).name
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
-def _resolution(text: str) -> tuple[int, int]:
-    from .config.resolution import parse_resolution
-
-    try:
-        return parse_resolution(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
-
-
-def _parser() -> argparse.ArgumentParser:
-    from .runner.tasks import BACKENDS
-    from .config.arches import ARCHES
-    from .output.formats import FORMATS
-
-    p = argparse.ArgumentParser(prog="taichi-rocks", description=__doc__.split("\n")[0])
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    c = sub.add_parser("check", help="validate scene files (and recorded drives) and summarise what will run")
-    c.add_argument("scenes", nargs="+", metavar="SCENE", help="a scene file, or a recorded drive (docs/drives.md)")
-
-    sub.add_parser("schema", help="print the JSON Schema of scene files")
-
-    def engine_args(q):
-        q.add_argument("scene", metavar="SCENE")
-        q.add_argument("--frames", type=_positive_int, help="frames to produce (default: duration x fps)")
-        q.add_argument("--fps", type=_positive_float, help="frames per second (default: [render] fps)")
-        q.add_argument("--arch", choices=ARCHES, default="cpu", help="Taichi backend (gpu falls back to cpu)")
-        q.add_argument("--seed", type=int, help="override the scene's seed")
-        q.add_argument("--overwrite", action="store_true", help="replace existing outputs")
-
-    def selection_args(q, only_default, only_help):
-        q.add_argument("--only", choices=("flying", "all"), default=None,
-                       help=f"{only_help} (default: {only_default})")
-        q.add_argument("--crop", type=_positive_float, metavar="RADIUS",
-                       help="keep only the rocks within RADIUS m of the camera's followed vehicle")
-
-    s = sub.add_parser("simulate", help="run headless and write an .npz of the rock states")
-    engine_args(s)
-    s.add_argument("--out", type=str, help="output .npz (default: renders/<scene>/<scene>.npz)")
-    s.add_argument("--layout", choices=("light", "full"), default="light",
-                   help="light: rows of the rocks that changed, relative to the floating origin; full: every "
-                        "rock of every frame, float64 world (default: light; taichi_rocks.load_run reads both)")
-    selection_args(s, "flying", "light layout: write the rocks that changed (flying; the others are unchanged) "
-                                "or every rock every frame (all)")
-    s.add_argument("--impacts", type=str, metavar="FILE.csv",
-                   help="with [effects] impacts: also write the impact events as CSV (the run file holds them)")
-
-    e = sub.add_parser("export", help="write the run for other tools: USD (Houdini, Omniverse, Unreal, Blender) "
-                                      "or PLY point files")
-    engine_args(e)
-    e.add_argument("--format", choices=tuple(FORMATS), default=next(iter(FORMATS)))
-    e.add_argument("--out", type=str, help="FILE.usdc, or a folder for ply (default: renders/<scene>/<scene>.usdc "
-                                            "or renders/<scene>/ply/)")
-    selection_args(e, "all", "flying: only the rocks in the air or that moved this frame; all: every rock")
-
-    r = sub.add_parser("render", help="render frames (PNG) and a video with the offscreen GGUI renderer")
-    engine_args(r)
-    r.add_argument("--out", type=str, help="output folder (default: renders/<scene>/)")
-    r.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
-    r.add_argument("--format", choices=("mp4", "gif", "png"), default="mp4")
-    r.add_argument("--profile", action="store_true",
-                   help="report the seconds of each stage of the frame, and write them to OUT/profile.json")
-    r.add_argument("--resume", action="store_true", help="continue an interrupted render")
-    r.add_argument("--checkpoint-every", type=_positive_int, default=30, metavar="N",
-                   help="save the simulation state every N frames, for --resume (default: 30)")
-
-    _view_parser(sub, ARCHES)
-
-    a = sub.add_parser("aot", help="write the scene's step as an ahead-of-time module for a host without Python "
-                                   "(native/, docs/native.md)")
-    a.add_argument("scene", metavar="SCENE")
-    a.add_argument("--arch", choices=("x64", "vulkan"), default="x64",
-                   help="the backend the module runs on: x64 (the CPU) or vulkan (default: x64)")
-    a.add_argument("--out", type=str, required=True, metavar="DIR", help="the module's folder")
-    a.add_argument("--seed", type=int, help="override the scene's seed")
-    a.add_argument("--tumble", action="store_true", help="track the rocks' orientations (changes() gives them)")
-    a.add_argument("--overwrite", action="store_true", help="replace an existing DIR")
-    _bench_parser(sub, ARCHES, BACKENDS)
-    _sweep_parser(sub, ARCHES, BACKENDS)
-    return p
-
-
-def _view_parser(sub, arches) -> None:
-    v = sub.add_parser("view", help="the simulation in a window: look, scrub and tweak (keys: docs/rendering.md)")
-    v.add_argument("scene", metavar="SCENE")
-    v.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend (gpu falls back to cpu)")
-    v.add_argument("--seed", type=int, help="override the scene's seed")
-    v.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT, even (default: [render])")
-    v.add_argument("--record", type=Path, metavar="DIR", help="write every frame shown (panel included) as "
-                                                               "DIR/frame_00000.png ...")
-    v.add_argument("--overwrite", action="store_true", help="replace the frames in a --record DIR and an existing "
-                                                            "--record-drive FILE")
-    v.add_argument("--drive", metavar="NAME", help="drive vehicle NAME with W/S/A/D (a scripted one starts where its "
-                                                    "path does); the camera follows it")
-    v.add_argument("--record-drive", type=Path, metavar="FILE", help="with --drive: write the poses driven to FILE "
-                                                                      "when the window closes (docs/drives.md), for "
-                                                                      'a scene\'s path = { kind = "recorded" }')
-    v.add_argument("--quit-after", type=_positive_float, metavar="SECONDS",
-                   help="close the window SECONDS after the first frame (automation, memory measurements)")
-
-
-def _bench_parser(sub, arches, backends) -> None:
-    b = sub.add_parser("bench", help="measure accuracy against cost and speed against peers")
-    b.add_argument("--quick", action="store_true", help="a short smoke run (< 2 minutes)")
-    b.add_argument("--out", type=Path, default=Path("renders/bench"))
-    b.add_argument("--arch", choices=arches, default="cpu")
-    b.add_argument("--only", choices=("launch", "activity", "impacts", "frame"),
-                   help="run one study only: launch (what the tread throws), activity (cost against activity), "
-                        "impacts (stones that hit the vehicle behind) or frame (the default scene in a 60 Hz game "
-                        "loop)")
-    b.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
-    b.add_argument("--backend", choices=backends, help="where the activity study's processes run: here, "
-                                                                "one at a time (default), or on a Ray cluster")
-    b.add_argument("--address", metavar="ADDR", help="the Ray cluster to join (host:port; implies --backend ray)")
-
-
-def _sweep_parser(sub, arches, backends) -> None:
-    w = sub.add_parser("sweep", help="run every combination of a sweep file's grid, on local processes or a Ray "
-                                     "cluster, into results.csv, sweep.json, runs/ and plots/")
-    w.add_argument("sweep", metavar="SWEEP", help="the sweep file (TOML; docs/sweeps.md)")
-    w.add_argument("--out", type=str, required=True, metavar="DIR", help="the results folder")
-    w.add_argument("--backend", choices=backends, help="local processes (default) or a Ray cluster "
-                                                                "(default with --address)")
-    w.add_argument("--workers", type=_positive_int, metavar="N", help="worker processes or actors (default: "
-                                                                      "one per core, at most one per run)")
-    w.add_argument("--threads", type=_positive_int, metavar="T", help="Taichi threads per worker (default: "
-                                                                      "cores / workers)")
-    w.add_argument("--address", metavar="ADDR", help="join the Ray cluster at ADDR (host:port of `ray start "
-                                                      "--head`); without it the ray backend starts a local one")
-    w.add_argument("--arch", choices=arches, default="cpu", help="Taichi backend of the runs")
-    w.add_argument("--resume", action="store_true", help="continue: run only the runs without a row in DIR")
-    w.add_argument("--overwrite", action="store_true", help="replace the results in DIR")
-    w.add_argument("--yes", action="store_true", help="run a sweep of more than 10000 runs (refused without it)")
 
 
 def _err(msg: str) -> None:
@@ -497,7 +342,7 @@ def _start(argv):
     nothing happened) or leave a half-initialised extension module behind (seen: Ctrl-C during SciPy's import
     ended in 'ImportError: generic_type: type "ObjSense" is already registered!'); Taichi's initialisation
     is held back too. Nothing is written before this returns."""
-    args = _parser().parse_args(argv)
+    args = parser(__doc__.split("\n")[0]).parse_args(argv)
     for name in _PRELOAD[args.command]:
         importlib.import_module(name)
     for name in _PRELOAD_IF_PRESENT.get(args.command, ()):

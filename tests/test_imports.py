@@ -16,7 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "taichi_rocks"
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
-ROOMS = ("config", "motion", "engine", "output", "render", "bench", "app", "runner")  # folders; "cli" is cli.py, __main__.py
+# folders; "cli" is cli.py, cliparse.py, __main__.py
+ROOMS = ("config", "motion", "engine", "output", "render", "bench", "app", "runner")
 # optional dependencies (extras, or only there for a study): the only imports allowed inside functions
 OPTIONAL = {"pxr", "matplotlib", "warp", "ray", "PIL", "jsonschema", "hypothesis"}
 # what an engine object is called outside engine/ (a Simulation, its World)
@@ -91,7 +92,7 @@ def room_of(module: str):
     parts = module.split(".")
     if len(parts) >= 2 and parts[1] in ROOMS:
         return parts[1]
-    if module in ("taichi_rocks.cli", "taichi_rocks.__main__"):
+    if module in ("taichi_rocks.cli", "taichi_rocks.cliparse", "taichi_rocks.__main__"):
         return "cli"
     return None  # taichi_rocks/__init__.py: the lazy public API
 

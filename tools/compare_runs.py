@@ -19,8 +19,13 @@ import argparse
 import math
 import sys
 import zipfile
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from taichi_rocks.cliparse import distance, whole  # noqa: E402
 
 F32_EPS = float(np.finfo(np.float32).eps)
 NEED = ("positions", "phase", "launches", "time", "dt")
@@ -96,32 +101,12 @@ def report(res: dict, every: int) -> str:
     return "\n".join(out)
 
 
-def _distance(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a distance in metres, got {text!r}") from None
-    if not (math.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"must be a finite distance >= 0, got {text}")
-    return v
-
-
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
-    return v
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("a", help="the reference run (.npz, --layout full)")
     ap.add_argument("b", help="the run compared with it")
-    ap.add_argument("--tol", type=_distance, default=None, help="metres (default: f32 round-off, one ulp a step)")
-    ap.add_argument("--every", type=_positive, default=25, help="print every this many frames (default 25)")
+    ap.add_argument("--tol", type=distance, default=None, help="metres (default: f32 round-off, one ulp a step)")
+    ap.add_argument("--every", type=whole(1), default=25, help="print every this many frames (default 25)")
     args = ap.parse_args(argv)
     try:
         res = compare(load(args.a), load(args.b), args.tol)

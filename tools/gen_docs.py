@@ -2,7 +2,7 @@
 
     docs/scene-format.md   every key of a scene file, from the pydantic models (config/models.py, config/impacts.py):
                            type, default, range and description, grouped by table, with one example per table
-    docs/cli.md            every command and option, from the argument parser (taichi_rocks/cli.py ``_parser``)
+    docs/cli.md            every command and option, from the argument parser (taichi_rocks/cliparse.py ``parser``)
     README.md              the block ``commands``: one line per command, from the same parser
     docs/rendering.md      the blocks ``view-keys`` (app/view.py ``KEYS`` and ``DRIVE_KEYS``) and ``view-sliders`` (engine/params.py
                            ``SLIDERS``)
@@ -275,9 +275,10 @@ def _anchor(heading: str) -> str:
 
 # ------------------------------------------------------------------------------------------------ the CLI
 def _commands() -> list[tuple[str, argparse.ArgumentParser, str]]:
-    from taichi_rocks.cli import _parser
+    from taichi_rocks.cli import __doc__ as cli_doc
+    from taichi_rocks.cliparse import parser as cli_parser
 
-    parser = _parser()
+    parser = cli_parser(cli_doc.split("\n")[0])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     helps = {a.dest: a.help for a in sub._choices_actions}
     return [(name, p, helps.get(name, "")) for name, p in sub.choices.items()]
@@ -312,7 +313,7 @@ def cli_page() -> str:
            "`taichi-rocks COMMAND ...` (or `python -m taichi_rocks COMMAND ...`). Exit status: 0 done, 1 the "
            "simulation went wrong (the runtime guard; `sweep`: a run failed), 2 bad input (one line naming the file "
            "and the key, nothing written), 130 interrupted: [robustness.md](robustness.md).", "",
-           "*Generated from the argument parser (`taichi_rocks/cli.py`) by `python tools/gen_docs.py`; "
+           "*Generated from the argument parser (`taichi_rocks/cliparse.py`) by `python tools/gen_docs.py`; "
            "tests/test_gen_docs.py checks that it is current.*", ""]
     for name, p, what in _commands():
         out += [f"## {name}", "", what[0].upper() + what[1:] + ".", "", "```", _usage(name, p), "```", ""]

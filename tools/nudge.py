@@ -14,7 +14,6 @@ finite distance >= 0 and a ``--steps`` below 0 are one line and exit status 2.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -22,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from taichi_rocks.cliparse import distance, whole  # noqa: E402
 from taichi_rocks.engine.runtime import init_taichi  # noqa: E402
 
 
@@ -51,31 +51,11 @@ def summary(states: dict) -> dict:
             "max": float(d.max()) if len(d) else 0.0, "launches": (int(a.launches_total), int(b.launches_total))}
 
 
-def _distance(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a distance in metres, got {text!r}") from None
-    if not (math.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"must be a finite distance >= 0, got {text}")
-    return v
-
-
-def _steps(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of steps, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
-    return v
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("scene")
-    ap.add_argument("--steps", type=_steps, default=300)
-    ap.add_argument("--by", type=_distance, default=1e-6, help="metres each rock moves along each axis (default "
+    ap.add_argument("--steps", type=whole(0, "a whole number of steps"), default=300)
+    ap.add_argument("--by", type=distance, default=1e-6, help="metres each rock moves along each axis (default "
                                                               "1e-6)")
     args = ap.parse_args(argv)
     from taichi_rocks.config.scene import SceneError, load_scene
