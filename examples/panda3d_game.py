@@ -21,6 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "examples"))
 
+from taichi_rocks.cliparse import whole  # noqa: E402  (the clone's package, whatever the folder)
+
 
 def _resolution(text: str) -> tuple:
     try:
@@ -32,18 +34,6 @@ def _resolution(text: str) -> tuple:
     return w, h
 
 
-def _count(least: int):
-    def parse(text: str) -> int:
-        try:
-            n = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-        if n < least:
-            raise argparse.ArgumentTypeError(f"must be >= {least}, got {n}")
-        return n
-    return parse
-
-
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit status 2 (argparse prints its usage first)
         self.exit(2, f"{self.prog}: {message}\n")
@@ -53,7 +43,7 @@ def parse(argv=None) -> argparse.Namespace:
     ap = _Parser(prog="panda3d_game.py", description=__doc__.splitlines()[0])
     ap.add_argument("--offscreen", action="store_true", help="no window: Panda3D's software renderer, scripted "
                                                              "driving on a 60 Hz clock")
-    ap.add_argument("--frames", type=_count(1), help="frames to run (offscreen default: 300; a window: until Esc)")
+    ap.add_argument("--frames", type=whole(1), help="frames to run (offscreen default: 300; a window: until Esc)")
     ap.add_argument("--out", type=Path, metavar="DIR", help="offscreen: write each frame to DIR/frame_NNNN.png "
                                                              "and what the camera saw to DIR/frames.npz")
     ap.add_argument("--resolution", type=_resolution, default=(960, 540), metavar="WxH", help="default 960x540")
@@ -63,7 +53,7 @@ def parse(argv=None) -> argparse.Namespace:
                                                                "of the keyboard (offscreen default: "
                                                                "examples/rockgame/follow.drive)")
     ap.add_argument("--record-drive", type=Path, metavar="FILE", help="write what was driven to FILE at the end")
-    ap.add_argument("--rocks", type=_count(0), help="rocks in the bed (default: the scene's 50,000, same density)")
+    ap.add_argument("--rocks", type=whole(0), help="rocks in the bed (default: the scene's 50,000, same density)")
     ap.add_argument("--truck-tires-off", action="store_true", help="the truck throws nothing (a comparison)")
     ap.add_argument("--bare", action="store_true", help="also time a bare Panda3D frame (the rocks as points "
                                                         "re-uploaded whole, nothing else) after each game frame")
