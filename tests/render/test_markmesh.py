@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from events_util import event_rows
 from scenes_util import scene as make_scene
 
 
@@ -21,15 +22,7 @@ def _vehicles():
 
 
 def _events(rows):
-    from taichi_rocks.engine.events import EVENT_DTYPE
-
-    ev = np.zeros(len(rows), EVENT_DTYPE)
-    for k, row in enumerate(rows):
-        for name, value in row.items():
-            ev[k][name] = value
-    ev["thrower"] = -1
-    ev["normal_speed"] = 30.0
-    return ev
+    return event_rows(rows, thrower=-1, normal_speed=30.0)
 
 
 def _hits(specs, seed=0, n=24):

@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from events_util import event_rows
+
 W, H = 320, 180
 T = 1.0  # s: the frame's time; the hits are a second older, long past their flash
 
@@ -26,18 +28,9 @@ def drawn(taichi_cpu, scenes_dir):
 
 
 def _events(rows):
-    from taichi_rocks.engine.events import EVENT_DTYPE
-
-    ev = np.zeros(len(rows), EVENT_DTYPE)
-    for k, row in enumerate(rows):
-        for name, value in row.items():
-            ev[k][name] = value
-    ev["thrower"] = -1
-    ev["time"] = T - 1.0
-    ev["step"] = np.arange(len(rows)) + 10
-    ev["rock"] = np.arange(len(rows)) + 100
-    ev["normal_speed"] = 30.0
-    return ev
+    n = len(rows)
+    return event_rows(rows, thrower=-1, time=T - 1.0, step=np.arange(n) + 10, rock=np.arange(n) + 100,
+                      normal_speed=30.0)
 
 
 def _glass_hits(cab):
