@@ -44,21 +44,10 @@ def full_disk(tmp_path, monkeypatch):
         monkeypatch.setattr(npz.os, "posix_fallocate", no_room)
         real_open = builtins.open
 
-        class Full:
-            def __init__(self, f):
-                self.f = f
+        class Full(_OpenFile):
 
             def write(self, data):
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), self.f.name)
-
-            def __getattr__(self, name):
-                return getattr(self.f, name)
-
-            def __enter__(self):
-                return self
-
-            def __exit__(self, *exc):
-                self.f.close()
 
         def opening(file, mode="r", *args, **kwargs):
             f = real_open(file, mode, *args, **kwargs)
@@ -114,9 +103,10 @@ class Quota:
         real_open = builtins.open
         quota = self
 
-        class Counted:
+        class Counted(_OpenFile):
             def __init__(self, f, name):
-                self.f, self.name = f, name
+                super().__init__(f)
+                self.name = name
 
             def write(self, data):
                 data = memoryview(data).cast("B") if not isinstance(data, str) else data
@@ -129,21 +119,28 @@ class Quota:
                     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), self.name)
                 return n
 
-            def __getattr__(self, name):
-                return getattr(self.f, name)
-
-            def __enter__(self):
-                return self
-
-            def __exit__(self, *exc):
-                self.f.close()
-
         def opening(file, mode="r", *args, **kwargs):
             f = real_open(file, mode, *args, **kwargs)
             mine = isinstance(file, (str, Path)) and str(file).startswith(quota.folder)
             return Counted(f, str(file)) if mine and any(c in mode for c in "wxa+") else f
 
         monkeypatch.setattr(builtins, "open", opening)
+
+
+class _OpenFile:
+    """A file object of ``open`` standing in for ``f``: what it does not say itself, ``f`` does."""
+
+    def __init__(self, f):
+        self.f = f
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.f.close()
 
 
 def _files(folder: Path) -> list:
